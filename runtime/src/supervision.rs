@@ -1,0 +1,1 @@
+//! supervision (in progress)
