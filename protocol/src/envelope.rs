@@ -145,13 +145,57 @@ pub fn encode<T: Message>(envelope: &Envelope<T>, out: &mut Vec<u8>) -> Result<(
     })
 }
 
+/// The MessagePack encoding of `envelope` in a new buffer (see [`encode`]).
+pub fn encode_to_vec<T: Message>(envelope: &Envelope<T>) -> Result<Vec<u8>, EncodeError> {
+    let mut out = Vec::new();
+    encode(envelope, &mut out)?;
+    Ok(out)
+}
+
+/// Appends the encoding of an envelope around a borrowed `body` to `out`: the same bytes as
+/// [`encode`] of `Envelope { body, trace, sent_at_unix_ns: now, .. }`, without moving the body.
+pub fn encode_body<T: Message>(
+    body: &T,
+    trace: &TraceContext,
+    out: &mut Vec<u8>,
+) -> Result<(), EncodeError> {
+    encode_parts(body, T::TYPE, T::SCHEMA_VERSION, trace, out)
+}
+
+/// Like [`encode_body`] for a body that is serialized like a `msg_type` message but is not
+/// that type itself (a borrowed view of it, say).
+pub fn encode_parts<B: Serialize + ?Sized>(
+    body: &B,
+    msg_type: &'static str,
+    schema_version: u16,
+    trace: &TraceContext,
+    out: &mut Vec<u8>,
+) -> Result<(), EncodeError> {
+    #[derive(Serialize)]
+    struct EnvelopeRef<'a, B: ?Sized> {
+        msg_type: &'static str,
+        schema_version: u16,
+        trace: &'a TraceContext,
+        sent_at_unix_ns: u64,
+        body: &'a B,
+    }
+    let envelope = EnvelopeRef {
+        msg_type,
+        schema_version,
+        trace,
+        sent_at_unix_ns: unix_now_ns(),
+        body,
+    };
+    let mut ser = rmp_serde::Serializer::new(out).with_struct_map();
+    envelope.serialize(&mut ser).map_err(|source| EncodeError { msg_type, source })
+}
+
 /// Decodes an envelope of `T`, refusing other message types and schema versions.
 pub fn decode<T: Message>(bytes: &[u8]) -> Result<Envelope<T>, DecodeError> {
-    let header: Header =
-        rmp_serde::from_slice(bytes).map_err(|source| DecodeError::Malformed {
-            expected: T::TYPE,
-            source,
-        })?;
+    let header: Header = rmp_serde::from_slice(bytes).map_err(|source| DecodeError::Malformed {
+        expected: T::TYPE,
+        source,
+    })?;
     if header.msg_type != T::TYPE {
         return Err(DecodeError::WrongType {
             expected: T::TYPE,

@@ -1,0 +1,442 @@
+//! Questions about the workspace and the objects on it, and their answers.
+//!
+//! The workspace model actor keeps the latest detections, the configured workspaces and the
+//! list of detectable labels. It serves [`WorkspaceRequest`] (`"workspace.request"`) with one
+//! [`WorkspaceReply`] (`"workspace.reply"`) — one request variant per detection or workspace
+//! tool of `spec/mcp-tools.md` — and publishes [`DetectableLabels`] (`"workspace.labels"`)
+//! whenever the label list changes.
+//!
+//! A [`WorkspaceInfo`] describes one configured workspace: its rectangle on the table (upper =
+//! far from the robot, left = +y) and the pose from which the camera sees it whole.
+//!
+//! ```
+//! use robotd_protocol::geometry::{Point2, Pose};
+//! use robotd_protocol::location::{Location, WorkspacePoint};
+//! use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceRequest};
+//! use robotd_protocol::geometry::RobotModel;
+//! use robotd_protocol::validate::Validate;
+//!
+//! let ws = WorkspaceInfo {
+//!     id: "niryo_ws".into(),
+//!     robot: RobotModel::Ned2,
+//!     upper_left: Point2::new(0.337, 0.087),
+//!     lower_right: Point2::new(0.163, -0.087),
+//!     observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
+//! };
+//! assert_eq!(ws.point(WorkspacePoint::UpperRightCorner), Point2::new(0.337, -0.087));
+//! assert!(ws.contains(Point2::new(0.25, 0.0), 0.0));
+//!
+//! let bad = WorkspaceRequest::GetObjects { location: Location::Above, coordinate: None, label: None };
+//! assert_eq!(bad.validate().unwrap_err().to_string(),
+//!            "coordinate: Coordinate must be provided for location filter: above");
+//! ```
+
+use crate::envelope::Message;
+use crate::geometry::{Point2, Pose, RobotModel};
+use crate::location::{Location, WorkspacePoint};
+use crate::objects::DetectedObject;
+use crate::validate::{non_empty, Validate, ValidationError};
+use serde::{Deserialize, Serialize};
+
+/// One configured workspace.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WorkspaceInfo {
+    /// Workspace id, e.g. `niryo_ws`.
+    pub id: String,
+    /// The robot it belongs to.
+    pub robot: RobotModel,
+    /// Far-left corner (largest x, largest y), metres.
+    pub upper_left: Point2,
+    /// Near-right corner (smallest x, smallest y), metres.
+    pub lower_right: Point2,
+    /// Tool pose from which the camera sees the whole workspace.
+    pub observation_pose: Pose,
+}
+
+impl WorkspaceInfo {
+    /// Centre of the rectangle.
+    pub fn center(&self) -> Point2 {
+        Point2::new(
+            (self.upper_left.x_m + self.lower_right.x_m) / 2.0,
+            (self.upper_left.y_m + self.lower_right.y_m) / 2.0,
+        )
+    }
+
+    /// A named corner or the centre.
+    pub fn point(&self, point: WorkspacePoint) -> Point2 {
+        let (ul, lr) = (self.upper_left, self.lower_right);
+        match point {
+            WorkspacePoint::UpperLeftCorner => ul,
+            WorkspacePoint::UpperRightCorner => Point2::new(ul.x_m, lr.y_m),
+            WorkspacePoint::LowerLeftCorner => Point2::new(lr.x_m, ul.y_m),
+            WorkspacePoint::LowerRightCorner => lr,
+            WorkspacePoint::CenterPoint => self.center(),
+        }
+    }
+
+    /// Extent along y, metres.
+    pub fn width_m(&self) -> f64 {
+        self.upper_left.y_m - self.lower_right.y_m
+    }
+
+    /// Extent along x, metres.
+    pub fn height_m(&self) -> f64 {
+        self.upper_left.x_m - self.lower_right.x_m
+    }
+
+    /// Area of the rectangle, square metres.
+    pub fn area_m2(&self) -> f64 {
+        self.width_m() * self.height_m()
+    }
+
+    /// Whether `p` lies within the rectangle grown by `margin_m` on every side.
+    pub fn contains(&self, p: Point2, margin_m: f64) -> bool {
+        p.x_m <= self.upper_left.x_m + margin_m
+            && p.x_m >= self.lower_right.x_m - margin_m
+            && p.y_m <= self.upper_left.y_m + margin_m
+            && p.y_m >= self.lower_right.y_m - margin_m
+    }
+}
+
+impl Validate for WorkspaceInfo {
+    fn validate(&self) -> Result<(), ValidationError> {
+        non_empty("id", &self.id)?;
+        self.upper_left
+            .validate()
+            .map_err(|e| e.within("upper_left"))?;
+        self.lower_right
+            .validate()
+            .map_err(|e| e.within("lower_right"))?;
+        if self.upper_left.x_m <= self.lower_right.x_m
+            || self.upper_left.y_m <= self.lower_right.y_m
+        {
+            return Err(ValidationError::Invalid {
+                field: "upper_left".into(),
+                reason: format!(
+                    "upper left corner {} must be farther (larger x) and more to the left \
+                     (larger y) than lower right corner {}",
+                    self.upper_left, self.lower_right
+                ),
+            });
+        }
+        self.observation_pose
+            .validate()
+            .map_err(|e| e.within("observation_pose"))
+    }
+}
+
+/// A question to the workspace model actor. Replied to with [`WorkspaceReply`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum WorkspaceRequest {
+    /// `get_detected_objects`: objects passing the location filter around `coordinate` and the
+    /// label substring filter. Replies `Objects`.
+    GetObjects {
+        /// Spatial filter; `none` for no filter.
+        #[serde(default)]
+        location: Location,
+        /// Reference point of the filter; required unless `location` is `none`.
+        #[serde(default)]
+        coordinate: Option<Point2>,
+        /// Case-insensitive substring of the label.
+        #[serde(default)]
+        label: Option<String>,
+    },
+    /// `get_detected_object`: the object nearest `coordinate` within 2 cm, optionally with a
+    /// label filter. Replies `Object`.
+    GetObjectNear {
+        /// Where to look.
+        coordinate: Point2,
+        /// Case-insensitive substring of the label.
+        #[serde(default)]
+        label: Option<String>,
+    },
+    /// `get_largest_detected_object`. Replies `Object`.
+    GetLargestObject,
+    /// `get_smallest_detected_object`. Replies `Object`.
+    GetSmallestObject,
+    /// `get_detected_objects_sorted` by `size_m2`. Replies `Objects`.
+    GetObjectsSorted {
+        /// Smallest first when true.
+        ascending: bool,
+    },
+    /// `get_largest_free_space_with_center`. Replies `FreeSpace`.
+    GetLargestFreeSpace,
+    /// `get_workspace_coordinate_from_point`. Replies `Coordinate`.
+    GetWorkspacePoint {
+        /// Workspace id.
+        workspace_id: String,
+        /// Which corner, or the centre.
+        point: WorkspacePoint,
+    },
+    /// `get_object_labels_as_string`. Replies `Labels`.
+    GetLabels,
+    /// `add_object_name2object_labels`. Replies `LabelAdded`.
+    AddLabel {
+        /// The new label (stored lower-case).
+        label: String,
+    },
+    /// The observation pose of a workspace. Replies `ObservationPose`.
+    GetObservationPose {
+        /// Workspace id.
+        workspace_id: String,
+    },
+    /// Every configured workspace. Replies `Workspaces`.
+    ListWorkspaces,
+}
+
+impl Validate for WorkspaceRequest {
+    fn validate(&self) -> Result<(), ValidationError> {
+        match self {
+            Self::GetObjects {
+                location,
+                coordinate,
+                ..
+            } => match coordinate {
+                Some(c) => c.validate().map_err(|e| e.within("coordinate")),
+                None if location.needs_coordinate() => Err(ValidationError::Invalid {
+                    field: "coordinate".into(),
+                    reason: WorkspaceError::CoordinateRequired {
+                        location: *location,
+                    }
+                    .to_string(),
+                }),
+                None => Ok(()),
+            },
+            Self::GetObjectNear { coordinate, .. } => {
+                coordinate.validate().map_err(|e| e.within("coordinate"))
+            }
+            Self::GetWorkspacePoint { workspace_id, .. }
+            | Self::GetObservationPose { workspace_id } => non_empty("workspace_id", workspace_id),
+            Self::AddLabel { label } => non_empty("label", label),
+            Self::GetLargestObject
+            | Self::GetSmallestObject
+            | Self::GetObjectsSorted { .. }
+            | Self::GetLargestFreeSpace
+            | Self::GetLabels
+            | Self::ListWorkspaces => Ok(()),
+        }
+    }
+}
+
+impl Message for WorkspaceRequest {
+    const TYPE: &'static str = "workspace.request";
+}
+
+/// Why a workspace request failed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, thiserror::Error)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum WorkspaceError {
+    /// The workspace id is not configured.
+    #[error("unknown workspace '{workspace_id}'; known: {}", known.join(", "))]
+    UnknownWorkspace {
+        /// The id asked for.
+        workspace_id: String,
+        /// Ids that are configured.
+        known: Vec<String>,
+    },
+    /// A location filter was given without a reference coordinate.
+    #[error("Coordinate must be provided for location filter: {location}")]
+    CoordinateRequired {
+        /// The filter that needs one.
+        location: Location,
+    },
+    /// No sufficiently fresh detection could be obtained.
+    #[error("no fresh detection: {reason}")]
+    NoFreshDetection {
+        /// Why (camera down, arm could not reach the observation pose, …).
+        reason: String,
+    },
+    /// The request itself is invalid.
+    #[error("invalid request: {reason}")]
+    InvalidRequest {
+        /// What is wrong.
+        reason: String,
+    },
+    /// The workspace actor cannot serve requests right now.
+    #[error("workspace model unavailable: {reason}")]
+    Unavailable {
+        /// Why.
+        reason: String,
+    },
+}
+
+impl From<ValidationError> for WorkspaceError {
+    fn from(e: ValidationError) -> Self {
+        WorkspaceError::InvalidRequest {
+            reason: e.to_string(),
+        }
+    }
+}
+
+/// The workspace model actor's answer to one [`WorkspaceRequest`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum WorkspaceReply {
+    /// A list of objects (possibly empty).
+    Objects {
+        /// The objects, in the order the request asks for.
+        objects: Vec<DetectedObject>,
+    },
+    /// At most one object.
+    Object {
+        /// The object, or `None` when nothing matched.
+        object: Option<DetectedObject>,
+    },
+    /// The largest free rectangle of the workspace.
+    FreeSpace {
+        /// Its area, square metres.
+        area_m2: f64,
+        /// Its centre.
+        center: Point2,
+    },
+    /// A workspace coordinate.
+    Coordinate {
+        /// The point asked for.
+        coordinate: Point2,
+    },
+    /// The detectable labels, lower-case, in the order they were added.
+    Labels {
+        /// The labels.
+        labels: Vec<String>,
+    },
+    /// Outcome of `AddLabel`.
+    LabelAdded {
+        /// The label as stored (lower-case).
+        label: String,
+        /// True when it was already in the list (nothing changed).
+        already_known: bool,
+    },
+    /// A workspace's observation pose.
+    ObservationPose {
+        /// The pose.
+        pose: Pose,
+    },
+    /// Every configured workspace.
+    Workspaces {
+        /// The workspaces.
+        workspaces: Vec<WorkspaceInfo>,
+    },
+    /// The request failed.
+    Error {
+        /// Why.
+        error: WorkspaceError,
+    },
+}
+
+impl WorkspaceReply {
+    /// `Err` for [`WorkspaceReply::Error`], `Ok(self)` otherwise.
+    pub fn into_result(self) -> Result<WorkspaceReply, WorkspaceError> {
+        match self {
+            WorkspaceReply::Error { error } => Err(error),
+            other => Ok(other),
+        }
+    }
+}
+
+impl From<WorkspaceError> for WorkspaceReply {
+    fn from(error: WorkspaceError) -> Self {
+        WorkspaceReply::Error { error }
+    }
+}
+
+impl Message for WorkspaceReply {
+    const TYPE: &'static str = "workspace.reply";
+}
+
+/// The detectable-label list, published at start and on every change.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DetectableLabels {
+    /// Lower-case labels.
+    pub labels: Vec<String>,
+    /// The label just added, when this publication is due to an addition.
+    pub added: Option<String>,
+}
+
+impl Message for DetectableLabels {
+    const TYPE: &'static str = "workspace.labels";
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn niryo() -> WorkspaceInfo {
+        WorkspaceInfo {
+            id: "niryo_ws".into(),
+            robot: RobotModel::Ned2,
+            upper_left: Point2::new(0.337, 0.087),
+            lower_right: Point2::new(0.163, -0.087),
+            observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
+        }
+    }
+
+    #[test]
+    fn named_points_match_the_spec_table() {
+        let ws = niryo();
+        assert!(ws.validate().is_ok());
+        assert_eq!(
+            ws.point(WorkspacePoint::UpperLeftCorner),
+            Point2::new(0.337, 0.087)
+        );
+        assert_eq!(
+            ws.point(WorkspacePoint::LowerRightCorner),
+            Point2::new(0.163, -0.087)
+        );
+        assert_eq!(
+            ws.point(WorkspacePoint::LowerLeftCorner),
+            Point2::new(0.163, 0.087)
+        );
+        let c = ws.point(WorkspacePoint::CenterPoint);
+        assert!((c.x_m - 0.25).abs() < 1e-12 && c.y_m.abs() < 1e-12);
+        assert!((ws.area_m2() - 0.174 * 0.174).abs() < 1e-12);
+        assert!(!ws.contains(Point2::new(0.40, 0.0), 0.01));
+        assert!(ws.contains(Point2::new(0.34, 0.0), 0.01));
+    }
+
+    #[test]
+    fn swapped_corners_are_refused() {
+        let mut ws = niryo();
+        std::mem::swap(&mut ws.upper_left, &mut ws.lower_right);
+        assert_eq!(ws.validate().unwrap_err().field(), "upper_left");
+    }
+
+    #[test]
+    fn error_texts_match_the_tools() {
+        let e = WorkspaceError::CoordinateRequired {
+            location: Location::CloseTo,
+        };
+        assert_eq!(
+            e.to_string(),
+            "Coordinate must be provided for location filter: close to"
+        );
+        let e = WorkspaceError::UnknownWorkspace {
+            workspace_id: "x".into(),
+            known: vec!["niryo_ws".into(), "widowx_ws".into()],
+        };
+        assert_eq!(
+            e.to_string(),
+            "unknown workspace 'x'; known: niryo_ws, widowx_ws"
+        );
+    }
+
+    #[test]
+    fn get_objects_defaults_from_other_languages() {
+        let req: WorkspaceRequest =
+            serde_json::from_value(serde_json::json!({"kind": "get_objects"})).unwrap();
+        assert_eq!(
+            req,
+            WorkspaceRequest::GetObjects {
+                location: Location::None,
+                coordinate: None,
+                label: None
+            }
+        );
+        assert!(req.validate().is_ok());
+        let req: WorkspaceRequest = serde_json::from_value(serde_json::json!(
+            {"kind": "get_objects", "location": "Left Next To", "coordinate": [0.2, 0.0]}
+        ))
+        .unwrap();
+        assert!(req.validate().is_ok());
+    }
+}

@@ -1,0 +1,582 @@
+//! Typed publish-subscribe topics for control messages.
+//!
+//! A [`Topic`] names a stream of one message type and declares what happens when a subscriber
+//! falls behind ([`Overflow`]). Messages are encoded once with rmp-serde, inside an envelope
+//! carrying the trace context, directly into a shared-memory slice; every subscriber decodes
+//! from that slice. A subscriber receives everything published after it was created (the port
+//! is registered before [`Bus::subscriber`] returns, and publishers connect new subscribers
+//! before every send).
+
+use super::wake::{Notify, Wake};
+use super::{Bus, BusError, Ipc};
+use crate::metrics::{Direction, Metrics};
+use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::port::{BackpressureAction, BackpressureInfo};
+use iceoryx2::prelude::*;
+use robotd_protocol::envelope::{self, Envelope, Message};
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::marker::PhantomData;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// What happens when a subscriber's buffer is full.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Overflow {
+    /// The oldest unread message is replaced by the newest (camera frames, poses): the sender
+    /// never waits. Replaced messages are counted as dropped (`robotd_bus_dropped_total`).
+    LatestWins {
+        /// Messages buffered per subscriber.
+        depth: usize,
+    },
+    /// The sender waits (event-driven, woken when the subscriber consumes) for room; if the
+    /// subscriber does not catch up within `max_wait`, [`Publisher::publish`] returns
+    /// [`BusError::Full`]. Nothing is dropped silently.
+    BackPressure {
+        /// Messages buffered per subscriber.
+        depth: usize,
+        /// Longest time a sender waits for a full subscriber.
+        max_wait: Duration,
+    },
+}
+
+impl Overflow {
+    /// Latest wins with `depth` buffered messages.
+    pub const fn latest_wins(depth: usize) -> Self {
+        Overflow::LatestWins { depth }
+    }
+
+    /// Back-pressure with `depth` buffered messages; senders wait up to 1 s.
+    pub const fn back_pressure(depth: usize) -> Self {
+        Overflow::BackPressure {
+            depth,
+            max_wait: Duration::from_secs(1),
+        }
+    }
+
+    pub(crate) fn depth(&self) -> usize {
+        match *self {
+            Overflow::LatestWins { depth } | Overflow::BackPressure { depth, .. } => depth.max(1),
+        }
+    }
+
+    pub(crate) fn is_latest_wins(&self) -> bool {
+        matches!(self, Overflow::LatestWins { .. })
+    }
+}
+
+/// A named stream of `T` messages with its overflow policy and size limit.
+#[derive(Debug)]
+pub struct Topic<T> {
+    name: &'static str,
+    overflow: Overflow,
+    max_bytes: usize,
+    _message: PhantomData<fn() -> T>,
+}
+
+impl<T> Clone for Topic<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<T> Copy for Topic<T> {}
+
+impl<T: Message> Topic<T> {
+    /// A topic called `name` (slash-separated, e.g. `"arm/state"`) with up to 64 KiB messages.
+    pub const fn new(name: &'static str, overflow: Overflow) -> Self {
+        Self {
+            name,
+            overflow,
+            max_bytes: 64 * 1024,
+            _message: PhantomData,
+        }
+    }
+
+    /// Sets the largest encoded message the topic accepts.
+    pub const fn with_max_bytes(mut self, max_bytes: usize) -> Self {
+        self.max_bytes = max_bytes;
+        self
+    }
+
+    /// The topic's name.
+    pub const fn name(&self) -> &'static str {
+        self.name
+    }
+
+    /// The topic's overflow policy.
+    pub const fn overflow(&self) -> Overflow {
+        self.overflow
+    }
+}
+
+/// A topic as the bus sees it at run time (names may be built at run time, e.g. per client).
+#[derive(Debug, Clone)]
+pub(crate) struct TopicSpec {
+    pub(crate) name: String,
+    pub(crate) overflow: Overflow,
+    pub(crate) max_bytes: usize,
+    pub(crate) max_subscribers: usize,
+}
+
+impl<T: Message> From<&Topic<T>> for TopicSpec {
+    fn from(topic: &Topic<T>) -> Self {
+        Self {
+            name: topic.name.to_owned(),
+            overflow: topic.overflow,
+            max_bytes: topic.max_bytes,
+            max_subscribers: 32,
+        }
+    }
+}
+
+/// Per-message header in shared memory: the publisher's sequence number, so subscribers can
+/// tell when latest-wins replaced messages they never saw.
+#[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
+#[repr(C)]
+#[type_name("robotd.MessageHeader.v1")]
+pub(crate) struct MessageHeader {
+    pub(crate) seq: u64,
+}
+
+type PubSubFactory =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, [u8], MessageHeader>;
+
+fn open_service(bus: &Bus, spec: &TopicSpec) -> Result<PubSubFactory, BusError> {
+    let name = spec.name.as_str();
+    let overflow = spec.overflow;
+    bus.node()
+        .service_builder(&bus.service_name(name)?)
+        .publish_subscribe::<[u8]>()
+        .user_header::<MessageHeader>()
+        .enable_safe_overflow(overflow.is_latest_wins())
+        .subscriber_max_buffer_size(overflow.depth())
+        .history_size(0)
+        .max_publishers(16)
+        .max_subscribers(spec.max_subscribers)
+        .max_nodes(64)
+        .open_or_create()
+        .map_err(|e| BusError::Setup {
+            what: format!("topic '{name}'"),
+            reason: format!(
+                "{e:?} (a topic's overflow policy and depth must match in every process)"
+            ),
+        })
+}
+
+fn consumed_event(name: &str) -> String {
+    format!("{name}/consumed")
+}
+
+fn data_event(name: &str) -> String {
+    format!("{name}/ready")
+}
+
+fn joined_event(name: &str) -> String {
+    format!("{name}/joined")
+}
+
+/// How long a new back-pressure publisher waits for existing subscribers to connect.
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(500);
+
+thread_local! {
+    static ENCODE_BUFFER: RefCell<Vec<u8>> = RefCell::new(Vec::with_capacity(4096));
+}
+
+/// Sends `T` messages on a topic.
+pub struct Publisher<T: Message> {
+    factory: PubSubFactory,
+    port: iceoryx2::port::publisher::Publisher<Ipc, [u8], MessageHeader>,
+    notify: Notify,
+    topic: TopicSpec,
+    seq: std::sync::atomic::AtomicU64,
+    _message: PhantomData<fn(T)>,
+}
+
+impl<T: Message> std::fmt::Debug for Publisher<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Publisher")
+            .field("topic", &self.topic.name.as_str())
+            .finish()
+    }
+}
+
+impl Bus {
+    /// Creates a publisher on `topic`.
+    pub fn publisher<T: Message>(&self, topic: &Topic<T>) -> Result<Publisher<T>, BusError> {
+        self.publisher_for(topic.into())
+    }
+
+    pub(crate) fn publisher_for<T: Message>(
+        &self,
+        topic: TopicSpec,
+    ) -> Result<Publisher<T>, BusError> {
+        let service = open_service(self, &topic)?;
+        let mut builder = service
+            .publisher_builder()
+            .initial_max_slice_len(1024)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo);
+        let mut consumed = None;
+        if let Overflow::BackPressure { max_wait, .. } = topic.overflow {
+            // The sender waits on the subscribers' "consumed" event; every wake-up retries.
+            let waiter = ConsumedWaiter::new(self, &consumed_event(&topic.name))?;
+            let in_handler = waiter.clone();
+            builder = builder
+                .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
+                .set_backpressure_handler(move |info: &BackpressureInfo| {
+                    in_handler.on_full(info, max_wait)
+                });
+            consumed = Some(waiter);
+        }
+        let port = builder.create().map_err(|e| BusError::Setup {
+            what: format!("publisher on '{}'", topic.name),
+            reason: format!("{e:?}"),
+        })?;
+        let publisher = Publisher {
+            port,
+            notify: Notify::new(self, &data_event(&topic.name))?,
+            topic,
+            seq: std::sync::atomic::AtomicU64::new(0),
+            factory: service,
+            _message: PhantomData,
+        };
+        publisher.handshake(self, consumed.as_ref())?;
+        Ok(publisher)
+    }
+
+    /// Creates a subscriber on `topic`. It receives every message published after this
+    /// returns. Must be called inside a tokio runtime.
+    pub fn subscriber<T: Message>(&self, topic: &Topic<T>) -> Result<Subscriber<T>, BusError> {
+        self.subscriber_for(topic.into())
+    }
+
+    pub(crate) fn subscriber_for<T: Message>(
+        &self,
+        topic: TopicSpec,
+    ) -> Result<Subscriber<T>, BusError> {
+        let service = open_service(self, &topic)?;
+        let port = service
+            .subscriber_builder()
+            .buffer_size(topic.overflow.depth())
+            .create()
+            .map_err(|e| BusError::Setup {
+                what: format!("subscriber on '{}'", topic.name),
+                reason: format!("{e:?}"),
+            })?;
+        // Handshake, subscriber side: connect to every publisher that already exists now, and
+        // to every later one as soon as it announces itself (see `Publisher::handshake`).
+        let port = Arc::new(port);
+        port.update_connections().map_err(|e| BusError::Setup {
+            what: format!("subscriber on '{}'", topic.name),
+            reason: format!("cannot connect to the publishers: {e:?}"),
+        })?;
+        let consumed = match topic.overflow {
+            Overflow::BackPressure { .. } => {
+                Some(Arc::new(Notify::new(self, &consumed_event(&topic.name))?))
+            }
+            Overflow::LatestWins { .. } => None,
+        };
+        let joined = Wake::new(self, &joined_event(&topic.name))?;
+        let connector = tokio::spawn(connect_new_publishers(
+            joined,
+            port.clone(),
+            consumed.clone(),
+        ));
+        Ok(Subscriber {
+            port,
+            wake: Wake::new(self, &data_event(&topic.name))?,
+            consumed,
+            topic,
+            last_seq: HashMap::new(),
+            connector,
+            _message: PhantomData,
+        })
+    }
+}
+
+/// Keeps a subscriber connected to publishers created after it: woken by each new publisher's
+/// announcement, it connects and acknowledges (back-pressure publishers wait for that).
+async fn connect_new_publishers(
+    joined: Wake,
+    port: Arc<iceoryx2::port::subscriber::Subscriber<Ipc, [u8], MessageHeader>>,
+    ack: Option<Arc<Notify>>,
+) {
+    while joined.wait().await.is_ok() {
+        if let Err(e) = port.update_connections() {
+            tracing::warn!(error = ?e, "subscriber could not connect to a new publisher");
+        }
+        if let Some(ack) = &ack {
+            ack.notify();
+        }
+    }
+}
+
+/// Blocks a back-pressured sender until a subscriber consumed something, or gives up.
+#[derive(Clone)]
+struct ConsumedWaiter {
+    listener: Arc<iceoryx2::port::listener::Listener<Ipc>>,
+}
+
+impl ConsumedWaiter {
+    fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
+        let listener = bus
+            .node()
+            .service_builder(&bus.service_name(name)?)
+            .event()
+            .max_notifiers(256)
+            .max_listeners(64)
+            .max_nodes(256)
+            .disable_notifier_created_event()
+            .disable_notifier_dropped_event()
+            .disable_notifier_dead_event()
+            .open_or_create()
+            .map_err(|e| BusError::Setup {
+                what: format!("event service '{name}'"),
+                reason: format!("{e:?}"),
+            })?
+            .listener_builder()
+            .create()
+            .map_err(|e| BusError::Setup {
+                what: format!("listener on '{name}'"),
+                reason: format!("{e:?}"),
+            })?;
+        Ok(Self {
+            listener: Arc::new(listener),
+        })
+    }
+
+    fn on_full(&self, info: &BackpressureInfo, max_wait: Duration) -> BackpressureAction {
+        let Some(left) = max_wait.checked_sub(info.elapsed_time) else {
+            return BackpressureAction::DiscardDataAndFail;
+        };
+        if left.is_zero() {
+            return BackpressureAction::DiscardDataAndFail;
+        }
+        // Sleeps in the kernel until a subscriber reports progress (or the time is up).
+        let _ = self.listener.timed_wait(|_| {}, left);
+        BackpressureAction::Retry
+    }
+}
+
+impl<T: Message> Publisher<T> {
+    /// Handshake, publisher side: announce this publisher so existing subscribers connect to it
+    /// now rather than at their next receive; on back-pressure topics wait (bounded) for their
+    /// acknowledgements, so the first messages cannot overflow an unconnected subscriber.
+    fn handshake(&self, bus: &Bus, consumed: Option<&ConsumedWaiter>) -> Result<(), BusError> {
+        self.port.update_connections().map_err(|e| BusError::Setup {
+            what: format!("publisher on '{}'", self.topic.name),
+            reason: format!("cannot connect to the subscribers: {e:?}"),
+        })?;
+        let subscribers = self.factory.dynamic_config().number_of_subscribers() as u64;
+        Notify::new(bus, &joined_event(&self.topic.name))?.notify();
+        let Some(consumed) = consumed else {
+            return Ok(());
+        };
+        let deadline = std::time::Instant::now() + HANDSHAKE_TIMEOUT;
+        let mut acknowledged = 0u64;
+        while acknowledged < subscribers {
+            let now = std::time::Instant::now();
+            if now >= deadline {
+                tracing::warn!(
+                    topic = %self.topic.name,
+                    acknowledged,
+                    subscribers,
+                    "not every subscriber acknowledged a new publisher in time"
+                );
+                break;
+            }
+            let _ = consumed.listener.timed_wait(
+                |activation| acknowledged += activation.count.max(1),
+                deadline - now,
+            );
+        }
+        Ok(())
+    }
+
+    /// Ids of the subscriber ports attached to the topic right now.
+    pub(crate) fn subscriber_ids(&self) -> Vec<u128> {
+        let mut ids = Vec::new();
+        self.factory.dynamic_config().list_subscribers(|details| {
+            ids.push(details.subscriber_id.value());
+            CallbackProgression::Continue
+        });
+        ids
+    }
+
+    /// Publishes `message` to every current subscriber and returns how many received it.
+    ///
+    /// On a back-pressure topic this may block the calling thread while a subscriber is full
+    /// (at most the topic's `max_wait`), then fails with [`BusError::Full`].
+    pub fn publish(&self, message: &T) -> Result<usize, BusError> {
+        self.publish_serializable(message, T::TYPE, T::SCHEMA_VERSION)
+    }
+
+    /// Publishes any serializable body under the envelope header of `msg_type`.
+    pub(crate) fn publish_serializable<B: serde::Serialize>(
+        &self,
+        body: &B,
+        msg_type: &'static str,
+        schema_version: u16,
+    ) -> Result<usize, BusError> {
+        let trace = crate::telemetry::current_trace_context();
+        ENCODE_BUFFER.with(|buffer| {
+            let mut buffer = buffer.borrow_mut();
+            buffer.clear();
+            envelope::encode_parts(body, msg_type, schema_version, &trace, &mut buffer)?;
+            self.send_bytes(&buffer)
+        })
+    }
+
+    fn send_bytes(&self, bytes: &[u8]) -> Result<usize, BusError> {
+        let name = self.topic.name.as_str();
+        if bytes.len() > self.topic.max_bytes {
+            return Err(BusError::TooLarge {
+                topic: name.to_owned(),
+                size: bytes.len(),
+                limit: self.topic.max_bytes,
+            });
+        }
+        let mut sample = self
+            .port
+            .loan_slice_uninit(bytes.len())
+            .map_err(|e| BusError::Transfer {
+                topic: name.to_owned(),
+                reason: format!("cannot loan {} bytes: {e:?}", bytes.len()),
+            })?;
+        sample.user_header_mut().seq = self
+            .seq
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let sample = sample.write_from_slice(bytes);
+        let started = std::time::Instant::now();
+        let delivered = sample.send().map_err(|e| match e {
+            iceoryx2::port::SendError::UnableToDeliver => BusError::Full {
+                topic: name.to_owned(),
+                waited_ms: started.elapsed().as_millis() as u64,
+            },
+            other => BusError::Transfer {
+                topic: name.to_owned(),
+                reason: format!("{other:?}"),
+            },
+        });
+        if let Err(BusError::Full { .. }) = &delivered {
+            Metrics::global().bus_dropped(name, "subscriber_full");
+        }
+        let delivered = delivered?;
+        self.notify.notify();
+        if !self.topic.overflow.is_latest_wins() {
+            let subscribers = self.factory.dynamic_config().number_of_subscribers();
+            if delivered < subscribers {
+                Metrics::global().bus_dropped(name, "subscriber_not_connected");
+                return Err(BusError::NotDelivered {
+                    topic: name.to_owned(),
+                    delivered,
+                    subscribers,
+                });
+            }
+        }
+        Metrics::global().bus_message(name, Direction::Sent);
+        Ok(delivered)
+    }
+}
+
+/// Receives `T` messages from a topic.
+pub struct Subscriber<T: Message> {
+    port: Arc<iceoryx2::port::subscriber::Subscriber<Ipc, [u8], MessageHeader>>,
+    wake: Wake,
+    consumed: Option<Arc<Notify>>,
+    topic: TopicSpec,
+    last_seq: HashMap<u128, u64>,
+    connector: tokio::task::JoinHandle<()>,
+    _message: PhantomData<fn() -> T>,
+}
+
+impl<T: Message> Drop for Subscriber<T> {
+    fn drop(&mut self) {
+        self.connector.abort();
+    }
+}
+
+impl<T: Message> std::fmt::Debug for Subscriber<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Subscriber")
+            .field("topic", &self.topic.name.as_str())
+            .finish()
+    }
+}
+
+impl<T: Message> Subscriber<T> {
+    /// Waits for the next message.
+    ///
+    /// A message that cannot be decoded (another schema version, corrupt bytes) is returned as
+    /// an error; the subscriber stays usable.
+    pub async fn recv(&mut self) -> Result<Envelope<T>, BusError> {
+        loop {
+            if let Some(message) = self.try_recv()? {
+                return Ok(message);
+            }
+            self.wake.wait().await?;
+        }
+    }
+
+    /// Returns the next message if one is waiting.
+    pub fn try_recv(&mut self) -> Result<Option<Envelope<T>>, BusError> {
+        match self.try_recv_with(envelope::decode::<T>)? {
+            None => Ok(None),
+            Some(decoded) => {
+                let message = decoded?;
+                let latency_ns = envelope::unix_now_ns().saturating_sub(message.sent_at_unix_ns);
+                Metrics::global().bus_latency(&self.topic.name, latency_ns as f64 / 1e9);
+                Ok(Some(message))
+            }
+        }
+    }
+
+    /// Waits for the next message and hands its raw bytes to `read`.
+    pub(crate) async fn recv_with<R>(
+        &mut self,
+        mut read: impl FnMut(&[u8]) -> R,
+    ) -> Result<R, BusError> {
+        loop {
+            if let Some(result) = self.try_recv_with(&mut read)? {
+                return Ok(result);
+            }
+            self.wake.wait().await?;
+        }
+    }
+
+    /// Waits up to `timeout`; `Ok(false)` when nothing arrived.
+    pub(crate) async fn wait_timeout(&self, timeout: Duration) -> Result<bool, BusError> {
+        self.wake.wait_timeout(timeout).await
+    }
+
+    /// Takes the next sample if one is waiting and hands its bytes to `read`; counts it, and
+    /// any messages that latest-wins replaced before it.
+    pub(crate) fn try_recv_with<R>(
+        &mut self,
+        read: impl FnOnce(&[u8]) -> R,
+    ) -> Result<Option<R>, BusError> {
+        let name = self.topic.name.as_str();
+        let sample = self.port.receive().map_err(|e| BusError::Transfer {
+            topic: name.to_owned(),
+            reason: format!("{e:?}"),
+        })?;
+        let Some(sample) = sample else {
+            return Ok(None);
+        };
+        let metrics = Metrics::global();
+        let publisher = sample.header().publisher_id().value();
+        let seq = sample.user_header().seq;
+        if let Some(previous) = self.last_seq.insert(publisher, seq) {
+            let missed = seq.saturating_sub(previous + 1);
+            for _ in 0..missed.min(1_000) {
+                metrics.bus_dropped(name, "overwritten_latest_wins");
+            }
+        }
+        let result = read(sample.payload());
+        drop(sample);
+        if let Some(consumed) = &self.consumed {
+            consumed.notify();
+        }
+        metrics.bus_message(name, Direction::Received);
+        Ok(Some(result))
+    }
+}

@@ -1,0 +1,580 @@
+//! Request-response services for commands: every request gets a reply or an error.
+//!
+//! A [`Service`] names a command channel between many [`Client`]s and exactly one [`Server`]
+//! (one server per service, so a request can never be executed twice). It is built from two
+//! back-pressure topics: requests flow to the server on `<service>/requests` (a topic that
+//! admits a single subscriber), replies flow back on a topic of each client's own. The caller
+//! always learns the outcome: the reply, a [`Fault`] the server reported (the actor failed, the
+//! request was malformed or dropped), [`BusError::NoServer`], [`BusError::ServerLost`] when the
+//! serving process died mid-request, or [`BusError::Timeout`]. Requests are never retried by
+//! the bus: a command that moved an arm must not move it twice.
+//!
+//! (iceoryx2 has a request-response pattern of its own; robotd does not use it because
+//! connecting a new client while the server serves another one can stall both for the
+//! iceoryx2 creation timeout of 1 s, which the bus tests reproduced.)
+
+use super::pubsub::{Publisher, Subscriber, TopicSpec};
+use super::{Bus, BusError, Overflow};
+use robotd_protocol::envelope::{self, Envelope, Message, TraceContext};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::future::Future;
+use std::marker::PhantomData;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+/// A named command channel: requests `Req`, replies `Resp`.
+#[derive(Debug)]
+pub struct Service<Req, Resp> {
+    name: &'static str,
+    max_bytes: usize,
+    _types: PhantomData<fn(Req) -> Resp>,
+}
+
+impl<Req, Resp> Clone for Service<Req, Resp> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<Req, Resp> Copy for Service<Req, Resp> {}
+
+impl<Req: Message, Resp: Message> Service<Req, Resp> {
+    /// A service called `name` (e.g. `"arm/command"`), messages up to 1 MiB.
+    pub const fn new(name: &'static str) -> Self {
+        Self {
+            name,
+            max_bytes: 1024 * 1024,
+            _types: PhantomData,
+        }
+    }
+
+    /// The service's name.
+    pub const fn name(&self) -> &'static str {
+        self.name
+    }
+
+    fn requests(&self) -> TopicSpec {
+        TopicSpec {
+            name: format!("{}/requests", self.name),
+            overflow: Overflow::BackPressure {
+                depth: 64,
+                max_wait: Duration::from_secs(1),
+            },
+            max_bytes: self.max_bytes,
+            max_subscribers: 1,
+        }
+    }
+
+    fn replies(&self, client_id: u64) -> TopicSpec {
+        TopicSpec {
+            name: format!("{}/replies/{client_id:016x}", self.name),
+            overflow: Overflow::BackPressure {
+                depth: 16,
+                max_wait: Duration::from_secs(1),
+            },
+            max_bytes: self.max_bytes,
+            max_subscribers: 1,
+        }
+    }
+}
+
+/// Why a server could not produce a reply.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FaultKind {
+    /// The actor died (panicked) while handling the request; it was not retried.
+    ActorFailed,
+    /// The actor is restarting or has given up; try again later.
+    Unavailable,
+    /// The request could not be decoded (wrong type, schema version or bytes).
+    BadRequest,
+    /// The server dropped the request without answering it.
+    Dropped,
+}
+
+/// An error reported by the server instead of a reply.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
+#[error("{message}")]
+pub struct Fault {
+    /// Category.
+    pub kind: FaultKind,
+    /// What happened, for the user.
+    pub message: String,
+}
+
+impl Fault {
+    /// A fault of `kind` with `message`.
+    pub fn new(kind: FaultKind, message: impl Into<String>) -> Self {
+        Self {
+            kind,
+            message: message.into(),
+        }
+    }
+}
+
+/// What travels back: the reply or a fault.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Reply<T> {
+    /// The server's reply.
+    Ok(T),
+    /// The server could not reply.
+    Fault(Fault),
+}
+
+/// A request on the wire: the body plus where to send the answer.
+#[derive(Debug, Serialize, Deserialize)]
+struct RequestFrame<Req> {
+    client_id: u64,
+    request_id: u64,
+    body: Req,
+}
+
+impl<Req: Message> Message for RequestFrame<Req> {
+    const TYPE: &'static str = Req::TYPE;
+    const SCHEMA_VERSION: u16 = Req::SCHEMA_VERSION;
+}
+
+/// Routing fields of a request, readable even when its body is not (to answer with a fault).
+#[derive(Deserialize)]
+struct Routing {
+    body: RoutingFields,
+}
+
+#[derive(Deserialize)]
+struct RoutingFields {
+    client_id: u64,
+    request_id: u64,
+}
+
+/// A reply on the wire.
+#[derive(Debug, Serialize, Deserialize)]
+struct ReplyFrame<Resp> {
+    request_id: u64,
+    reply: Reply<Resp>,
+}
+
+impl<Resp: Message> Message for ReplyFrame<Resp> {
+    const TYPE: &'static str = Resp::TYPE;
+    const SCHEMA_VERSION: u16 = Resp::SCHEMA_VERSION;
+}
+
+/// How often a waiting client checks that its server is still alive (a crashed process
+/// cannot say goodbye).
+const LIVENESS_CHECK: Duration = Duration::from_millis(250);
+
+fn new_client_id() -> u64 {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let nanos = envelope::unix_now_ns();
+    let pid = u64::from(std::process::id());
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    // Unique per process (pid), per start (time) and per client (counter).
+    (pid << 40) ^ (nanos & 0xFF_FFFF_FFFF) ^ n.rotate_left(20)
+}
+
+/// Sends requests to a service and waits for replies.
+pub struct Client<Req: Message, Resp: Message> {
+    requests: Publisher<RequestFrame<Req>>,
+    replies: tokio::sync::Mutex<Subscriber<ReplyFrame<Resp>>>,
+    client_id: u64,
+    next_request: AtomicU64,
+    service: Service<Req, Resp>,
+    bus: Bus,
+}
+
+impl<Req: Message, Resp: Message> std::fmt::Debug for Client<Req, Resp> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Client")
+            .field("service", &self.service.name)
+            .field("client_id", &self.client_id)
+            .finish()
+    }
+}
+
+impl Bus {
+    /// Creates a client of `service`. Must be called inside a tokio runtime.
+    pub fn client<Req: Message, Resp: Message>(
+        &self,
+        service: &Service<Req, Resp>,
+    ) -> Result<Client<Req, Resp>, BusError> {
+        let client_id = new_client_id();
+        // The reply subscriber first, so the server's reply publisher finds it.
+        let replies = self.subscriber_for(service.replies(client_id))?;
+        let requests = self.publisher_for(service.requests())?;
+        Ok(Client {
+            requests,
+            replies: tokio::sync::Mutex::new(replies),
+            client_id,
+            next_request: AtomicU64::new(1),
+            service: *service,
+            bus: self.clone(),
+        })
+    }
+
+    /// Creates the server of `service`. Fails if another live server exists (one server per
+    /// service); servers of dead processes are cleaned up first.
+    pub fn server<Req: Message, Resp: Message>(
+        &self,
+        service: &Service<Req, Resp>,
+    ) -> Result<Server<Req, Resp>, BusError> {
+        let requests = match self.subscriber_for(service.requests()) {
+            Ok(requests) => requests,
+            Err(_) => {
+                // A crashed predecessor may still hold the single server slot.
+                self.cleanup_dead_nodes();
+                self.subscriber_for(service.requests()).map_err(|e| BusError::Setup {
+                    what: format!("server of '{}'", service.name),
+                    reason: format!("{e} (is another robotd or actor already serving it?)"),
+                })?
+            }
+        };
+        let (abandoned_tx, abandoned_rx) = tokio::sync::mpsc::unbounded_channel();
+        Ok(Server {
+            requests,
+            reply_publishers: HashMap::new(),
+            abandoned_tx,
+            abandoned_rx,
+            service: *service,
+            bus: self.clone(),
+        })
+    }
+}
+
+impl<Req: Message, Resp: Message> Client<Req, Resp> {
+    /// Whether a server is attached right now.
+    pub fn has_server(&self) -> bool {
+        !self.requests.subscriber_ids().is_empty()
+    }
+
+    /// Waits until a server is attached, up to `timeout`. Returns whether one is.
+    ///
+    /// Servers announce nothing when they attach, so this checks every 5 ms; it is meant for
+    /// start-up, not for the request path.
+    pub async fn wait_for_server(&self, timeout: Duration) -> bool {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if self.has_server() {
+                return true;
+            }
+            if Instant::now() >= deadline {
+                return false;
+            }
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+    }
+
+    /// Sends `request` and waits up to `timeout` for the reply.
+    pub async fn request(&self, request: &Req, timeout: Duration) -> Result<Resp, BusError> {
+        Ok(self.request_envelope(request, timeout).await?.body)
+    }
+
+    /// Like [`request`](Self::request), returning the whole reply envelope.
+    ///
+    /// Sending may block the calling thread briefly if the server's queue (64 requests) is
+    /// full; requests from one client are answered one at a time.
+    pub async fn request_envelope(
+        &self,
+        request: &Req,
+        timeout: Duration,
+    ) -> Result<Envelope<Resp>, BusError> {
+        let name = self.service.name;
+        let mut replies = self.replies.lock().await;
+        let Some(&server) = self.requests.subscriber_ids().first() else {
+            return Err(BusError::NoServer {
+                service: name.to_owned(),
+            });
+        };
+        let request_id = self.next_request.fetch_add(1, Ordering::Relaxed);
+        let started = Instant::now();
+        self.requests
+            .publish_ref(self.client_id, request_id, request)
+            .map_err(|e| match e {
+                BusError::NotDelivered { .. } => BusError::NoServer {
+                    service: name.to_owned(),
+                },
+                other => other,
+            })?;
+        let deadline = started + timeout;
+        loop {
+            while let Some(frame) = replies.try_recv()? {
+                if frame.body.request_id != request_id {
+                    // The late answer to an earlier request that timed out: not ours.
+                    continue;
+                }
+                crate::metrics::Metrics::global()
+                    .bus_latency(&format!("{name}/round_trip"), started.elapsed().as_secs_f64());
+                return match frame.body.reply {
+                    Reply::Ok(body) => Ok(Envelope {
+                        msg_type: frame.msg_type,
+                        schema_version: frame.schema_version,
+                        trace: frame.trace,
+                        sent_at_unix_ns: frame.sent_at_unix_ns,
+                        body,
+                    }),
+                    Reply::Fault(fault) => Err(BusError::Remote {
+                        service: name.to_owned(),
+                        fault,
+                    }),
+                };
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(BusError::Timeout {
+                    service: name.to_owned(),
+                    timeout_ms: timeout.as_millis() as u64,
+                });
+            }
+            let woken = replies
+                .wait_timeout((deadline - now).min(LIVENESS_CHECK))
+                .await?;
+            if !woken {
+                // No reply for a while: is the server that took the request still alive? A
+                // crashed process is cleaned up here, which removes its server port.
+                self.bus.cleanup_dead_nodes();
+                if !self.requests.subscriber_ids().contains(&server) {
+                    return Err(BusError::ServerLost {
+                        service: name.to_owned(),
+                    });
+                }
+            }
+        }
+    }
+}
+
+impl<Req: Message> Publisher<RequestFrame<Req>> {
+    fn publish_ref(&self, client_id: u64, request_id: u64, body: &Req) -> Result<usize, BusError> {
+        #[derive(Serialize)]
+        struct RequestRef<'a, Req> {
+            client_id: u64,
+            request_id: u64,
+            body: &'a Req,
+        }
+        self.publish_serializable::<RequestRef<'_, Req>>(
+            &RequestRef {
+                client_id,
+                request_id,
+                body,
+            },
+            Req::TYPE,
+            Req::SCHEMA_VERSION,
+        )
+    }
+}
+
+/// A request received by a [`Server`], to be answered with [`Server::respond`].
+pub struct Incoming<Req> {
+    /// The request and its trace context.
+    pub envelope: Envelope<Req>,
+    pending: PendingReply,
+}
+
+impl<Req: std::fmt::Debug> std::fmt::Debug for Incoming<Req> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Incoming")
+            .field("envelope", &self.envelope)
+            .finish()
+    }
+}
+
+impl<Req> Incoming<Req> {
+    /// The sender's trace context.
+    pub fn trace(&self) -> &TraceContext {
+        &self.envelope.trace
+    }
+
+    /// Separates the request from the handle needed to answer it.
+    pub fn split(self) -> (Envelope<Req>, PendingReply) {
+        (self.envelope, self.pending)
+    }
+}
+
+/// The right (and duty) to answer one request. Dropping it unanswered sends the client a
+/// [`FaultKind::Dropped`] fault rather than leaving it waiting.
+pub struct PendingReply {
+    client_id: u64,
+    request_id: u64,
+    abandoned: Option<tokio::sync::mpsc::UnboundedSender<(u64, u64)>>,
+}
+
+impl std::fmt::Debug for PendingReply {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PendingReply")
+            .field("request_id", &self.request_id)
+            .finish()
+    }
+}
+
+impl Drop for PendingReply {
+    fn drop(&mut self) {
+        if let Some(abandoned) = self.abandoned.take() {
+            let _ = abandoned.send((self.client_id, self.request_id));
+        }
+    }
+}
+
+/// Serves one service: receives requests and sends replies.
+pub struct Server<Req: Message, Resp: Message> {
+    requests: Subscriber<RequestFrame<Req>>,
+    reply_publishers: HashMap<u64, Publisher<ReplyFrame<Resp>>>,
+    abandoned_tx: tokio::sync::mpsc::UnboundedSender<(u64, u64)>,
+    abandoned_rx: tokio::sync::mpsc::UnboundedReceiver<(u64, u64)>,
+    service: Service<Req, Resp>,
+    bus: Bus,
+}
+
+impl<Req: Message, Resp: Message> std::fmt::Debug for Server<Req, Resp> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Server")
+            .field("service", &self.service.name)
+            .finish()
+    }
+}
+
+/// One decoded request or one that must be refused.
+enum Received<Req> {
+    Request(Envelope<RequestFrame<Req>>),
+    Malformed { routing: Option<(u64, u64)>, error: String },
+}
+
+impl<Req: Message, Resp: Message> Server<Req, Resp> {
+    /// Waits for the next well-formed request. Malformed requests are answered with a
+    /// [`FaultKind::BadRequest`] fault and skipped; requests dropped unanswered get a
+    /// [`FaultKind::Dropped`] fault.
+    pub async fn next(&mut self) -> Result<Incoming<Req>, BusError> {
+        let name = self.service.name;
+        loop {
+            let received = tokio::select! {
+                biased;
+                Some((client_id, request_id)) = self.abandoned_rx.recv() => {
+                    let fault = Fault::new(
+                        FaultKind::Dropped,
+                        format!("the actor serving '{name}' dropped the request without answering"),
+                    );
+                    self.send_reply(client_id, request_id, Reply::Fault(fault))?;
+                    continue;
+                }
+                received = self.requests.recv_with(decode_request::<Req>) => received?,
+            };
+            match received {
+                Received::Request(envelope) => {
+                    let frame = envelope.body;
+                    return Ok(Incoming {
+                        envelope: Envelope {
+                            msg_type: envelope.msg_type,
+                            schema_version: envelope.schema_version,
+                            trace: envelope.trace,
+                            sent_at_unix_ns: envelope.sent_at_unix_ns,
+                            body: frame.body,
+                        },
+                        pending: PendingReply {
+                            client_id: frame.client_id,
+                            request_id: frame.request_id,
+                            abandoned: Some(self.abandoned_tx.clone()),
+                        },
+                    });
+                }
+                Received::Malformed { routing, error } => {
+                    tracing::warn!(service = name, %error, "refused a malformed request");
+                    if let Some((client_id, request_id)) = routing {
+                        let fault = Fault::new(FaultKind::BadRequest, error);
+                        self.send_reply(client_id, request_id, Reply::Fault(fault))?;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Answers the request `pending` belongs to with `reply` (or a fault).
+    pub fn respond(
+        &mut self,
+        mut pending: PendingReply,
+        reply: Result<Resp, Fault>,
+    ) -> Result<(), BusError> {
+        pending.abandoned = None;
+        let reply = match reply {
+            Ok(body) => Reply::Ok(body),
+            Err(fault) => Reply::Fault(fault),
+        };
+        self.send_reply(pending.client_id, pending.request_id, reply)
+    }
+
+    fn send_reply(
+        &mut self,
+        client_id: u64,
+        request_id: u64,
+        reply: Reply<Resp>,
+    ) -> Result<(), BusError> {
+        let publisher = match self.reply_publishers.entry(client_id) {
+            std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
+            std::collections::hash_map::Entry::Vacant(entry) => {
+                entry.insert(self.bus.publisher_for(self.service.replies(client_id))?)
+            }
+        };
+        let frame = ReplyFrame { request_id, reply };
+        match publisher.publish(&frame) {
+            Ok(_) => Ok(()),
+            Err(BusError::NotDelivered { .. }) => {
+                // The client went away; nobody is waiting for this answer.
+                self.reply_publishers.remove(&client_id);
+                Ok(())
+            }
+            Err(other) => Err(other),
+        }
+    }
+
+    /// Serves requests forever with `handler`, one at a time, in order.
+    ///
+    /// Each request is handled in its own task inside a tracing span that continues the
+    /// sender's trace; if the handler panics, the caller gets a [`FaultKind::ActorFailed`]
+    /// fault and the server keeps serving.
+    pub async fn serve<F, Fut>(&mut self, mut handler: F) -> Result<(), BusError>
+    where
+        F: FnMut(Req) -> Fut,
+        Fut: Future<Output = Result<Resp, Fault>> + Send + 'static,
+    {
+        loop {
+            let (envelope, pending) = self.next().await?.split();
+            let span = tracing::info_span!("bus.handle", service = self.service.name);
+            crate::telemetry::set_parent_from(&span, &envelope.trace);
+            let task = tokio::spawn(tracing::Instrument::instrument(handler(envelope.body), span));
+            let reply = match task.await {
+                Ok(reply) => reply,
+                Err(join_error) => Err(Fault::new(
+                    FaultKind::ActorFailed,
+                    format!(
+                        "the actor serving '{}' failed while handling the request: {}",
+                        self.service.name,
+                        panic_message(join_error)
+                    ),
+                )),
+            };
+            self.respond(pending, reply)?;
+        }
+    }
+}
+
+fn decode_request<Req: Message>(bytes: &[u8]) -> Received<Req> {
+    match envelope::decode::<RequestFrame<Req>>(bytes) {
+        Ok(envelope) => Received::Request(envelope),
+        Err(error) => Received::Malformed {
+            routing: rmp_serde::from_slice::<Routing>(bytes)
+                .ok()
+                .map(|r| (r.body.client_id, r.body.request_id)),
+            error: error.to_string(),
+        },
+    }
+}
+
+fn panic_message(error: tokio::task::JoinError) -> String {
+    if error.is_cancelled() {
+        return "the handler was cancelled".into();
+    }
+    let payload = error.into_panic();
+    if let Some(text) = payload.downcast_ref::<&str>() {
+        (*text).to_owned()
+    } else if let Some(text) = payload.downcast_ref::<String>() {
+        text.clone()
+    } else {
+        "panic".into()
+    }
+}

@@ -1,0 +1,142 @@
+//! Event-driven wake-ups: an iceoryx2 event listener registered with tokio.
+//!
+//! iceoryx2's event listener on Linux is a Unix datagram socket. Registering its file
+//! descriptor with tokio's reactor lets a task sleep until a notifier in any process fires,
+//! with no polling thread and no sleep loop.
+
+use super::{Bus, BusError, Ipc};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
+use std::os::fd::{AsRawFd, RawFd};
+use std::time::Duration;
+use tokio::io::unix::AsyncFd;
+
+/// The raw descriptor of a listener; owned by the listener, only borrowed for readiness.
+struct ListenerFd(RawFd);
+
+impl AsRawFd for ListenerFd {
+    fn as_raw_fd(&self) -> RawFd {
+        self.0
+    }
+}
+
+/// Wakes a task when the paired [`Notify`] fires.
+pub(crate) struct Wake {
+    // Field order matters: the registration must be dropped before the listener closes the fd.
+    fd: AsyncFd<ListenerFd>,
+    listener: Listener<Ipc>,
+    name: String,
+}
+
+/// Fires the paired [`Wake`]s.
+pub(crate) struct Notify {
+    notifier: Notifier<Ipc>,
+}
+
+fn event_service(
+    bus: &Bus,
+    name: &str,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<Ipc>, BusError> {
+    bus.node()
+        .service_builder(&bus.service_name(name)?)
+        .event()
+        .max_notifiers(256)
+        .max_listeners(64)
+        .max_nodes(256)
+        .disable_notifier_created_event()
+        .disable_notifier_dropped_event()
+        .disable_notifier_dead_event()
+        .open_or_create()
+        .map_err(|e| BusError::Setup {
+            what: format!("event service '{name}'"),
+            reason: format!("{e:?}"),
+        })
+}
+
+impl Wake {
+    /// Creates a listener on event service `name`. Must be called inside a tokio runtime.
+    pub(crate) fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
+        let listener = event_service(bus, name)?
+            .listener_builder()
+            .create()
+            .map_err(|e| BusError::Setup {
+                what: format!("listener on '{name}'"),
+                reason: format!("{e:?}"),
+            })?;
+        if tokio::runtime::Handle::try_current().is_err() {
+            return Err(BusError::Setup {
+                what: format!("listener on '{name}'"),
+                reason: "bus receivers must be created inside a tokio runtime".into(),
+            });
+        }
+        // SAFETY: the descriptor is valid and stays open as long as `listener` lives; `fd` is
+        // dropped first (field order), so the registration never outlives the descriptor.
+        let fd = unsafe {
+            let raw = listener.file_descriptor().native_handle();
+            AsyncFd::register_with_interest(ListenerFd(raw), tokio::io::Interest::READABLE)
+        }
+        .map_err(|e| BusError::Wait {
+            topic: name.to_owned(),
+            source: e.into_parts().1,
+        })?;
+        Ok(Self {
+            fd,
+            listener,
+            name: name.to_owned(),
+        })
+    }
+
+    /// Waits until at least one notification arrived since the last wait, then consumes them.
+    ///
+    /// Callers check for data *before* waiting and again after; because senders write the data
+    /// before they notify, a notification may wake a caller needlessly but is never missed.
+    pub(crate) async fn wait(&self) -> Result<(), BusError> {
+        let mut guard = self.fd.readable().await.map_err(|source| BusError::Wait {
+            topic: self.name.clone(),
+            source,
+        })?;
+        // Clear tokio's readiness *before* draining: a notification that lands after the
+        // clear raises a fresh edge. (Draining first could swallow the last edge while iceoryx2
+        // still considers the listener notified and sends no further datagrams: a lost wake-up.)
+        guard.clear_ready();
+        self.drain();
+        Ok(())
+    }
+
+    /// Like [`wait`](Self::wait) with a deadline; `Ok(false)` when it passed.
+    pub(crate) async fn wait_timeout(&self, timeout: Duration) -> Result<bool, BusError> {
+        match tokio::time::timeout(timeout, self.wait()).await {
+            Ok(result) => result.map(|()| true),
+            Err(_) => Ok(false),
+        }
+    }
+
+    /// Consumes pending notifications without waiting.
+    pub(crate) fn drain(&self) {
+        if let Err(e) = self.listener.try_wait(|_| {}) {
+            tracing::warn!(event = %self.name, error = ?e, "draining bus notifications failed");
+        }
+    }
+}
+
+impl Notify {
+    /// Creates a notifier on event service `name`.
+    pub(crate) fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
+        let notifier = event_service(bus, name)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| BusError::Setup {
+                what: format!("notifier on '{name}'"),
+                reason: format!("{e:?}"),
+            })?;
+        Ok(Self { notifier })
+    }
+
+    /// Wakes every listener of the event service.
+    pub(crate) fn notify(&self) {
+        if let Err(e) = self.notifier.notify() {
+            tracing::warn!(error = ?e, "bus notification failed");
+        }
+    }
+}

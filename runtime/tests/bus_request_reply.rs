@@ -1,0 +1,190 @@
+//! Request-response services: replies, faults, lost servers, timeouts — never silence.
+
+mod common;
+
+use robotd_protocol::diagnostics::{Ping, Pong};
+use robotd_protocol::envelope::Message;
+use robotd_runtime::bus::{BusError, Fault, FaultKind, Service};
+use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+const ECHO: Service<Ping, Pong> = Service::new("echo");
+const SECOND: Duration = Duration::from_secs(1);
+
+fn ping(seq: u64) -> Ping {
+    Ping {
+        seq,
+        payload: vec![seq as u8; 64],
+    }
+}
+
+fn pong(ping: Ping) -> Pong {
+    Pong {
+        seq: ping.seq,
+        payload: ping.payload,
+        served_by_pid: std::process::id(),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn requests_get_their_own_replies() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    tokio::spawn(async move { server.serve(|p| async move { Ok(pong(p)) }).await });
+    let client = bus.client(&ECHO).unwrap();
+    for seq in 0..500 {
+        let reply = client.request(&ping(seq), SECOND).await.unwrap();
+        assert_eq!(reply.seq, seq);
+        assert_eq!(reply.payload, vec![seq as u8; 64]);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn concurrent_clients_are_all_answered() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    tokio::spawn(async move { server.serve(|p| async move { Ok(pong(p)) }).await });
+    let mut tasks = Vec::new();
+    for c in 0..8u64 {
+        let client = bus.client(&ECHO).unwrap();
+        tasks.push(tokio::spawn(async move {
+            for i in 0..100 {
+                let seq = c * 1000 + i;
+                assert_eq!(client.request(&ping(seq), SECOND).await.unwrap().seq, seq);
+            }
+        }));
+    }
+    for task in tasks {
+        task.await.unwrap();
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn no_server_is_an_error_not_a_hang() {
+    let bus = common::fresh_bus("rpc");
+    let client = bus.client(&ECHO).unwrap();
+    let error = client.request(&ping(1), SECOND).await.unwrap_err();
+    assert!(matches!(error, BusError::NoServer { .. }), "{error}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_panicking_handler_fails_that_request_once_and_serving_goes_on() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    let executions = Arc::new(AtomicU32::new(0));
+    let counter = executions.clone();
+    tokio::spawn(async move {
+        server
+            .serve(move |p| {
+                let counter = counter.clone();
+                async move {
+                    counter.fetch_add(1, Ordering::SeqCst);
+                    if p.seq == 13 {
+                        panic!("unlucky request");
+                    }
+                    Ok(pong(p))
+                }
+            })
+            .await
+    });
+    let client = bus.client(&ECHO).unwrap();
+    let error = client.request(&ping(13), SECOND).await.unwrap_err();
+    match &error {
+        BusError::Remote { fault, .. } => {
+            assert_eq!(fault.kind, FaultKind::ActorFailed);
+            assert!(fault.message.contains("unlucky request"), "{error}");
+        }
+        other => panic!("expected a fault, got {other}"),
+    }
+    assert_eq!(client.request(&ping(14), SECOND).await.unwrap().seq, 14);
+    assert_eq!(executions.load(Ordering::SeqCst), 2, "the failed request ran exactly once");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn handler_faults_reach_the_caller() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    tokio::spawn(async move {
+        server
+            .serve(|_p| async move { Err::<Pong, _>(Fault::new(FaultKind::Unavailable, "arm is restarting")) })
+            .await
+    });
+    let client = bus.client(&ECHO).unwrap();
+    let error = client.request(&ping(1), SECOND).await.unwrap_err();
+    assert!(error.to_string().contains("arm is restarting"), "{error}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_request_dropped_by_the_server_is_answered_with_a_fault() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    tokio::spawn(async move {
+        let incoming = server.next().await.unwrap();
+        drop(incoming); // lost track of the request without answering
+        let _ = server.next().await; // ...and went on serving
+
+    });
+    let client = bus.client(&ECHO).unwrap();
+    let error = client.request(&ping(1), Duration::from_secs(5)).await.unwrap_err();
+    match error {
+        BusError::Remote { fault, .. } => assert_eq!(fault.kind, FaultKind::Dropped),
+        other => panic!("expected a dropped-request fault, got {other}"),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_slow_server_times_out() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    tokio::spawn(async move {
+        server
+            .serve(|p| async move {
+                tokio::time::sleep(Duration::from_millis(500)).await;
+                Ok(pong(p))
+            })
+            .await
+    });
+    let client = bus.client(&ECHO).unwrap();
+    let error = client
+        .request(&ping(1), Duration::from_millis(100))
+        .await
+        .unwrap_err();
+    assert!(matches!(error, BusError::Timeout { timeout_ms: 100, .. }), "{error}");
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct NotAPing {
+    words: Vec<String>,
+}
+impl Message for NotAPing {
+    const TYPE: &'static str = "test.not_a_ping";
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_malformed_request_gets_a_bad_request_fault_and_the_server_survives() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    tokio::spawn(async move { server.serve(|p| async move { Ok(pong(p)) }).await });
+    let wrong: Service<NotAPing, Pong> = Service::new("echo");
+    let wrong_client = bus.client(&wrong).unwrap();
+    let error = wrong_client
+        .request(&NotAPing { words: vec!["hi".into()] }, SECOND)
+        .await
+        .unwrap_err();
+    match error {
+        BusError::Remote { fault, .. } => assert_eq!(fault.kind, FaultKind::BadRequest),
+        other => panic!("expected a bad-request fault, got {other}"),
+    }
+    let client = bus.client(&ECHO).unwrap();
+    assert_eq!(client.request(&ping(2), SECOND).await.unwrap().seq, 2);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_service_has_exactly_one_server() {
+    let bus = common::fresh_bus("rpc");
+    let _first = bus.server(&ECHO).unwrap();
+    let error = bus.server(&ECHO).unwrap_err();
+    assert!(matches!(error, BusError::Setup { .. }), "{error}");
+}

@@ -1,0 +1,110 @@
+#!/usr/bin/env bash
+# The test command of robotd: ./scripts/test.sh
+#
+# On a fresh Debian machine with Rust and Python 3 it installs what the tests need (the
+# Debian packages redis-server and espeak-ng, a Python venv in .venv with the test clients of
+# tests/python/requirements.txt), then runs, in this order, stopping at the first failure:
+#   cargo fmt --all -- --check
+#   cargo clippy --workspace --all-targets -- -D warnings
+#   cargo nextest run --workspace + cargo test --workspace --doc  (or cargo test --workspace
+#   when cargo-nextest is not installed; nextest runs every test in its own process, which
+#   keeps iceoryx2 nodes of different tests apart)
+# Tests that need a redis-server start their own on a free port; this script only makes sure
+# the binary is there. CI runs it through .ci/run.
+set -euo pipefail
+
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+ROOT="$PWD"
+
+SCRIPT_START=$SECONDS
+SECTION_START=""
+section() {
+    if [ -n "$SECTION_START" ]; then
+        echo "    (took $((SECONDS - SECTION_START)) s)"
+    fi
+    SECTION_START=$SECONDS
+    echo
+    echo "==> $*"
+}
+
+# ------------------------------------------------------------------------------------------
+section "System packages (redis-server, espeak-ng, python3-venv)"
+
+missing=()
+command -v redis-server >/dev/null 2>&1 || missing+=(redis-server)
+command -v espeak-ng >/dev/null 2>&1 || missing+=(espeak-ng)
+if ! command -v python3 >/dev/null 2>&1; then
+    missing+=(python3 python3-venv)
+elif ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
+    missing+=(python3-venv)
+fi
+
+if [ "${#missing[@]}" -gt 0 ]; then
+    if [ "$(id -u)" -eq 0 ]; then
+        echo "installing: ${missing[*]}"
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update -qq
+        apt-get install -y -qq --no-install-recommends "${missing[@]}"
+    else
+        echo "error: missing ${missing[*]}; install them with:" >&2
+        echo "    sudo apt-get update && sudo apt-get install -y --no-install-recommends ${missing[*]}" >&2
+        exit 1
+    fi
+fi
+echo "redis-server: $(command -v redis-server) ($(redis-server --version | awk '{print $3}'))"
+echo "espeak-ng:    $(command -v espeak-ng) ($(espeak-ng --version | head -n 1))"
+
+for tool in cargo rustfmt cargo-clippy; do
+    if ! command -v "$tool" >/dev/null 2>&1; then
+        echo "error: $tool not found; install Rust with rustfmt and clippy" \
+            "(rustup component add rustfmt clippy)" >&2
+        exit 1
+    fi
+done
+
+# ------------------------------------------------------------------------------------------
+section "Python venv (.venv) for the test clients"
+
+REQUIREMENTS="tests/python/requirements.txt"
+if [ ! -x .venv/bin/python ]; then
+    python3 -m venv .venv
+fi
+if [ -f "$REQUIREMENTS" ] && grep -qvE '^[[:space:]]*(#|$)' "$REQUIREMENTS"; then
+    wanted="$(sha256sum "$REQUIREMENTS" | cut -d' ' -f1)"
+    installed="$(cat .venv/.requirements.sha256 2>/dev/null || true)"
+    if [ "$wanted" != "$installed" ]; then
+        .venv/bin/python -m pip install --quiet --disable-pip-version-check -r "$REQUIREMENTS"
+        echo "$wanted" > .venv/.requirements.sha256
+    else
+        echo "requirements unchanged, nothing to install"
+    fi
+else
+    echo "no Python requirements to install"
+fi
+# Tests find the venv's python (and its packages) first on PATH.
+export VIRTUAL_ENV="$ROOT/.venv"
+export PATH="$VIRTUAL_ENV/bin:$PATH"
+echo "python: $(command -v python) ($(python --version 2>&1))"
+
+# ------------------------------------------------------------------------------------------
+export RUST_BACKTRACE="${RUST_BACKTRACE:-1}"
+
+section "cargo fmt --all -- --check"
+cargo fmt --all -- --check
+
+section "cargo clippy --workspace --all-targets -- -D warnings"
+cargo clippy --workspace --all-targets -- -D warnings
+
+if cargo nextest --version >/dev/null 2>&1; then
+    section "cargo nextest run --workspace"
+    cargo nextest run --workspace --no-fail-fast --no-tests=warn
+
+    section "cargo test --workspace --doc"
+    cargo test --workspace --doc
+else
+    section "cargo test --workspace (cargo-nextest not installed)"
+    cargo test --workspace --no-fail-fast
+fi
+
+section "done"
+echo "all checks passed in $((SECONDS - SCRIPT_START)) s"
