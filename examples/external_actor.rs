@@ -10,7 +10,8 @@
 //! cargo run --release --example external_actor         # terminal 2: this actor
 //! ```
 //!
-//! Options: `--namespace NAME` (default `robotd`, robotd's default bus namespace).
+//! Options: `--namespace NAME` (default: `$ROBOTD_BUS__NAMESPACE`, else `robotd`, robotd's
+//! default bus namespace).
 
 use robotd_protocol::diagnostics::{Ping, TestPatternReply, TestPatternRequest};
 use robotd_runtime::bus::{Bus, BusOptions, FaultKind, Fault};
@@ -19,6 +20,7 @@ use std::time::Duration;
 
 #[tokio::main]
 async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
     let namespace = parse_namespace()?;
     let bus = Bus::open(BusOptions::new(&namespace, "example-test-pattern-camera"))?;
 
@@ -71,7 +73,10 @@ fn publish_pattern(
 
 fn parse_namespace() -> Result<String, String> {
     let mut args = std::env::args().skip(1);
-    let mut namespace = "robotd".to_owned();
+    // Same default and variable as robotd's own `bus.namespace` (robotd sets it for the actor
+    // processes it supervises).
+    let mut namespace =
+        std::env::var("ROBOTD_BUS__NAMESPACE").unwrap_or_else(|_| "robotd".to_owned());
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--namespace" => namespace = args.next().ok_or("--namespace needs a value")?,

@@ -1,1 +1,198 @@
-fn main() {}
+//! `robotd`: the runtime for LLM-driven tabletop robots.
+//!
+//! This file is the command line and the wiring only; every piece lives in a crate of its own
+//! (`protocol`, `runtime`, `actors`, `adapters`).
+
+mod bench;
+mod doctor;
+mod serve;
+
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use robotd_runtime::config::{Config, LoadOptions};
+use robotd_runtime::telemetry::{self, Mode};
+use std::path::PathBuf;
+
+/// robotd: supervised actors on an iceoryx2 bus, driving a tabletop robot arm.
+#[derive(Debug, Parser)]
+#[command(name = "robotd", version, about)]
+struct Cli {
+    #[command(flatten)]
+    config: ConfigArgs,
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+/// Where the configuration comes from (file → environment → these flags).
+#[derive(Debug, Args, Clone)]
+struct ConfigArgs {
+    /// A TOML file layered over the built-in defaults (config/default.toml).
+    #[arg(long, global = true, env = "ROBOTD_CONFIG", value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Override one configuration key, e.g. `--set http.bind=0.0.0.0:8000` (repeatable).
+    #[arg(long = "set", global = true, value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Shorthand for `--set bus.namespace=NAME`.
+    #[arg(long, global = true, value_name = "NAME")]
+    namespace: Option<String>,
+    /// Shorthand for `--set http.bind=ADDR`.
+    #[arg(long, global = true, value_name = "IP:PORT")]
+    http: Option<String>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the service (the default).
+    Serve,
+    /// Check this machine: shared memory, stale bus resources, Redis, espeak-ng, audio, LLM keys.
+    Doctor(DoctorArgs),
+    /// Measure robotd's machinery beside its raw baseline.
+    Bench {
+        #[command(subcommand)]
+        what: BenchCommand,
+    },
+    /// The other process of a two-process benchmark (started by `robotd bench`).
+    #[command(hide = true)]
+    BenchPeer {
+        role: String,
+        #[arg(long = "peer-namespace")]
+        peer_namespace: String,
+        #[arg(long)]
+        count: usize,
+    },
+}
+
+#[derive(Debug, Args)]
+struct DoctorArgs {
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Remove the resources of dead bus nodes.
+    #[arg(long)]
+    clean: bool,
+    /// Check this Redis server (redis://host:port/db) instead of the configured one.
+    #[arg(long, value_name = "URL")]
+    redis: Option<String>,
+}
+
+#[derive(Debug, Subcommand)]
+enum BenchCommand {
+    /// Round trips and frame throughput through the bus, beside raw iceoryx2.
+    Bus(BenchBusArgs),
+}
+
+#[derive(Debug, Args)]
+struct BenchBusArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Measured round trips per variant.
+    #[arg(long, default_value_t = 20_000)]
+    round_trips: usize,
+    /// Frames per variant.
+    #[arg(long, default_value_t = 20_000)]
+    frames: usize,
+    /// Restarts measured.
+    #[arg(long, default_value_t = 500)]
+    restarts: usize,
+}
+
+fn load_config(args: &ConfigArgs) -> Result<Config> {
+    let mut overrides = Vec::new();
+    for pair in &args.set {
+        overrides.push(LoadOptions::parse_override(pair)?);
+    }
+    if let Some(namespace) = &args.namespace {
+        overrides.push(("bus.namespace".into(), namespace.clone()));
+    }
+    if let Some(http) = &args.http {
+        overrides.push(("http.bind".into(), http.clone()));
+    }
+    Ok(Config::load(LoadOptions {
+        file: args.config.clone(),
+        overrides,
+    })?)
+}
+
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(code) => code,
+        Err(error) => {
+            eprintln!("robotd: {error:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<std::process::ExitCode> {
+    let cli = Cli::parse();
+    // iceoryx2 logs to stderr on its own; keep it to warnings about real problems.
+    iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
+    match cli.command.unwrap_or(Command::Serve) {
+        Command::Serve => {
+            let config = load_config(&cli.config)?;
+            let _telemetry = telemetry::init(&config.telemetry, Mode::Service)?;
+            let runtime = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()
+                .context("starting the tokio runtime")?;
+            runtime.block_on(serve::run(config))?;
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Doctor(args) => {
+            let config = load_config(&cli.config)?;
+            let config_dir = cli
+                .config
+                .config
+                .as_deref()
+                .and_then(|p| p.parent())
+                .map(PathBuf::from)
+                .unwrap_or_else(|| PathBuf::from("."));
+            let report = doctor::run(&doctor::DoctorOptions {
+                redis_url: args.redis.or(config.redis.url.clone()),
+                bus_namespace: config.bus.namespace.clone(),
+                config_dir,
+                clean: args.clean,
+            })?;
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&report.to_json())?);
+            } else {
+                print!("{}", report.render_table());
+            }
+            Ok(if report.has_problems() {
+                std::process::ExitCode::FAILURE
+            } else {
+                std::process::ExitCode::SUCCESS
+            })
+        }
+        Command::Bench {
+            what: BenchCommand::Bus(args),
+        } => {
+            let exe = std::env::current_exe().context("finding the robotd binary")?;
+            let namespace = format!("bench-{}", std::process::id());
+            let figures = bench::bus::run(
+                &exe,
+                &namespace,
+                bench::bus::BenchSizes {
+                    round_trips: args.round_trips.max(1),
+                    frames: args.frames.max(2),
+                    restarts: args.restarts.max(1),
+                },
+            )?;
+            if args.json {
+                println!("{}", serde_json::to_string(&figures)?);
+            } else {
+                print!("{}", figures.table());
+            }
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::BenchPeer {
+            role,
+            peer_namespace,
+            count,
+        } => {
+            bench::bus::run_peer(&role, &peer_namespace, count)?;
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+    }
+}

@@ -6,7 +6,7 @@
 //! use robotd_adapters::http::{HealthSource, HttpEdge};
 //! let health: HealthSource = std::sync::Arc::new(|| serde_json::json!({"status": "ok"}));
 //! let edge = HttpEdge::bind("127.0.0.1:8000".parse().unwrap(), health).await?;
-//! println!("serving on {}", edge.local_addr());
+//! println!("serving on {}", edge.local_addr()?);
 //! edge.serve(std::future::pending()).await
 //! # }
 //! ```
@@ -46,10 +46,8 @@ impl HttpEdge {
     }
 
     /// The address actually bound.
-    pub fn local_addr(&self) -> SocketAddr {
-        self.listener
-            .local_addr()
-            .expect("a bound listener has an address")
+    pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
+        self.listener.local_addr()
     }
 
     /// Serves until `shutdown` completes.

@@ -17,3 +17,9 @@ pub const TEST_PATTERN: Service<TestPatternRequest, TestPatternReply> =
 /// The example external actor's frames (latest wins, like every camera).
 pub const TEST_PATTERN_FRAMES: FrameTopic =
     FrameTopic::new("example/test_pattern/frames", Overflow::latest_wins(2));
+
+/// Supervision events (restarts, safe states, exhausted budgets) of every supervised actor.
+/// Latest wins: a stuck dashboard must never slow down a restart; every event is also a
+/// metric and a log line.
+pub const HEALTH_RESTARTS: crate::bus::Topic<robotd_protocol::health::RestartEvent> =
+    crate::bus::Topic::new("health/restarts", Overflow::latest_wins(64));

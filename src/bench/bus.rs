@@ -116,7 +116,8 @@ pub fn run(exe: &std::path::Path, namespace: &str, sizes: BenchSizes) -> Result<
     })?;
     let raw_frames = frames_publisher(exe, namespace, sizes.frames, false)?;
     let bus_frames = frames_publisher(exe, namespace, sizes.frames, true)?;
-    let mut restarts = runtime.block_on(crate::bench_restart::measure(sizes.restarts))?;
+    let mut restarts =
+        runtime.block_on(robotd_runtime::supervision::measure_restart_latency(sizes.restarts))?;
     let restart = Latency::of(&mut restarts);
     Ok(BusFigures {
         raw_rtt_p50_us: raw_rtt.p50_us,
@@ -146,7 +147,7 @@ struct Peer {
 impl Peer {
     fn start(exe: &std::path::Path, role: &str, namespace: &str, count: usize) -> Result<Self> {
         let mut child = Command::new(exe)
-            .args(["bench-peer", role, "--namespace", namespace, "--count"])
+            .args(["bench-peer", role, "--peer-namespace", namespace, "--count"])
             .arg(count.to_string())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

@@ -113,6 +113,8 @@ impl<T: Message> Topic<T> {
 #[derive(Debug, Clone)]
 pub(crate) struct TopicSpec {
     pub(crate) name: String,
+    /// Name used in metrics (bounded cardinality: per-client topics share one label).
+    pub(crate) label: String,
     pub(crate) overflow: Overflow,
     pub(crate) max_bytes: usize,
     pub(crate) max_subscribers: usize,
@@ -122,6 +124,7 @@ impl<T: Message> From<&Topic<T>> for TopicSpec {
     fn from(topic: &Topic<T>) -> Self {
         Self {
             name: topic.name.to_owned(),
+            label: topic.name.to_owned(),
             overflow: topic.overflow,
             max_bytes: topic.max_bytes,
             max_subscribers: 32,
@@ -428,6 +431,7 @@ impl<T: Message> Publisher<T> {
 
     fn send_bytes(&self, bytes: &[u8]) -> Result<usize, BusError> {
         let name = self.topic.name.as_str();
+        let label = self.topic.label.as_str();
         if bytes.len() > self.topic.max_bytes {
             return Err(BusError::TooLarge {
                 topic: name.to_owned(),
@@ -458,14 +462,14 @@ impl<T: Message> Publisher<T> {
             },
         });
         if let Err(BusError::Full { .. }) = &delivered {
-            Metrics::global().bus_dropped(name, "subscriber_full");
+            Metrics::global().bus_dropped(label, "subscriber_full");
         }
         let delivered = delivered?;
         self.notify.notify();
         if !self.topic.overflow.is_latest_wins() {
             let subscribers = self.factory.dynamic_config().number_of_subscribers();
             if delivered < subscribers {
-                Metrics::global().bus_dropped(name, "subscriber_not_connected");
+                Metrics::global().bus_dropped(label, "subscriber_not_connected");
                 return Err(BusError::NotDelivered {
                     topic: name.to_owned(),
                     delivered,
@@ -524,7 +528,7 @@ impl<T: Message> Subscriber<T> {
             Some(decoded) => {
                 let message = decoded?;
                 let latency_ns = envelope::unix_now_ns().saturating_sub(message.sent_at_unix_ns);
-                Metrics::global().bus_latency(&self.topic.name, latency_ns as f64 / 1e9);
+                Metrics::global().bus_latency(&self.topic.label, latency_ns as f64 / 1e9);
                 Ok(Some(message))
             }
         }
@@ -555,6 +559,7 @@ impl<T: Message> Subscriber<T> {
         read: impl FnOnce(&[u8]) -> R,
     ) -> Result<Option<R>, BusError> {
         let name = self.topic.name.as_str();
+        let label = self.topic.label.as_str();
         let sample = self.port.receive().map_err(|e| BusError::Transfer {
             topic: name.to_owned(),
             reason: format!("{e:?}"),
@@ -568,7 +573,7 @@ impl<T: Message> Subscriber<T> {
         if let Some(previous) = self.last_seq.insert(publisher, seq) {
             let missed = seq.saturating_sub(previous + 1);
             for _ in 0..missed.min(1_000) {
-                metrics.bus_dropped(name, "overwritten_latest_wins");
+                metrics.bus_dropped(label, "overwritten_latest_wins");
             }
         }
         let result = read(sample.payload());
@@ -576,7 +581,7 @@ impl<T: Message> Subscriber<T> {
         if let Some(consumed) = &self.consumed {
             consumed.notify();
         }
-        metrics.bus_message(name, Direction::Received);
+        metrics.bus_message(label, Direction::Received);
         Ok(Some(result))
     }
 }

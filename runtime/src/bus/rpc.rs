@@ -56,6 +56,7 @@ impl<Req: Message, Resp: Message> Service<Req, Resp> {
     fn requests(&self) -> TopicSpec {
         TopicSpec {
             name: format!("{}/requests", self.name),
+            label: format!("{}/requests", self.name),
             overflow: Overflow::BackPressure {
                 depth: 64,
                 max_wait: Duration::from_secs(1),
@@ -68,6 +69,7 @@ impl<Req: Message, Resp: Message> Service<Req, Resp> {
     fn replies(&self, client_id: u64) -> TopicSpec {
         TopicSpec {
             name: format!("{}/replies/{client_id:016x}", self.name),
+            label: format!("{}/replies", self.name),
             overflow: Overflow::BackPressure {
                 depth: 16,
                 max_wait: Duration::from_secs(1),

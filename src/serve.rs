@@ -1,0 +1,244 @@
+//! `robotd serve`: the long-running service.
+//!
+//! Joins the bus (cleaning up what crashed processes left behind), starts robotd's own
+//! `system` service, starts every actor configured to run as its own process under a
+//! supervisor, and serves `/health` and `/metrics` on the HTTP port until SIGINT or SIGTERM.
+//!
+//! The robot's hardware actors (arm, gripper, camera) and their simulator are not part of this
+//! build yet; `/health` says so rather than pretending a robot is there.
+
+use anyhow::{Context, Result};
+use robotd_adapters::http::{HealthSource, HttpEdge};
+use robotd_protocol::diagnostics::Pong;
+use robotd_protocol::health::{ActorHealth, ActorState, RestartEvent};
+use robotd_runtime::bus::{Bus, BusOptions, Publisher};
+use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
+use robotd_runtime::config::{ActorMode, Config, SupervisionConfig};
+use robotd_runtime::supervision::{
+    observer_fn, RestartPolicy, SupervisedProcess, SupervisionEvent, SupervisionPolicy, Supervisor,
+};
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// Health of every supervised actor, kept current by the supervisors' events.
+#[derive(Default)]
+struct HealthBoard {
+    actors: Mutex<BTreeMap<String, ActorHealth>>,
+}
+
+impl HealthBoard {
+    fn apply(&self, event: &SupervisionEvent) {
+        let Ok(mut actors) = self.actors.lock() else {
+            return;
+        };
+        let entry = actors
+            .entry(event.actor().to_owned())
+            .or_insert_with(|| ActorHealth::new(event.actor(), ActorState::Starting));
+        match event {
+            SupervisionEvent::Started { .. } => entry.state = ActorState::Running,
+            SupervisionEvent::Failed { reason, .. } => {
+                entry.state = ActorState::SafeState;
+                entry.last_error = Some(reason.clone());
+            }
+            SupervisionEvent::SafeState { .. } | SupervisionEvent::Cleanup { .. } => {
+                entry.state = ActorState::Restarting
+            }
+            SupervisionEvent::Restarted { .. } => entry.restarts += 1,
+            SupervisionEvent::BudgetExhausted { .. } => entry.state = ActorState::Failed,
+            SupervisionEvent::Stopped { .. } => entry.state = ActorState::Stopped,
+        }
+    }
+
+    fn report(&self, config: &Config, started: Instant) -> serde_json::Value {
+        let actors: Vec<ActorHealth> = self
+            .actors
+            .lock()
+            .map(|a| a.values().cloned().collect())
+            .unwrap_or_default();
+        let all_up = actors.iter().all(|a| a.state == ActorState::Running);
+        serde_json::json!({
+            "status": if all_up { "ok" } else { "degraded" },
+            "service": config.service.name,
+            "version": env!("CARGO_PKG_VERSION"),
+            "pid": std::process::id(),
+            "uptime_ms": started.elapsed().as_millis() as u64,
+            "bus_namespace": config.bus.namespace,
+            "robot": {
+                "driver": config.robot.driver,
+                "available": false,
+                "note": "the simulator and hardware drivers are not part of this build yet",
+            },
+            "actors": actors,
+        })
+    }
+}
+
+fn policy_from(config: &SupervisionConfig) -> SupervisionPolicy {
+    SupervisionPolicy {
+        max_restarts: config.max_restarts,
+        window: config.window(),
+        backoff_initial: config.backoff_initial(),
+        backoff_max: config.backoff_max(),
+        backoff_multiplier: config.backoff_multiplier,
+        restart: RestartPolicy::Permanent,
+    }
+}
+
+/// Turns a supervision event into the bus's restart event, when it is one.
+fn restart_event(event: &SupervisionEvent) -> Option<RestartEvent> {
+    match event {
+        SupervisionEvent::Restarted {
+            actor,
+            attempt,
+            backoff,
+        } => Some(RestartEvent {
+            actor: actor.clone(),
+            attempt: *attempt,
+            reason: "restarted after a failure".into(),
+            backoff_ms: backoff.as_millis() as u64,
+            safe_state_ok: true,
+            budget_exhausted: false,
+        }),
+        SupervisionEvent::BudgetExhausted {
+            actor, restarts, ..
+        } => Some(RestartEvent {
+            actor: actor.clone(),
+            attempt: *restarts,
+            reason: event.to_string(),
+            backoff_ms: 0,
+            safe_state_ok: true,
+            budget_exhausted: true,
+        }),
+        _ => None,
+    }
+}
+
+/// Runs the service until a shutdown signal.
+pub async fn run(config: Config) -> Result<()> {
+    let started = Instant::now();
+    let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd"))
+        .context("joining the bus")?;
+    tracing::info!(namespace = %config.bus.namespace, "joined the bus");
+
+    // robotd's own service: any process on the bus can check that robotd is alive.
+    let mut ping_server = bus.server(&SYSTEM_PING).context("serving system/ping")?;
+    let pid = std::process::id();
+    let system = tokio::spawn(async move {
+        let served = ping_server
+            .serve(move |ping| async move {
+                Ok(Pong {
+                    seq: ping.seq,
+                    payload: ping.payload,
+                    served_by_pid: pid,
+                })
+            })
+            .await;
+        if let Err(error) = served {
+            tracing::error!(%error, "the system service stopped");
+        }
+    });
+
+    let health = Arc::new(HealthBoard::default());
+    let restarts: Arc<Mutex<Publisher<RestartEvent>>> =
+        Arc::new(Mutex::new(bus.publisher(&HEALTH_RESTARTS)?));
+    let processes = start_process_actors(&config, &bus, &health, &restarts).await?;
+
+    let report_config = config.clone();
+    let report_health = health.clone();
+    let health_source: HealthSource =
+        Arc::new(move || report_health.report(&report_config, started));
+    let edge = HttpEdge::bind(config.http.bind, health_source).await?;
+    let address = edge.local_addr()?;
+    tracing::info!("HTTP edge on http://{address} (/health, /metrics)");
+    eprintln!("robotd: serving on http://{address} (/health, /metrics); bus namespace '{}'", config.bus.namespace);
+
+    edge.serve(shutdown_signal()).await?;
+    tracing::info!("shutting down");
+    for process in &processes {
+        if let Err(error) = process.stop().await {
+            tracing::warn!(%error, "stopping an actor process");
+        }
+    }
+    system.abort();
+    Ok(())
+}
+
+async fn start_process_actors(
+    config: &Config,
+    bus: &Bus,
+    health: &Arc<HealthBoard>,
+    restarts: &Arc<Mutex<Publisher<RestartEvent>>>,
+) -> Result<Vec<SupervisedProcess>> {
+    let mut processes = Vec::new();
+    for (name, actor) in &config.actors {
+        if actor.mode != ActorMode::Process {
+            tracing::warn!(
+                actor = %name,
+                "no built-in actor of this name in this build; its [actors] entry is ignored"
+            );
+            continue;
+        }
+        let command = actor.command.clone();
+        let namespace = config.bus.namespace.clone();
+        let board = health.clone();
+        let publisher = restarts.clone();
+        let cleanup_bus = bus.clone();
+        let observer = observer_fn(move |event: &SupervisionEvent| {
+            tracing::info!(actor = event.actor(), event = %event, "supervision");
+            board.apply(event);
+            if let Some(restart) = restart_event(event) {
+                if let Ok(publisher) = publisher.lock() {
+                    if let Err(error) = publisher.publish(&restart) {
+                        tracing::warn!(%error, "publishing a restart event");
+                    }
+                }
+            }
+        });
+        let process = Supervisor::new(name.clone())
+            .policy(policy_from(&config.supervision_for(name)))
+            .observer(observer)
+            .on_restart_cleanup(move |_context| {
+                let report = cleanup_bus.cleanup_dead_nodes();
+                if report.failed > 0 {
+                    return Err(format!("{} dead bus node(s) could not be removed", report.failed));
+                }
+                Ok(())
+            })
+            .spawn_process(move || {
+                let mut child = tokio::process::Command::new(&command[0]);
+                child
+                    .args(&command[1..])
+                    .env("ROBOTD_BUS__NAMESPACE", &namespace);
+                child
+            })
+            .await
+            .with_context(|| format!("starting actor process '{name}'"))?;
+        processes.push(process);
+    }
+    Ok(processes)
+}
+
+async fn shutdown_signal() {
+    let interrupt = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        let mut terminate =
+            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+                Ok(signal) => signal,
+                Err(error) => {
+                    tracing::warn!(%error, "cannot listen for SIGTERM; use Ctrl-C");
+                    let _ = interrupt.await;
+                    return;
+                }
+            };
+        tokio::select! {
+            _ = interrupt => {}
+            _ = terminate.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = interrupt.await;
+    }
+}
