@@ -477,7 +477,7 @@ impl<T: Message> Publisher<T> {
                 });
             }
         }
-        Metrics::global().bus_message(name, Direction::Sent);
+        Metrics::global().bus_message(label, Direction::Sent);
         Ok(delivered)
     }
 }

@@ -1,0 +1,159 @@
+//! Helpers for the end-to-end tests: start robotd and the example actor as real processes.
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::Duration;
+
+/// A bus namespace no other test uses.
+pub fn fresh_namespace(tag: &str) -> String {
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    format!(
+        "e2e-{tag}-{}-{}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+/// A loopback port nothing listens on right now.
+pub fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+/// The example external actor's binary, built if needed.
+pub fn external_actor_binary() -> PathBuf {
+    let robotd = PathBuf::from(env!("CARGO_BIN_EXE_robotd"));
+    let path = robotd
+        .parent()
+        .expect("target dir")
+        .join("examples")
+        .join("external_actor");
+    if !path.exists() {
+        let status = Command::new(env!("CARGO"))
+            .args(["build", "--example", "external_actor"])
+            .status()
+            .expect("cargo build --example external_actor");
+        assert!(status.success(), "building the example failed");
+    }
+    path
+}
+
+/// A child process killed when dropped.
+pub struct Running {
+    pub child: Child,
+    pub name: &'static str,
+}
+
+impl Running {
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Reads lines from `stream` until one contains `marker` (or the stream ends: panic).
+fn wait_for_line(stream: impl Read + Send + 'static, marker: &'static str, what: &str) {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut seen = Vec::new();
+        for line in BufReader::new(stream).lines().map_while(Result::ok) {
+            if line.contains(marker) {
+                let _ = tx.send(Ok(()));
+                // Keep draining so the child never blocks on a full pipe.
+                seen.clear();
+                continue;
+            }
+            seen.push(line);
+        }
+        let _ = tx.send(Err(seen.join("\n")));
+    });
+    match rx.recv_timeout(Duration::from_secs(30)) {
+        Ok(Ok(())) => {}
+        Ok(Err(output)) => panic!("{what} exited before '{marker}':\n{output}"),
+        Err(_) => panic!("{what} did not print '{marker}' within 30 s"),
+    }
+}
+
+/// Starts `robotd serve` and waits until it serves HTTP.
+pub fn start_robotd(namespace: &str, port: u16, extra: &[&str]) -> Running {
+    let log_dir = std::env::temp_dir().join(format!("robotd-test-logs-{}", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["serve", "--namespace", namespace, "--http"])
+        .arg(format!("127.0.0.1:{port}"))
+        .arg("--set")
+        .arg(format!("telemetry.log_dir={}", log_dir.display()))
+        .args(extra)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start robotd");
+    let stderr = child.stderr.take().expect("stderr");
+    let running = Running {
+        child,
+        name: "robotd",
+    };
+    wait_for_line(stderr, "robotd: serving on", "robotd serve");
+    running
+}
+
+/// Starts the example actor and waits until it serves.
+pub fn start_external_actor(namespace: &str) -> Running {
+    let mut child = Command::new(external_actor_binary())
+        .args(["--namespace", namespace])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start the example actor");
+    let stdout = child.stdout.take().expect("stdout");
+    let running = Running {
+        child,
+        name: "external_actor",
+    };
+    wait_for_line(stdout, "ready", "the example actor");
+    running
+}
+
+/// `GET path` on 127.0.0.1:port; returns (status, body).
+pub fn http_get(port: u16, path: &str) -> (u16, String) {
+    let mut stream = TcpStream::connect(("127.0.0.1", port)).expect("connect");
+    stream
+        .set_read_timeout(Some(Duration::from_secs(5)))
+        .expect("timeout");
+    write!(
+        stream,
+        "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n"
+    )
+    .expect("send");
+    let mut response = String::new();
+    stream.read_to_string(&mut response).expect("read");
+    let status = response
+        .split_whitespace()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
+    let body = response
+        .split_once("\r\n\r\n")
+        .map(|(_, b)| b.to_owned())
+        .unwrap_or_default();
+    (status, body)
+}
+
+/// The value of the first metric line starting with `prefix` (name and labels).
+pub fn metric(text: &str, prefix: &str) -> Option<f64> {
+    text.lines()
+        .find(|line| line.starts_with(prefix))
+        .and_then(|line| line.rsplit(' ').next())
+        .and_then(|v| v.parse().ok())
+}

@@ -1,0 +1,94 @@
+//! An actor configured to run as its own process: robotd starts it, and when it is killed
+//! robotd cleans up its bus resources and restarts it; a request that was in flight gets an
+//! error, never silence.
+
+mod common;
+
+use robotd_protocol::diagnostics::TestPatternRequest;
+use robotd_runtime::bus::{Bus, BusError, BusOptions};
+use robotd_runtime::catalog::TEST_PATTERN;
+use std::time::{Duration, Instant};
+
+fn signal(pid: u32, signal: &str) {
+    let status = std::process::Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .status()
+        .expect("kill");
+    assert!(status.success());
+}
+
+#[test]
+fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
+    let namespace = common::fresh_namespace("sup");
+    let port = common::free_port();
+    let config = std::env::temp_dir().join(format!("{namespace}.toml"));
+    std::fs::write(
+        &config,
+        format!(
+            "[actors.test_pattern]\nmode = \"process\"\ncommand = [{:?}]\nsupervision = {{ backoff_initial_ms = 20 }}\n",
+            common::external_actor_binary().display().to_string()
+        ),
+    )
+    .unwrap();
+    let _robotd = common::start_robotd(
+        &namespace,
+        port,
+        &["--config", config.to_str().unwrap()],
+    );
+
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    runtime.block_on(async {
+        let bus = Bus::open(BusOptions::new(&namespace, "e2e-test")).unwrap();
+        let camera = bus.client(&TEST_PATTERN).unwrap();
+        assert!(camera.wait_for_server(Duration::from_secs(15)).await, "robotd started the actor");
+        let request = TestPatternRequest { frame_id: 1, seed: 1 };
+        let first = camera.request(&request, Duration::from_secs(5)).await.unwrap();
+        let first_pid = first.served_by_pid;
+
+        // Freeze the actor, send a request it will never answer, then kill it.
+        signal(first_pid, "-STOP");
+        let in_flight = {
+            let started = Instant::now();
+            let killer = tokio::spawn(async move {
+                tokio::time::sleep(Duration::from_millis(200)).await;
+                signal(first_pid, "-KILL");
+            });
+            let outcome = camera.request(&request, Duration::from_secs(10)).await;
+            killer.await.unwrap();
+            (outcome, started.elapsed())
+        };
+        match in_flight {
+            (Err(BusError::ServerLost { .. }), took) => {
+                assert!(took < Duration::from_secs(3), "reported after {took:?}")
+            }
+            (other, took) => panic!("expected ServerLost, got {other:?} after {took:?}"),
+        }
+
+        // robotd restarts it; the same client reaches the new process.
+        let deadline = Instant::now() + Duration::from_secs(15);
+        let second = loop {
+            match camera.request(&request, Duration::from_secs(2)).await {
+                Ok(reply) => break reply,
+                Err(_) if Instant::now() < deadline => {
+                    tokio::time::sleep(Duration::from_millis(50)).await
+                }
+                Err(error) => panic!("the actor did not come back: {error}"),
+            }
+        };
+        assert_ne!(second.served_by_pid, first_pid, "a new process serves");
+    });
+
+    let (_, health) = common::http_get(port, "/health");
+    let health: serde_json::Value = serde_json::from_str(&health).unwrap();
+    let actor = &health["actors"][0];
+    assert_eq!(actor["actor"], "test_pattern", "{health}");
+    assert_eq!(actor["restarts"], 1, "{health}");
+    assert_eq!(actor["state"], "running", "{health}");
+    let (_, metrics) = common::http_get(port, "/metrics");
+    assert_eq!(
+        common::metric(&metrics, "robotd_actor_restarts_total{actor=\"test_pattern\"}"),
+        Some(1.0),
+        "{metrics}"
+    );
+    let _ = std::fs::remove_file(&config);
+}
