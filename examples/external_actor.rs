@@ -14,7 +14,7 @@
 //! default bus namespace).
 
 use robotd_protocol::diagnostics::{Ping, TestPatternReply, TestPatternRequest};
-use robotd_runtime::bus::{Bus, BusOptions, FaultKind, Fault};
+use robotd_runtime::bus::{Bus, BusOptions, Fault, FaultKind};
 use robotd_runtime::catalog::{SYSTEM_PING, TEST_PATTERN, TEST_PATTERN_FRAMES};
 use std::time::Duration;
 
@@ -27,10 +27,18 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Call robotd: proves this process reached the running service's bus.
     let robotd = bus.client(&SYSTEM_PING)?;
     if !robotd.wait_for_server(Duration::from_secs(10)).await {
-        return Err(format!("no robotd found on bus namespace '{namespace}' (is it running?)").into());
+        return Err(
+            format!("no robotd found on bus namespace '{namespace}' (is it running?)").into(),
+        );
     }
     let pong = robotd
-        .request(&Ping { seq: 1, payload: b"hello robotd".to_vec() }, Duration::from_secs(5))
+        .request(
+            &Ping {
+                seq: 1,
+                payload: b"hello robotd".to_vec(),
+            },
+            Duration::from_secs(5),
+        )
         .await?;
     let robotd_said = format!("pong {} from robotd pid {}", pong.seq, pong.served_by_pid);
     eprintln!("external actor: {robotd_said}");
@@ -62,7 +70,8 @@ fn publish_pattern(
     frames: &robotd_runtime::bus::FramePublisher,
     request: &TestPatternRequest,
 ) -> Result<u64, Fault> {
-    let unavailable = |e: robotd_runtime::bus::BusError| Fault::new(FaultKind::Unavailable, e.to_string());
+    let unavailable =
+        |e: robotd_runtime::bus::BusError| Fault::new(FaultKind::Unavailable, e.to_string());
     let mut frame = frames.loan().map_err(unavailable)?;
     frame.header_mut().frame_id = request.frame_id;
     for (i, pixel) in frame.pixels_mut().iter_mut().enumerate() {

@@ -117,8 +117,8 @@ fn restart_event(event: &SupervisionEvent) -> Option<RestartEvent> {
 /// Runs the service until a shutdown signal.
 pub async fn run(config: Config) -> Result<()> {
     let started = Instant::now();
-    let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd"))
-        .context("joining the bus")?;
+    let bus =
+        Bus::open(BusOptions::new(&config.bus.namespace, "robotd")).context("joining the bus")?;
     tracing::info!(namespace = %config.bus.namespace, "joined the bus");
 
     // robotd's own service: any process on the bus can check that robotd is alive.
@@ -151,7 +151,10 @@ pub async fn run(config: Config) -> Result<()> {
     let edge = HttpEdge::bind(config.http.bind, health_source).await?;
     let address = edge.local_addr()?;
     tracing::info!("HTTP edge on http://{address} (/health, /metrics)");
-    eprintln!("robotd: serving on http://{address} (/health, /metrics); bus namespace '{}'", config.bus.namespace);
+    eprintln!(
+        "robotd: serving on http://{address} (/health, /metrics); bus namespace '{}'",
+        config.bus.namespace
+    );
 
     edge.serve(shutdown_signal()).await?;
     tracing::info!("shutting down");
@@ -201,7 +204,10 @@ async fn start_process_actors(
             .on_restart_cleanup(move |_context| {
                 let report = cleanup_bus.cleanup_dead_nodes();
                 if report.failed > 0 {
-                    return Err(format!("{} dead bus node(s) could not be removed", report.failed));
+                    return Err(format!(
+                        "{} dead bus node(s) could not be removed",
+                        report.failed
+                    ));
                 }
                 Ok(())
             })

@@ -25,11 +25,18 @@ fn an_external_actor_joins_robotd_and_exchanges_requests_and_a_frame() {
         for frame_id in [7u64, 8] {
             let seed = frame_id as u8;
             let reply = camera
-                .request(&TestPatternRequest { frame_id, seed }, Duration::from_secs(5))
+                .request(
+                    &TestPatternRequest { frame_id, seed },
+                    Duration::from_secs(5),
+                )
                 .await
                 .unwrap();
             assert_eq!(reply.frame_id, frame_id);
-            assert_eq!(reply.served_by_pid, actor.pid(), "served by the actor's process");
+            assert_eq!(
+                reply.served_by_pid,
+                actor.pid(),
+                "served by the actor's process"
+            );
             assert!(reply.delivered_to >= 1, "our frame subscriber got it");
             assert!(
                 reply

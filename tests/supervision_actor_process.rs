@@ -30,19 +30,24 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
         ),
     )
     .unwrap();
-    let _robotd = common::start_robotd(
-        &namespace,
-        port,
-        &["--config", config.to_str().unwrap()],
-    );
+    let _robotd = common::start_robotd(&namespace, port, &["--config", config.to_str().unwrap()]);
 
     let runtime = tokio::runtime::Runtime::new().unwrap();
     runtime.block_on(async {
         let bus = Bus::open(BusOptions::new(&namespace, "e2e-test")).unwrap();
         let camera = bus.client(&TEST_PATTERN).unwrap();
-        assert!(camera.wait_for_server(Duration::from_secs(15)).await, "robotd started the actor");
-        let request = TestPatternRequest { frame_id: 1, seed: 1 };
-        let first = camera.request(&request, Duration::from_secs(5)).await.unwrap();
+        assert!(
+            camera.wait_for_server(Duration::from_secs(15)).await,
+            "robotd started the actor"
+        );
+        let request = TestPatternRequest {
+            frame_id: 1,
+            seed: 1,
+        };
+        let first = camera
+            .request(&request, Duration::from_secs(5))
+            .await
+            .unwrap();
         let first_pid = first.served_by_pid;
 
         // Freeze the actor, send a request it will never answer, then kill it.
@@ -86,7 +91,10 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
     assert_eq!(actor["state"], "running", "{health}");
     let (_, metrics) = common::http_get(port, "/metrics");
     assert_eq!(
-        common::metric(&metrics, "robotd_actor_restarts_total{actor=\"test_pattern\"}"),
+        common::metric(
+            &metrics,
+            "robotd_actor_restarts_total{actor=\"test_pattern\"}"
+        ),
         Some(1.0),
         "{metrics}"
     );

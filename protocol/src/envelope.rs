@@ -187,7 +187,9 @@ pub fn encode_parts<B: Serialize + ?Sized>(
         body,
     };
     let mut ser = rmp_serde::Serializer::new(out).with_struct_map();
-    envelope.serialize(&mut ser).map_err(|source| EncodeError { msg_type, source })
+    envelope
+        .serialize(&mut ser)
+        .map_err(|source| EncodeError { msg_type, source })
 }
 
 /// Decodes an envelope of `T`, refusing other message types and schema versions.

@@ -24,7 +24,11 @@ async fn a_frame_arrives_with_its_header_and_pixels() {
         assert_eq!(sample.header().frame_id, 42);
         assert_eq!(sample.header().camera_pose[4], 1.57);
         assert_eq!(sample.pixels().len(), FRAME_BYTES);
-        assert!(sample.pixels().iter().enumerate().all(|(i, &p)| p == (i % 251) as u8));
+        assert!(sample
+            .pixels()
+            .iter()
+            .enumerate()
+            .all(|(i, &p)| p == (i % 251) as u8));
         assert!(sample.header().timestamp_unix_ns > 0);
     }
 }

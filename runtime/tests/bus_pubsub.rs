@@ -63,7 +63,10 @@ async fn back_pressure_sender_gets_an_error_when_a_subscriber_never_reads() {
     let started = Instant::now();
     let error = publisher.publish(&Count { n: 2 }).unwrap_err();
     assert!(matches!(error, BusError::Full { .. }), "{error}");
-    assert!(started.elapsed() >= Duration::from_millis(40), "it waited before giving up");
+    assert!(
+        started.elapsed() >= Duration::from_millis(40),
+        "it waited before giving up"
+    );
     assert!(error.to_string().contains("stuck"), "{error}");
 }
 
@@ -125,7 +128,9 @@ async fn a_message_of_another_type_is_refused_with_a_clear_error() {
     publisher.publish(&Other { text: "hi".into() }).unwrap();
     let error = subscriber.recv().await.unwrap_err();
     assert!(
-        error.to_string().contains("expected a 'test.count' message but got 'test.other'"),
+        error
+            .to_string()
+            .contains("expected a 'test.count' message but got 'test.other'"),
         "{error}"
     );
     // The subscriber stays usable.
@@ -154,13 +159,19 @@ async fn oversized_messages_are_refused_before_sending() {
             text: "x".repeat(100),
         })
         .unwrap_err();
-    assert!(matches!(error, BusError::TooLarge { limit: 64, .. }), "{error}");
+    assert!(
+        matches!(error, BusError::TooLarge { limit: 64, .. }),
+        "{error}"
+    );
 }
 
 fn dropped_count(topic: &str) -> f64 {
     let text = robotd_runtime::metrics::Metrics::global().render();
     text.lines()
-        .filter(|line| line.starts_with("robotd_bus_dropped_total") && line.contains(&format!("topic=\"{topic}\"")))
+        .filter(|line| {
+            line.starts_with("robotd_bus_dropped_total")
+                && line.contains(&format!("topic=\"{topic}\""))
+        })
         .filter_map(|line| line.rsplit(' ').next()?.parse::<f64>().ok())
         .sum()
 }

@@ -99,7 +99,11 @@ async fn a_panicking_handler_fails_that_request_once_and_serving_goes_on() {
         other => panic!("expected a fault, got {other}"),
     }
     assert_eq!(client.request(&ping(14), SECOND).await.unwrap().seq, 14);
-    assert_eq!(executions.load(Ordering::SeqCst), 2, "the failed request ran exactly once");
+    assert_eq!(
+        executions.load(Ordering::SeqCst),
+        2,
+        "the failed request ran exactly once"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -108,7 +112,9 @@ async fn handler_faults_reach_the_caller() {
     let mut server = bus.server(&ECHO).unwrap();
     tokio::spawn(async move {
         server
-            .serve(|_p| async move { Err::<Pong, _>(Fault::new(FaultKind::Unavailable, "arm is restarting")) })
+            .serve(|_p| async move {
+                Err::<Pong, _>(Fault::new(FaultKind::Unavailable, "arm is restarting"))
+            })
             .await
     });
     let client = bus.client(&ECHO).unwrap();
@@ -124,10 +130,12 @@ async fn a_request_dropped_by_the_server_is_answered_with_a_fault() {
         let incoming = server.next().await.unwrap();
         drop(incoming); // lost track of the request without answering
         let _ = server.next().await; // ...and went on serving
-
     });
     let client = bus.client(&ECHO).unwrap();
-    let error = client.request(&ping(1), Duration::from_secs(5)).await.unwrap_err();
+    let error = client
+        .request(&ping(1), Duration::from_secs(5))
+        .await
+        .unwrap_err();
     match error {
         BusError::Remote { fault, .. } => assert_eq!(fault.kind, FaultKind::Dropped),
         other => panic!("expected a dropped-request fault, got {other}"),
@@ -151,7 +159,16 @@ async fn a_slow_server_times_out() {
         .request(&ping(1), Duration::from_millis(100))
         .await
         .unwrap_err();
-    assert!(matches!(error, BusError::Timeout { timeout_ms: 100, .. }), "{error}");
+    assert!(
+        matches!(
+            error,
+            BusError::Timeout {
+                timeout_ms: 100,
+                ..
+            }
+        ),
+        "{error}"
+    );
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -170,7 +187,12 @@ async fn a_malformed_request_gets_a_bad_request_fault_and_the_server_survives() 
     let wrong: Service<NotAPing, Pong> = Service::new("echo");
     let wrong_client = bus.client(&wrong).unwrap();
     let error = wrong_client
-        .request(&NotAPing { words: vec!["hi".into()] }, SECOND)
+        .request(
+            &NotAPing {
+                words: vec!["hi".into()],
+            },
+            SECOND,
+        )
         .await
         .unwrap_err();
     match error {

@@ -116,8 +116,9 @@ pub fn run(exe: &std::path::Path, namespace: &str, sizes: BenchSizes) -> Result<
     })?;
     let raw_frames = frames_publisher(exe, namespace, sizes.frames, false)?;
     let bus_frames = frames_publisher(exe, namespace, sizes.frames, true)?;
-    let mut restarts =
-        runtime.block_on(robotd_runtime::supervision::measure_restart_latency(sizes.restarts))?;
+    let mut restarts = runtime.block_on(robotd_runtime::supervision::measure_restart_latency(
+        sizes.restarts,
+    ))?;
     let restart = Latency::of(&mut restarts);
     Ok(BusFigures {
         raw_rtt_p50_us: raw_rtt.p50_us,

@@ -56,7 +56,9 @@ pub enum BusError {
         service: String,
     },
     /// The server went away while the request was in flight (the actor died or restarted).
-    #[error("the actor serving '{service}' went away while handling the request; it was not retried")]
+    #[error(
+        "the actor serving '{service}' went away while handling the request; it was not retried"
+    )]
     ServerLost {
         /// Service name.
         service: String,

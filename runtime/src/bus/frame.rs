@@ -145,7 +145,8 @@ impl FrameTopic {
     }
 }
 
-type FrameFactory = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, FrameSlot, ()>;
+type FrameFactory =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, FrameSlot, ()>;
 
 fn open_frames(bus: &Bus, topic: &FrameTopic) -> Result<FrameFactory, BusError> {
     bus.node()
@@ -316,7 +317,9 @@ impl FramePublisher {
     pub fn loan(&self) -> Result<FrameLoan<'_>, BusError> {
         let mut sample = self.port.loan_uninit().map_err(|e| BusError::Transfer {
             topic: self.topic.name.to_owned(),
-            reason: format!("cannot loan a frame slot: {e:?} (subscribers holding too many frames?)"),
+            reason: format!(
+                "cannot loan a frame slot: {e:?} (subscribers holding too many frames?)"
+            ),
         })?;
         let slot = sample.payload_mut().as_mut_ptr();
         // SAFETY: `slot` points at a live, exclusively loaned `FrameSlot` in shared memory. The

@@ -133,7 +133,9 @@ impl Bus {
             .create::<Ipc>()
             .map_err(|e| BusError::Setup {
                 what: "iceoryx2 node".into(),
-                reason: format!("{e:?}; check that /dev/shm is mounted and writable (robotd doctor)"),
+                reason: format!(
+                    "{e:?}; check that /dev/shm is mounted and writable (robotd doctor)"
+                ),
             })?;
         let bus = Self {
             inner: Arc::new(BusInner {

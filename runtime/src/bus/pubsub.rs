@@ -365,10 +365,12 @@ impl<T: Message> Publisher<T> {
     /// now rather than at their next receive; on back-pressure topics wait (bounded) for their
     /// acknowledgements, so the first messages cannot overflow an unconnected subscriber.
     fn handshake(&self, bus: &Bus, consumed: Option<&ConsumedWaiter>) -> Result<(), BusError> {
-        self.port.update_connections().map_err(|e| BusError::Setup {
-            what: format!("publisher on '{}'", self.topic.name),
-            reason: format!("cannot connect to the subscribers: {e:?}"),
-        })?;
+        self.port
+            .update_connections()
+            .map_err(|e| BusError::Setup {
+                what: format!("publisher on '{}'", self.topic.name),
+                reason: format!("cannot connect to the subscribers: {e:?}"),
+            })?;
         let subscribers = self.factory.dynamic_config().number_of_subscribers() as u64;
         Notify::new(bus, &joined_event(&self.topic.name))?.notify();
         let Some(consumed) = consumed else {
@@ -439,16 +441,14 @@ impl<T: Message> Publisher<T> {
                 limit: self.topic.max_bytes,
             });
         }
-        let mut sample = self
-            .port
-            .loan_slice_uninit(bytes.len())
-            .map_err(|e| BusError::Transfer {
-                topic: name.to_owned(),
-                reason: format!("cannot loan {} bytes: {e:?}", bytes.len()),
-            })?;
-        sample.user_header_mut().seq = self
-            .seq
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let mut sample =
+            self.port
+                .loan_slice_uninit(bytes.len())
+                .map_err(|e| BusError::Transfer {
+                    topic: name.to_owned(),
+                    reason: format!("cannot loan {} bytes: {e:?}", bytes.len()),
+                })?;
+        sample.user_header_mut().seq = self.seq.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let sample = sample.write_from_slice(bytes);
         let started = std::time::Instant::now();
         let delivered = sample.send().map_err(|e| match e {

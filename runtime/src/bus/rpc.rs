@@ -224,10 +224,11 @@ impl Bus {
             Err(_) => {
                 // A crashed predecessor may still hold the single server slot.
                 self.cleanup_dead_nodes();
-                self.subscriber_for(service.requests()).map_err(|e| BusError::Setup {
-                    what: format!("server of '{}'", service.name),
-                    reason: format!("{e} (is another robotd or actor already serving it?)"),
-                })?
+                self.subscriber_for(service.requests())
+                    .map_err(|e| BusError::Setup {
+                        what: format!("server of '{}'", service.name),
+                        reason: format!("{e} (is another robotd or actor already serving it?)"),
+                    })?
             }
         };
         let (abandoned_tx, abandoned_rx) = tokio::sync::mpsc::unbounded_channel();
@@ -303,8 +304,10 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
                     // The late answer to an earlier request that timed out: not ours.
                     continue;
                 }
-                crate::metrics::Metrics::global()
-                    .bus_latency(&format!("{name}/round_trip"), started.elapsed().as_secs_f64());
+                crate::metrics::Metrics::global().bus_latency(
+                    &format!("{name}/round_trip"),
+                    started.elapsed().as_secs_f64(),
+                );
                 return match frame.body.reply {
                     Reply::Ok(body) => Ok(Envelope {
                         msg_type: frame.msg_type,
@@ -435,7 +438,10 @@ impl<Req: Message, Resp: Message> std::fmt::Debug for Server<Req, Resp> {
 /// One decoded request or one that must be refused.
 enum Received<Req> {
     Request(Envelope<RequestFrame<Req>>),
-    Malformed { routing: Option<(u64, u64)>, error: String },
+    Malformed {
+        routing: Option<(u64, u64)>,
+        error: String,
+    },
 }
 
 impl<Req: Message, Resp: Message> Server<Req, Resp> {
@@ -538,7 +544,10 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
             let (envelope, pending) = self.next().await?.split();
             let span = tracing::info_span!("bus.handle", service = self.service.name);
             crate::telemetry::set_parent_from(&span, &envelope.trace);
-            let task = tokio::spawn(tracing::Instrument::instrument(handler(envelope.body), span));
+            let task = tokio::spawn(tracing::Instrument::instrument(
+                handler(envelope.body),
+                span,
+            ));
             let reply = match task.await {
                 Ok(reply) => reply,
                 Err(join_error) => Err(Fault::new(
