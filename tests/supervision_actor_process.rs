@@ -6,7 +6,7 @@ mod common;
 
 use robotd_protocol::diagnostics::TestPatternRequest;
 use robotd_runtime::bus::{Bus, BusError, BusOptions};
-use robotd_runtime::catalog::TEST_PATTERN;
+use robotd_runtime::catalog::{HEALTH_RESTARTS, TEST_PATTERN};
 use std::time::{Duration, Instant};
 
 fn signal(pid: u32, signal: &str) {
@@ -81,6 +81,16 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
             }
         };
         assert_ne!(second.served_by_pid, first_pid, "a new process serves");
+
+        // ...and told the bus about it.
+        let event = tokio::time::timeout(Duration::from_secs(5), restarts.recv())
+            .await
+            .expect("a restart event within 5 s")
+            .unwrap()
+            .body;
+        assert_eq!(event.actor, "test_pattern");
+        assert_eq!(event.attempt, 1);
+        assert!(!event.budget_exhausted);
     });
 
     let (_, health) = common::http_get(port, "/health");

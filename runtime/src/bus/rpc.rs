@@ -546,7 +546,7 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
             crate::telemetry::set_parent_from(&span, &envelope.trace);
             let task = tokio::spawn(tracing::Instrument::instrument(
                 handler(envelope.body),
-                span,
+                span.clone(),
             ));
             let reply = match task.await {
                 Ok(reply) => reply,
@@ -559,6 +559,8 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
                     ),
                 )),
             };
+            // The reply carries the handler's span, so the caller's trace shows both sides.
+            let _in_span = span.enter();
             self.respond(pending, reply)?;
         }
     }

@@ -1,0 +1,65 @@
+//! One trace across processes: a span started at an edge in one process continues in the
+//! robotd process that serves its bus request, and the reply carries that continuation back.
+
+mod common;
+
+use robotd_protocol::diagnostics::Ping;
+use robotd_runtime::bus::{Bus, BusOptions};
+use robotd_runtime::catalog::SYSTEM_PING;
+use robotd_runtime::config::Config;
+use robotd_runtime::telemetry::{self, current_trace_context, Mode};
+use std::time::Duration;
+use tracing::Instrument;
+
+/// (trace id, span id) of a W3C traceparent `00-<trace>-<span>-<flags>`.
+fn ids(traceparent: &str) -> (String, String) {
+    let parts: Vec<&str> = traceparent.split('-').collect();
+    assert_eq!(parts.len(), 4, "traceparent {traceparent}");
+    (parts[1].to_owned(), parts[2].to_owned())
+}
+
+#[test]
+fn robotd_continues_the_callers_trace_and_answers_from_its_own_span() {
+    let namespace = common::fresh_namespace("trace");
+    let port = common::free_port();
+    let robotd = common::start_robotd(&namespace, port, &[]);
+
+    let (dispatch, _guard) =
+        telemetry::build(&Config::default().telemetry, Mode::Command).expect("telemetry");
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    tracing::dispatcher::with_default(&dispatch, || {
+        runtime.block_on(async {
+            let bus = Bus::open(BusOptions::new(&namespace, "edge")).unwrap();
+            let system = bus.client(&SYSTEM_PING).unwrap();
+            assert!(system.wait_for_server(Duration::from_secs(10)).await);
+
+            let span = tracing::info_span!("edge.call");
+            let ours = span.in_scope(current_trace_context);
+            let ours = ours.traceparent.expect("the edge span has a trace context");
+            let reply = system
+                .request_envelope(
+                    &Ping {
+                        seq: 1,
+                        payload: Vec::new(),
+                    },
+                    Duration::from_secs(5),
+                )
+                .instrument(span)
+                .await
+                .unwrap();
+            assert_eq!(reply.body.served_by_pid, robotd.pid());
+
+            let theirs = reply
+                .trace
+                .traceparent
+                .expect("robotd's reply carries its span's trace context");
+            let (our_trace, our_span) = ids(&ours);
+            let (their_trace, their_span) = ids(&theirs);
+            assert_eq!(their_trace, our_trace, "robotd continued the caller's trace");
+            assert_ne!(their_span, our_span, "from a span of its own");
+        })
+    });
+}
