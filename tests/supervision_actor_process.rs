@@ -35,6 +35,7 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
     let runtime = tokio::runtime::Runtime::new().unwrap();
     runtime.block_on(async {
         let bus = Bus::open(BusOptions::new(&namespace, "e2e-test")).unwrap();
+        let mut restarts = bus.subscriber(&HEALTH_RESTARTS).unwrap();
         let camera = bus.client(&TEST_PATTERN).unwrap();
         assert!(
             camera.wait_for_server(Duration::from_secs(15)).await,
