@@ -59,6 +59,8 @@ enum Command {
         peer_namespace: String,
         #[arg(long)]
         count: usize,
+        #[arg(long)]
+        cpu: Option<usize>,
     },
 }
 
@@ -190,8 +192,9 @@ fn run() -> Result<std::process::ExitCode> {
             role,
             peer_namespace,
             count,
+            cpu,
         } => {
-            bench::bus::run_peer(&role, &peer_namespace, count)?;
+            bench::bus::run_peer(&role, &peer_namespace, count, cpu)?;
             Ok(std::process::ExitCode::SUCCESS)
         }
     }

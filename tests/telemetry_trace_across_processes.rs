@@ -58,7 +58,10 @@ fn robotd_continues_the_callers_trace_and_answers_from_its_own_span() {
                 .expect("robotd's reply carries its span's trace context");
             let (our_trace, our_span) = ids(&ours);
             let (their_trace, their_span) = ids(&theirs);
-            assert_eq!(their_trace, our_trace, "robotd continued the caller's trace");
+            assert_eq!(
+                their_trace, our_trace,
+                "robotd continued the caller's trace"
+            );
             assert_ne!(their_span, our_span, "from a span of its own");
         })
     });

@@ -53,6 +53,14 @@ pub struct BusFigures {
     pub bus_rtt_p99_us: f64,
     pub bus_inproc_rtt_p50_us: f64,
     pub bus_inproc_rtt_p99_us: f64,
+    pub same_core_raw_rtt_p50_us: f64,
+    pub same_core_raw_rtt_p99_us: f64,
+    pub same_core_bus_rtt_p50_us: f64,
+    pub same_core_bus_rtt_p99_us: f64,
+    pub cross_core_raw_rtt_p50_us: Option<f64>,
+    pub cross_core_raw_rtt_p99_us: Option<f64>,
+    pub cross_core_bus_rtt_p50_us: Option<f64>,
+    pub cross_core_bus_rtt_p99_us: Option<f64>,
     pub raw_frames_per_s: f64,
     pub bus_frames_per_s: f64,
     pub raw_frames_lost: u64,
@@ -86,6 +94,21 @@ impl BusFigures {
             self.bus_inproc_rtt_p50_us, self.bus_inproc_rtt_p99_us
         ));
         out.push_str(&format!(
+            "pinned to one core: raw / bus p50 {:>7.1} / {:<7.1} µs ({:.2}×)\n",
+            self.same_core_raw_rtt_p50_us,
+            self.same_core_bus_rtt_p50_us,
+            self.same_core_bus_rtt_p50_us / self.same_core_raw_rtt_p50_us
+        ));
+        if let (Some(raw), Some(bus)) = (
+            self.cross_core_raw_rtt_p50_us,
+            self.cross_core_bus_rtt_p50_us,
+        ) {
+            out.push_str(&format!(
+                "pinned to two cores: raw / bus p50 {raw:>6.1} / {bus:<7.1} µs ({:.2}×)\n",
+                bus / raw
+            ));
+        }
+        out.push_str(&format!(
             "raw frames/s (921,600 B, lossless) {:>9.0}  lost {}\n",
             self.raw_frames_per_s, self.raw_frames_lost
         ));
@@ -103,16 +126,30 @@ impl BusFigures {
 
 /// Runs the whole bus benchmark. `exe` is this binary (for peers), `namespace` isolates it.
 pub fn run(exe: &std::path::Path, namespace: &str, sizes: BenchSizes) -> Result<BusFigures> {
-    let mut raw_rtt = raw_rtt_client(exe, namespace, sizes.round_trips)?;
-    let raw_rtt = Latency::of(&mut raw_rtt);
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
+    let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()?;
-    let (bus_rtt, inproc_rtt) = runtime.block_on(async {
-        let mut cross = bus_rtt_client(exe, namespace, sizes.round_trips).await?;
-        let mut inproc = bus_rtt_inproc(namespace, sizes.round_trips).await?;
-        anyhow::Ok((Latency::of(&mut cross), Latency::of(&mut inproc)))
+    let two_cpus = std::thread::available_parallelism().map_or(1, |n| n.get()) >= 2;
+    let (raw_rtt, bus_rtt, inproc_rtt, same_core, cross_core) = runtime.block_on(async {
+        let n = sizes.round_trips;
+        let (mut raw, mut bus) = rtt_interleaved(exe, namespace, n, Placement::Os).await?;
+        let (mut same_raw, mut same_bus) =
+            rtt_interleaved(exe, namespace, n, Placement::SameCore).await?;
+        let cross_core = if two_cpus {
+            let (mut raw, mut bus) =
+                rtt_interleaved(exe, namespace, n, Placement::CrossCore).await?;
+            Some((Latency::of(&mut raw), Latency::of(&mut bus)))
+        } else {
+            None
+        };
+        let mut inproc = bus_rtt_inproc(namespace, n).await?;
+        anyhow::Ok((
+            Latency::of(&mut raw),
+            Latency::of(&mut bus),
+            Latency::of(&mut inproc),
+            (Latency::of(&mut same_raw), Latency::of(&mut same_bus)),
+            cross_core,
+        ))
     })?;
     let raw_frames = frames_publisher(exe, namespace, sizes.frames, false)?;
     let bus_frames = frames_publisher(exe, namespace, sizes.frames, true)?;
@@ -127,6 +164,14 @@ pub fn run(exe: &std::path::Path, namespace: &str, sizes: BenchSizes) -> Result<
         bus_rtt_p99_us: bus_rtt.p99_us,
         bus_inproc_rtt_p50_us: inproc_rtt.p50_us,
         bus_inproc_rtt_p99_us: inproc_rtt.p99_us,
+        same_core_raw_rtt_p50_us: same_core.0.p50_us,
+        same_core_raw_rtt_p99_us: same_core.0.p99_us,
+        same_core_bus_rtt_p50_us: same_core.1.p50_us,
+        same_core_bus_rtt_p99_us: same_core.1.p99_us,
+        cross_core_raw_rtt_p50_us: cross_core.map(|c| c.0.p50_us),
+        cross_core_raw_rtt_p99_us: cross_core.map(|c| c.0.p99_us),
+        cross_core_bus_rtt_p50_us: cross_core.map(|c| c.1.p50_us),
+        cross_core_bus_rtt_p99_us: cross_core.map(|c| c.1.p99_us),
         raw_frames_per_s: raw_frames.frames_per_s,
         bus_frames_per_s: bus_frames.frames_per_s,
         raw_frames_lost: raw_frames.lost,
@@ -147,9 +192,24 @@ struct Peer {
 
 impl Peer {
     fn start(exe: &std::path::Path, role: &str, namespace: &str, count: usize) -> Result<Self> {
-        let mut child = Command::new(exe)
+        Self::start_on(exe, role, namespace, count, None)
+    }
+
+    fn start_on(
+        exe: &std::path::Path,
+        role: &str,
+        namespace: &str,
+        count: usize,
+        cpu: Option<usize>,
+    ) -> Result<Self> {
+        let mut command = Command::new(exe);
+        command
             .args(["bench-peer", role, "--peer-namespace", namespace, "--count"])
-            .arg(count.to_string())
+            .arg(count.to_string());
+        if let Some(cpu) = cpu {
+            command.arg("--cpu").arg(cpu.to_string());
+        }
+        let mut child = command
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
@@ -218,30 +278,108 @@ fn raw_rtt_service(node: &Node<ipc::Service>, namespace: &str) -> Result<RawRtt>
         .map_err(|e| anyhow::anyhow!("raw rtt service: {e:?}"))
 }
 
-fn raw_rtt_client(exe: &std::path::Path, namespace: &str, count: usize) -> Result<Vec<Duration>> {
-    let node = raw_node()?;
-    let service = raw_rtt_service(&node, namespace)?;
-    let client = service
-        .client_builder()
-        .create()
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let to_server = raw_event(&node, namespace, "rtt-req")?
-        .notifier_builder()
-        .create()
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let from_server = raw_event(&node, namespace, "rtt-resp")?
-        .listener_builder()
-        .create()
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let _peer = Peer::start(exe, RAW_RTT, namespace, count)?;
-    let warmup = (count / 10).max(100);
-    let mut samples = Vec::with_capacity(count);
-    for i in 0..warmup + count {
+/// Where the two processes of a round-trip measurement run. The OS's choice is what a user
+/// gets; the pinned ones show the two costs it mixes: a wake-up on the same core is cheap,
+/// one that must wake another (idle) core costs an inter-processor interrupt, which on a VM is
+/// a trip through the hypervisor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placement {
+    /// No pinning.
+    Os,
+    /// Both processes on CPU 0.
+    SameCore,
+    /// Client on CPU 0, peer on CPU 1.
+    CrossCore,
+}
+
+impl Placement {
+    fn name(self) -> &'static str {
+        match self {
+            Placement::Os => "os",
+            Placement::SameCore => "same",
+            Placement::CrossCore => "cross",
+        }
+    }
+
+    fn cpus(self) -> (Option<usize>, Option<usize>) {
+        match self {
+            Placement::Os => (None, None),
+            Placement::SameCore => (Some(0), Some(0)),
+            Placement::CrossCore => (Some(0), Some(1)),
+        }
+    }
+}
+
+/// Pins the calling thread to `cpu`; returns the previous CPU set.
+pub fn pin_current_thread(cpu: usize) -> Result<libc::cpu_set_t> {
+    // SAFETY: plain libc calls on a zeroed cpu_set_t owned by this frame.
+    unsafe {
+        let mut previous: libc::cpu_set_t = std::mem::zeroed();
+        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut previous) != 0 {
+            bail!("sched_getaffinity: {}", std::io::Error::last_os_error());
+        }
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) != 0 {
+            bail!(
+                "cannot pin to CPU {cpu}: {}",
+                std::io::Error::last_os_error()
+            );
+        }
+        Ok(previous)
+    }
+}
+
+struct RestoreAffinity(libc::cpu_set_t);
+
+impl Drop for RestoreAffinity {
+    fn drop(&mut self) {
+        // SAFETY: restores a CPU set read by sched_getaffinity.
+        unsafe {
+            libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &self.0);
+        }
+    }
+}
+
+/// The raw iceoryx2 side of the round-trip measurement: plain ports, blocking waits.
+struct RawRttClient {
+    client: iceoryx2::port::client::Client<ipc::Service, [u8; 64], (), [u8; 64], ()>,
+    to_server: iceoryx2::port::notifier::Notifier<ipc::Service>,
+    from_server: iceoryx2::port::listener::Listener<ipc::Service>,
+    _node: Node<ipc::Service>,
+}
+
+impl RawRttClient {
+    fn new(namespace: &str) -> Result<Self> {
+        let node = raw_node()?;
+        let service = raw_rtt_service(&node, namespace)?;
+        let client = service
+            .client_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        let to_server = raw_event(&node, namespace, "rtt-req")?
+            .notifier_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        let from_server = raw_event(&node, namespace, "rtt-resp")?
+            .listener_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        Ok(Self {
+            client,
+            to_server,
+            from_server,
+            _node: node,
+        })
+    }
+
+    fn round_trip(&self, tag: u8) -> Result<Duration> {
         let started = Instant::now();
-        let pending = client
-            .send_copy([i as u8; 64])
+        let pending = self
+            .client
+            .send_copy([tag; 64])
             .map_err(|e| anyhow::anyhow!("raw send: {e:?}"))?;
-        to_server
+        self.to_server
             .notify()
             .map_err(|e| anyhow::anyhow!("raw notify: {e:?}"))?;
         loop {
@@ -249,34 +387,60 @@ fn raw_rtt_client(exe: &std::path::Path, namespace: &str, count: usize) -> Resul
                 .receive()
                 .map_err(|e| anyhow::anyhow!("raw receive: {e:?}"))?
             {
-                if reply.payload()[0] != i as u8 {
+                if reply.payload()[0] != tag {
                     bail!("raw reply out of order");
                 }
-                break;
+                return Ok(started.elapsed());
             }
-            from_server
+            self.from_server
                 .timed_wait(|_| {}, Duration::from_secs(5))
                 .map_err(|e| anyhow::anyhow!("raw wait: {e:?}"))?;
         }
-        if i >= warmup {
-            samples.push(started.elapsed());
-        }
     }
-    Ok(samples)
 }
 
-async fn bus_rtt_client(
+/// Raw and bus round trips between two processes, alternating one of each, so that both
+/// see the same machine (these VMs change speed from second to second).
+async fn rtt_interleaved(
     exe: &std::path::Path,
     namespace: &str,
     count: usize,
-) -> Result<Vec<Duration>> {
+    placement: Placement,
+) -> Result<(Vec<Duration>, Vec<Duration>)> {
+    let namespace = &format!("{namespace}-{}", placement.name());
+    let (own_cpu, peer_cpu) = placement.cpus();
+    let previous = own_cpu.map(pin_current_thread).transpose()?;
+    let raw = RawRttClient::new(namespace)?;
+    let _raw_peer = Peer::start_on(exe, RAW_RTT, namespace, count, peer_cpu)?;
     let bus = Bus::open(BusOptions::new(namespace, "bench-client"))?;
     let client = bus.client(&PING)?;
-    let _peer = Peer::start(exe, BUS_RTT, namespace, count)?;
+    let _bus_peer = Peer::start_on(exe, BUS_RTT, namespace, count, peer_cpu)?;
+    let _restore = previous.map(RestoreAffinity);
     if !client.wait_for_server(Duration::from_secs(5)).await {
         bail!("the bus bench peer did not start serving");
     }
-    ping_loop(&client, count).await
+    let warmup = (count / 10).max(100);
+    let mut raw_samples = Vec::with_capacity(count);
+    let mut bus_samples = Vec::with_capacity(count);
+    let mut ping = Ping {
+        seq: 0,
+        payload: vec![7u8; 64],
+    };
+    for i in 0..warmup + count {
+        let raw_took = raw.round_trip(i as u8)?;
+        ping.seq = i as u64;
+        let started = Instant::now();
+        let pong = client.request(&ping, Duration::from_secs(5)).await?;
+        let bus_took = started.elapsed();
+        if pong.seq != ping.seq {
+            bail!("bus reply out of order: sent {} got {}", ping.seq, pong.seq);
+        }
+        if i >= warmup {
+            raw_samples.push(raw_took);
+            bus_samples.push(bus_took);
+        }
+    }
+    Ok((raw_samples, bus_samples))
 }
 
 async fn bus_rtt_inproc(namespace: &str, count: usize) -> Result<Vec<Duration>> {
@@ -431,13 +595,15 @@ fn frames_publisher(
 }
 
 /// Entry of `robotd bench-peer <role>`: the other process of a two-process measurement.
-pub fn run_peer(role: &str, namespace: &str, count: usize) -> Result<()> {
+pub fn run_peer(role: &str, namespace: &str, count: usize, cpu: Option<usize>) -> Result<()> {
+    if let Some(cpu) = cpu {
+        pin_current_thread(cpu)?;
+    }
     match role {
         RAW_RTT => raw_rtt_peer(namespace),
         RAW_FRAMES => raw_frames_peer(namespace, count),
         BUS_RTT | BUS_FRAMES => {
-            let runtime = tokio::runtime::Builder::new_multi_thread()
-                .worker_threads(2)
+            let runtime = tokio::runtime::Builder::new_current_thread()
                 .enable_all()
                 .build()?;
             runtime.block_on(async {
