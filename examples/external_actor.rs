@@ -41,6 +41,7 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         )
         .await?;
     let robotd_said = format!("pong {} from robotd pid {}", pong.seq, pong.served_by_pid);
+    drop(robotd); // a client holds a slot of robotd's service; give it back
     eprintln!("external actor: {robotd_said}");
 
     let frames = bus.frame_publisher(&TEST_PATTERN_FRAMES)?;

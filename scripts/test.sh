@@ -95,6 +95,10 @@ cargo fmt --all -- --check
 section "cargo clippy --workspace --all-targets -- -D warnings"
 cargo clippy --workspace --all-targets -- -D warnings
 
+# The end-to-end tests start the example actor as a real process: build it fresh.
+section "cargo build --examples"
+cargo build --examples
+
 if cargo nextest --version >/dev/null 2>&1; then
     section "cargo nextest run --workspace"
     cargo nextest run --workspace --no-fail-fast --no-tests=warn

@@ -120,6 +120,11 @@ impl RedisServer {
         {
             Ok(child) => child,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                // In CI the test command installs it, so missing there is a failure.
+                assert!(
+                    std::env::var_os("CI").is_none(),
+                    "redis-server is not installed but CI is set; ./scripts/test.sh installs it"
+                );
                 eprintln!(
                     "SKIPPED: redis-server is not installed; ./scripts/test.sh installs it \
                      (apt-get install redis-server)"

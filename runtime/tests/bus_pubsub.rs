@@ -175,3 +175,29 @@ fn dropped_count(topic: &str) -> f64 {
         .filter_map(|line| line.rsplit(' ').next()?.parse::<f64>().ok())
         .sum()
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stuck_subscriber_does_not_hide_messages_from_a_healthy_one() {
+    const TOPIC: Topic<Count> = Topic::new(
+        "two",
+        Overflow::BackPressure {
+            depth: 2,
+            max_wait: Duration::from_millis(30),
+        },
+    );
+    let bus = common::fresh_bus("pubsub");
+    let _stuck = bus.subscriber(&TOPIC).unwrap();
+    let mut healthy = bus.subscriber(&TOPIC).unwrap();
+    let publisher = bus.publisher(&TOPIC).unwrap();
+    for n in 0..2 {
+        publisher.publish(&Count { n }).unwrap();
+        assert_eq!(healthy.recv().await.unwrap().body.n, n);
+    }
+    let error = publisher.publish(&Count { n: 2 }).unwrap_err();
+    assert!(matches!(error, BusError::Full { .. }), "{error}");
+    let message = tokio::time::timeout(Duration::from_secs(2), healthy.recv())
+        .await
+        .expect("the healthy subscriber is woken")
+        .unwrap();
+    assert_eq!(message.body.n, 2);
+}

@@ -210,3 +210,93 @@ async fn a_service_has_exactly_one_server() {
     let error = bus.server(&ECHO).unwrap_err();
     assert!(matches!(error, BusError::Setup { .. }), "{error}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_request_that_timed_out_is_never_executed_later() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    let executions = Arc::new(AtomicU32::new(0));
+    let counter = executions.clone();
+    tokio::spawn(async move {
+        server
+            .serve(move |p| {
+                let counter = counter.clone();
+                async move {
+                    counter.fetch_add(1, Ordering::SeqCst);
+                    if p.seq == 1 {
+                        tokio::time::sleep(Duration::from_millis(400)).await;
+                    }
+                    Ok(pong(p))
+                }
+            })
+            .await
+    });
+    let slow = bus.client(&ECHO).unwrap();
+    let impatient = bus.client(&ECHO).unwrap();
+    let busy = tokio::spawn(async move { slow.request(&ping(1), SECOND).await });
+    tokio::time::sleep(Duration::from_millis(50)).await; // the server is now busy with 1
+    let error = impatient
+        .request(&ping(2), Duration::from_millis(100))
+        .await
+        .unwrap_err();
+    assert!(matches!(error, BusError::Timeout { .. }), "{error}");
+    assert_eq!(busy.await.unwrap().unwrap().seq, 1);
+    // The server reached request 2 after its caller gave up: refused, not executed.
+    assert_eq!(impatient.request(&ping(3), SECOND).await.unwrap().seq, 3);
+    assert_eq!(
+        executions.load(Ordering::SeqCst),
+        2,
+        "requests 1 and 3 ran; 2 did not"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reply_too_large_to_send_is_a_fault_and_serving_goes_on() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    tokio::spawn(async move {
+        server
+            .serve(|p| async move {
+                let mut reply = pong(p);
+                if reply.seq == 1 {
+                    reply.payload = vec![0; 2 * 1024 * 1024];
+                }
+                Ok(reply)
+            })
+            .await
+    });
+    let client = bus.client(&ECHO).unwrap();
+    match client.request(&ping(1), SECOND).await.unwrap_err() {
+        BusError::Remote { fault, .. } => assert_eq!(fault.kind, FaultKind::ReplyFailed),
+        other => panic!("expected a reply-failed fault, got {other}"),
+    }
+    assert_eq!(client.request(&ping(2), SECOND).await.unwrap().seq, 2);
+}
+
+fn open_fds() -> usize {
+    std::fs::read_dir("/proc/self/fd").map_or(0, |d| d.count())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn short_lived_clients_leave_nothing_behind() {
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&ECHO).unwrap();
+    tokio::spawn(async move { server.serve(|p| async move { Ok(pong(p)) }).await });
+    let mut round = |n: u64| {
+        let bus = bus.clone();
+        async move {
+            for seq in 0..n {
+                let client = bus.client(&ECHO).unwrap();
+                assert_eq!(client.request(&ping(seq), SECOND).await.unwrap().seq, seq);
+            }
+        }
+    };
+    round(10).await;
+    let before = open_fds();
+    round(140).await; // more clients than a service admits at once, one after the other
+    let grown = open_fds().saturating_sub(before);
+    assert!(
+        grown < 100,
+        "{grown} descriptors more after 140 short-lived clients"
+    );
+}

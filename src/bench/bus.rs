@@ -535,7 +535,7 @@ fn stamp(pixels: &mut [u8; FRAME_BYTES], seq: u64) {
 
 fn check_stamp(pixels: &[u8], seq: u64) -> bool {
     let value = (seq % 251) as u8;
-    pixels[0] == value && pixels[FRAME_BYTES - 1] == value
+    pixels.len() == FRAME_BYTES && pixels[0] == value && pixels[FRAME_BYTES - 1] == value
 }
 
 fn frames_publisher(
@@ -716,7 +716,7 @@ impl FrameCounter {
             bail!("frame {seq}: pixels do not carry the stamp the producer wrote");
         }
         self.lost += seq.saturating_sub(self.next_seq);
-        self.next_seq = seq + 1;
+        self.next_seq = seq.saturating_add(1);
         self.received += 1;
         Ok(())
     }

@@ -22,6 +22,7 @@ use super::pubsub::Overflow;
 use super::wake::{Notify, Wake};
 use super::{Bus, BusError, Ipc};
 use crate::metrics::{Direction, Metrics};
+use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::port::{BackpressureAction, BackpressureInfo};
 use iceoryx2::prelude::*;
 use robotd_protocol::envelope::{unix_now_ns, TraceContext};
@@ -283,6 +284,12 @@ impl Bus {
                 what: format!("frame subscriber on '{}'", topic.name),
                 reason: format!("{e:?}"),
             })?;
+        // Connect to the publishers that exist now, so frames sent before our first receive
+        // are delivered rather than refused (a later publisher connects at our next receive).
+        port.update_connections().map_err(|e| BusError::Setup {
+            what: format!("frame subscriber on '{}'", topic.name),
+            reason: format!("cannot connect to the publishers: {e:?}"),
+        })?;
         let consumed = match topic.overflow {
             Overflow::BackPressure { .. } => Some(Notify::new(self, &consumed_event(topic.name))?),
             Overflow::LatestWins { .. } => None,
@@ -364,7 +371,10 @@ impl FrameLoan<'_> {
             header.set_trace_context(&trace);
         }
         let started = std::time::Instant::now();
-        let delivered = self.sample.send().map_err(|e| match e {
+        let delivered = self.sample.send();
+        // Wake the subscribers even when one of them was full: the others got the frame.
+        publisher.notify.notify();
+        let delivered = delivered.map_err(|e| match e {
             iceoryx2::port::SendError::UnableToDeliver => {
                 Metrics::global().bus_dropped(name, "subscriber_full");
                 BusError::Full {
@@ -377,7 +387,6 @@ impl FrameLoan<'_> {
                 reason: format!("{other:?}"),
             },
         })?;
-        publisher.notify.notify();
         Metrics::global().bus_message(name, Direction::Sent);
         Ok(delivered)
     }
@@ -433,7 +442,7 @@ impl FrameSubscriber {
         let header = &sample.payload().header;
         let publisher = sample.header().publisher_id().value();
         if let Some(previous) = self.last_seq.insert(publisher, header.seq) {
-            let missed = header.seq.saturating_sub(previous + 1);
+            let missed = header.seq.saturating_sub(previous.saturating_add(1));
             for _ in 0..missed.min(1_000) {
                 metrics.bus_dropped(name, "overwritten_latest_wins");
             }

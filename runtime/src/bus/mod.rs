@@ -13,15 +13,18 @@
 //! - **services** ([`Service`], [`Client`], [`Server`]): request-response for commands, where the
 //!   caller always gets an answer or an error, never silence.
 //!
-//! Nothing busy-polls or sleeps: each port is paired with an iceoryx2 *event* service whose
-//! listener is a file descriptor registered with tokio, so a task waiting for a message is woken
-//! by the kernel when the sender notifies.
+//! Receiving never busy-polls or sleeps in a loop: each port is paired with an iceoryx2 *event*
+//! service whose listener is a file descriptor registered with tokio, so a task waiting for a
+//! message is woken by the kernel when the sender notifies. (Two waits are not events:
+//! [`Client::wait_for_server`], meant for start-up, checks every 5 ms, and a waiting request
+//! checks every 250 ms that its server's process is still alive.)
 //!
 //! Overflow is declared per topic ([`Overflow`]): frames use *latest wins* (a slow viewer sees
 //! the newest frame, the camera never waits), control topics use *back-pressure* (the sender
 //! waits, event-driven, for the slowest subscriber and gets [`BusError::Full`] if it does not
-//! catch up in time). Losses on latest-wins topics are detected from sequence gaps and counted
-//! in the `robotd_bus_dropped_total` metric — nothing is lost silently.
+//! catch up in time). Messages replaced on latest-wins topics are detected from sequence gaps
+//! (from the first message a subscriber sees on) and counted in the `robotd_bus_dropped_total`
+//! metric — nothing is lost silently.
 //!
 //! ```no_run
 //! use robotd_runtime::bus::{Bus, BusOptions, Overflow, Topic};

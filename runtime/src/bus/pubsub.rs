@@ -118,6 +118,10 @@ pub(crate) struct TopicSpec {
     pub(crate) overflow: Overflow,
     pub(crate) max_bytes: usize,
     pub(crate) max_subscribers: usize,
+    pub(crate) max_publishers: usize,
+    /// Whether a new back-pressure publisher waits (bounded) for existing subscribers to
+    /// connect before its first message.
+    pub(crate) handshake: bool,
 }
 
 impl<T: Message> From<&Topic<T>> for TopicSpec {
@@ -128,6 +132,8 @@ impl<T: Message> From<&Topic<T>> for TopicSpec {
             overflow: topic.overflow,
             max_bytes: topic.max_bytes,
             max_subscribers: 32,
+            max_publishers: 16,
+            handshake: true,
         }
     }
 }
@@ -154,7 +160,7 @@ fn open_service(bus: &Bus, spec: &TopicSpec) -> Result<PubSubFactory, BusError> 
         .enable_safe_overflow(overflow.is_latest_wins())
         .subscriber_max_buffer_size(overflow.depth())
         .history_size(0)
-        .max_publishers(16)
+        .max_publishers(spec.max_publishers)
         .max_subscribers(spec.max_subscribers)
         .max_nodes(64)
         .open_or_create()
@@ -179,7 +185,7 @@ fn joined_event(name: &str) -> String {
 }
 
 /// How long a new back-pressure publisher waits for existing subscribers to connect.
-const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(500);
+const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(100);
 
 thread_local! {
     static ENCODE_BUFFER: RefCell<Vec<u8>> = RefCell::new(Vec::with_capacity(4096));
@@ -317,6 +323,7 @@ async fn connect_new_publishers(
 #[derive(Clone)]
 struct ConsumedWaiter {
     listener: Arc<iceoryx2::port::listener::Listener<Ipc>>,
+    bus: Bus,
 }
 
 impl ConsumedWaiter {
@@ -344,10 +351,15 @@ impl ConsumedWaiter {
             })?;
         Ok(Self {
             listener: Arc::new(listener),
+            bus: bus.clone(),
         })
     }
 
     fn on_full(&self, info: &BackpressureInfo, max_wait: Duration) -> BackpressureAction {
+        if info.retries == 0 {
+            // A subscriber whose process died never makes room; remove such leftovers first.
+            self.bus.cleanup_dead_nodes();
+        }
         let Some(left) = max_wait.checked_sub(info.elapsed_time) else {
             return BackpressureAction::DiscardDataAndFail;
         };
@@ -376,23 +388,39 @@ impl<T: Message> Publisher<T> {
         let Some(consumed) = consumed else {
             return Ok(());
         };
-        let deadline = std::time::Instant::now() + HANDSHAKE_TIMEOUT;
-        let mut acknowledged = 0u64;
-        while acknowledged < subscribers {
-            let now = std::time::Instant::now();
-            if now >= deadline {
-                tracing::warn!(
-                    topic = %self.topic.name,
-                    acknowledged,
-                    subscribers,
-                    "not every subscriber acknowledged a new publisher in time"
+        if !self.topic.handshake || subscribers == 0 {
+            return Ok(());
+        }
+        let wait_for_acks = || {
+            let deadline = std::time::Instant::now() + HANDSHAKE_TIMEOUT;
+            let mut acknowledged = 0u64;
+            while acknowledged < subscribers {
+                let now = std::time::Instant::now();
+                if now >= deadline {
+                    tracing::debug!(
+                        topic = %self.topic.name,
+                        acknowledged,
+                        subscribers,
+                        "not every subscriber acknowledged a new publisher in time"
+                    );
+                    break;
+                }
+                let _ = consumed.listener.timed_wait(
+                    |activation| acknowledged += activation.count.max(1),
+                    deadline - now,
                 );
-                break;
             }
-            let _ = consumed.listener.timed_wait(
-                |activation| acknowledged += activation.count.max(1),
-                deadline - now,
-            );
+        };
+        // The wait is a blocking kernel wait. On a multi-thread tokio runtime other workers
+        // keep running (the acknowledging task may live in this process); on a current-thread
+        // runtime blocking would stall the very task that acknowledges, so there is no wait:
+        // subscribers then connect at their next receive.
+        match tokio::runtime::Handle::try_current().map(|h| h.runtime_flavor()) {
+            Ok(tokio::runtime::RuntimeFlavor::MultiThread) => {
+                tokio::task::block_in_place(wait_for_acks)
+            }
+            Ok(_) => {}
+            Err(_) => wait_for_acks(),
         }
         Ok(())
     }
@@ -450,6 +478,7 @@ impl<T: Message> Publisher<T> {
                 })?;
         sample.user_header_mut().seq = self.seq.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let sample = sample.write_from_slice(bytes);
+        let subscribers_before = self.factory.dynamic_config().number_of_subscribers();
         let started = std::time::Instant::now();
         let delivered = sample.send().map_err(|e| match e {
             iceoryx2::port::SendError::UnableToDeliver => BusError::Full {
@@ -461,13 +490,16 @@ impl<T: Message> Publisher<T> {
                 reason: format!("{other:?}"),
             },
         });
+        // Wake the subscribers even when one of them was full: the others got the message.
+        self.notify.notify();
         if let Err(BusError::Full { .. }) = &delivered {
             Metrics::global().bus_dropped(label, "subscriber_full");
         }
         let delivered = delivered?;
-        self.notify.notify();
         if !self.topic.overflow.is_latest_wins() {
-            let subscribers = self.factory.dynamic_config().number_of_subscribers();
+            // Compared with the subscribers registered before the send, so one that joins
+            // meanwhile is not mistaken for one that missed the message.
+            let subscribers = subscribers_before;
             if delivered < subscribers {
                 Metrics::global().bus_dropped(label, "subscriber_not_connected");
                 return Err(BusError::NotDelivered {
@@ -571,7 +603,7 @@ impl<T: Message> Subscriber<T> {
         let publisher = sample.header().publisher_id().value();
         let seq = sample.user_header().seq;
         if let Some(previous) = self.last_seq.insert(publisher, seq) {
-            let missed = seq.saturating_sub(previous + 1);
+            let missed = seq.saturating_sub(previous.saturating_add(1));
             for _ in 0..missed.min(1_000) {
                 metrics.bus_dropped(label, "overwritten_latest_wins");
             }

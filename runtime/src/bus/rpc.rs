@@ -63,6 +63,8 @@ impl<Req: Message, Resp: Message> Service<Req, Resp> {
             },
             max_bytes: self.max_bytes,
             max_subscribers: 1,
+            max_publishers: MAX_CLIENTS,
+            handshake: false,
         }
     }
 
@@ -74,11 +76,21 @@ impl<Req: Message, Resp: Message> Service<Req, Resp> {
                 depth: 16,
                 max_wait: Duration::from_secs(1),
             },
-            max_bytes: self.max_bytes,
+            // Room for the envelope around a reply as large as the largest request.
+            max_bytes: self.max_bytes + 64 * 1024,
             max_subscribers: 1,
+            // The server, and briefly its successor after a restart.
+            max_publishers: 2,
+            handshake: false,
         }
     }
 }
+
+/// Clients one service admits at a time (live processes; dead ones are cleaned up).
+const MAX_CLIENTS: usize = 128;
+
+/// Reply publishers a server keeps open; the least recently used is closed beyond this.
+const MAX_CACHED_REPLY_PUBLISHERS: usize = 32;
 
 /// Why a server could not produce a reply.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -92,6 +104,10 @@ pub enum FaultKind {
     BadRequest,
     /// The server dropped the request without answering it.
     Dropped,
+    /// The request's deadline had passed before the server got to it; it was not executed.
+    Expired,
+    /// The server handled the request but could not send the reply (e.g. too large).
+    ReplyFailed,
 }
 
 /// An error reported by the server instead of a reply.
@@ -129,6 +145,8 @@ pub enum Reply<T> {
 struct RequestFrame<Req> {
     client_id: u64,
     request_id: u64,
+    /// After this time (Unix ns) the caller has given up: the server must not execute it.
+    deadline_unix_ns: u64,
     body: Req,
 }
 
@@ -273,8 +291,10 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
 
     /// Like [`request`](Self::request), returning the whole reply envelope.
     ///
-    /// Sending may block the calling thread briefly if the server's queue (64 requests) is
-    /// full; requests from one client are answered one at a time.
+    /// Sending blocks the calling thread (up to 1 s, then [`BusError::Full`]) only while the
+    /// server's queue of 64 requests is full; requests from one client are answered one at a
+    /// time. A request that times out is not executed later: it carries its deadline, and the
+    /// server refuses expired requests.
     pub async fn request_envelope(
         &self,
         request: &Req,
@@ -289,15 +309,20 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
         };
         let request_id = self.next_request.fetch_add(1, Ordering::Relaxed);
         let started = Instant::now();
+        let deadline_unix_ns = envelope::unix_now_ns()
+            .saturating_add(u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX));
         self.requests
-            .publish_ref(self.client_id, request_id, request)
+            .publish_ref(self.client_id, request_id, deadline_unix_ns, request)
             .map_err(|e| match e {
                 BusError::NotDelivered { .. } => BusError::NoServer {
                     service: name.to_owned(),
                 },
                 other => other,
             })?;
-        let deadline = started + timeout;
+        // A timeout too large to represent means: no deadline in practice.
+        let deadline = started
+            .checked_add(timeout)
+            .unwrap_or(started + Duration::from_secs(365 * 24 * 3600));
         loop {
             while let Some(frame) = replies.try_recv()? {
                 if frame.body.request_id != request_id {
@@ -347,17 +372,25 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
 }
 
 impl<Req: Message> Publisher<RequestFrame<Req>> {
-    fn publish_ref(&self, client_id: u64, request_id: u64, body: &Req) -> Result<usize, BusError> {
+    fn publish_ref(
+        &self,
+        client_id: u64,
+        request_id: u64,
+        deadline_unix_ns: u64,
+        body: &Req,
+    ) -> Result<usize, BusError> {
         #[derive(Serialize)]
         struct RequestRef<'a, Req> {
             client_id: u64,
             request_id: u64,
+            deadline_unix_ns: u64,
             body: &'a Req,
         }
         self.publish_serializable::<RequestRef<'_, Req>>(
             &RequestRef {
                 client_id,
                 request_id,
+                deadline_unix_ns,
                 body,
             },
             Req::TYPE,
@@ -394,7 +427,8 @@ impl<Req> Incoming<Req> {
 }
 
 /// The right (and duty) to answer one request. Dropping it unanswered sends the client a
-/// [`FaultKind::Dropped`] fault rather than leaving it waiting.
+/// [`FaultKind::Dropped`] fault (when the server next waits for a request) rather than leaving
+/// it waiting.
 pub struct PendingReply {
     client_id: u64,
     request_id: u64,
@@ -420,7 +454,7 @@ impl Drop for PendingReply {
 /// Serves one service: receives requests and sends replies.
 pub struct Server<Req: Message, Resp: Message> {
     requests: Subscriber<RequestFrame<Req>>,
-    reply_publishers: HashMap<u64, Publisher<ReplyFrame<Resp>>>,
+    reply_publishers: HashMap<u64, (Publisher<ReplyFrame<Resp>>, Instant)>,
     abandoned_tx: tokio::sync::mpsc::UnboundedSender<(u64, u64)>,
     abandoned_rx: tokio::sync::mpsc::UnboundedReceiver<(u64, u64)>,
     service: Service<Req, Resp>,
@@ -458,7 +492,7 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
                         FaultKind::Dropped,
                         format!("the actor serving '{name}' dropped the request without answering"),
                     );
-                    self.send_reply(client_id, request_id, Reply::Fault(fault))?;
+                    self.send_reply_or_log(client_id, request_id, Reply::Fault(fault));
                     continue;
                 }
                 received = self.requests.recv_with(decode_request::<Req>) => received?,
@@ -466,6 +500,22 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
             match received {
                 Received::Request(envelope) => {
                     let frame = envelope.body;
+                    if frame.deadline_unix_ns != 0
+                        && envelope::unix_now_ns() > frame.deadline_unix_ns
+                    {
+                        let fault = Fault::new(
+                            FaultKind::Expired,
+                            format!(
+                                "'{name}' got the request after its caller gave up; not executed"
+                            ),
+                        );
+                        self.send_reply_or_log(
+                            frame.client_id,
+                            frame.request_id,
+                            Reply::Fault(fault),
+                        );
+                        continue;
+                    }
                     return Ok(Incoming {
                         envelope: Envelope {
                             msg_type: envelope.msg_type,
@@ -485,7 +535,7 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
                     tracing::warn!(service = name, %error, "refused a malformed request");
                     if let Some((client_id, request_id)) = routing {
                         let fault = Fault::new(FaultKind::BadRequest, error);
-                        self.send_reply(client_id, request_id, Reply::Fault(fault))?;
+                        self.send_reply_or_log(client_id, request_id, Reply::Fault(fault));
                     }
                 }
             }
@@ -506,18 +556,50 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
         self.send_reply(pending.client_id, pending.request_id, reply)
     }
 
+    /// Sends a reply; a failure concerns this one client only, so it is logged, not fatal.
+    fn send_reply_or_log(&mut self, client_id: u64, request_id: u64, reply: Reply<Resp>) {
+        if let Err(error) = self.send_reply(client_id, request_id, reply) {
+            tracing::warn!(service = self.service.name, %error, "could not send a reply");
+        }
+    }
+
     fn send_reply(
         &mut self,
         client_id: u64,
         request_id: u64,
         reply: Reply<Resp>,
     ) -> Result<(), BusError> {
-        let publisher = match self.reply_publishers.entry(client_id) {
-            std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
-            std::collections::hash_map::Entry::Vacant(entry) => {
-                entry.insert(self.bus.publisher_for(self.service.replies(client_id))?)
+        if !self.reply_publishers.contains_key(&client_id) {
+            let publisher: Publisher<ReplyFrame<Resp>> =
+                self.bus.publisher_for(self.service.replies(client_id))?;
+            if publisher.subscriber_ids().is_empty() {
+                // Nobody waits on this reply topic (the client left, or the id was made up).
+                return Ok(());
             }
+            // A new client: close the reply topics of clients that have left.
+            self.reply_publishers
+                .retain(|_, (publisher, _)| !publisher.subscriber_ids().is_empty());
+            if self.reply_publishers.len() >= MAX_CACHED_REPLY_PUBLISHERS {
+                let oldest = self
+                    .reply_publishers
+                    .iter()
+                    .min_by_key(|(_, (_, used))| *used)
+                    .map(|(id, _)| *id);
+                if let Some(oldest) = oldest {
+                    self.reply_publishers.remove(&oldest);
+                }
+            }
+            self.reply_publishers
+                .insert(client_id, (publisher, Instant::now()));
+        }
+        let Some((publisher, used)) = self.reply_publishers.get_mut(&client_id) else {
+            return Ok(());
         };
+        *used = Instant::now();
+        if publisher.subscriber_ids().is_empty() {
+            self.reply_publishers.remove(&client_id);
+            return Ok(());
+        }
         let frame = ReplyFrame { request_id, reply };
         match publisher.publish(&frame) {
             Ok(_) => Ok(()),
@@ -525,6 +607,17 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
                 // The client went away; nobody is waiting for this answer.
                 self.reply_publishers.remove(&client_id);
                 Ok(())
+            }
+            Err(error @ BusError::TooLarge { .. }) | Err(error @ BusError::Encode(_)) => {
+                let fault = Fault::new(
+                    FaultKind::ReplyFailed,
+                    format!("'{}' could not send its reply: {error}", self.service.name),
+                );
+                let frame = ReplyFrame {
+                    request_id,
+                    reply: Reply::Fault(fault),
+                };
+                publisher.publish(&frame).map(|_| ())
             }
             Err(other) => Err(other),
         }
@@ -544,11 +637,11 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
             let (envelope, pending) = self.next().await?.split();
             let span = tracing::info_span!("bus.handle", service = self.service.name);
             crate::telemetry::set_parent_from(&span, &envelope.trace);
-            let task = tokio::spawn(tracing::Instrument::instrument(
+            let mut task = AbortOnDrop(tokio::spawn(tracing::Instrument::instrument(
                 handler(envelope.body),
                 span.clone(),
-            ));
-            let reply = match task.await {
+            )));
+            let reply = match (&mut task.0).await {
                 Ok(reply) => reply,
                 Err(join_error) => Err(Fault::new(
                     FaultKind::ActorFailed,
@@ -561,8 +654,20 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
             };
             // The reply carries the handler's span, so the caller's trace shows both sides.
             let _in_span = span.enter();
-            self.respond(pending, reply)?;
+            if let Err(error) = self.respond(pending, reply) {
+                tracing::warn!(service = self.service.name, %error, "could not send a reply");
+            }
         }
+    }
+}
+
+/// Aborts the handler task if `serve` is dropped mid-request (its supervisor restarts it, say),
+/// so a request whose caller was told it failed cannot still finish in the background.
+struct AbortOnDrop<T>(tokio::task::JoinHandle<T>);
+
+impl<T> Drop for AbortOnDrop<T> {
+    fn drop(&mut self) {
+        self.0.abort();
     }
 }
 
