@@ -282,7 +282,7 @@ async fn short_lived_clients_leave_nothing_behind() {
     let bus = common::fresh_bus("rpc");
     let mut server = bus.server(&ECHO).unwrap();
     tokio::spawn(async move { server.serve(|p| async move { Ok(pong(p)) }).await });
-    let mut round = |n: u64| {
+    let round = |n: u64| {
         let bus = bus.clone();
         async move {
             for seq in 0..n {
