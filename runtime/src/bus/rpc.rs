@@ -108,6 +108,8 @@ pub enum FaultKind {
     Expired,
     /// The server handled the request but could not send the reply (e.g. too large).
     ReplyFailed,
+    /// The actor refused the request (its handler returned an error).
+    Refused,
 }
 
 /// An error reported by the server instead of a reply.
