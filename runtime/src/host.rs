@@ -9,7 +9,7 @@
 //! run in its own process instead: there it serves the same service name, and callers cannot
 //! tell the difference.
 //!
-//! ```ignore
+//! ```text
 //! let arm = Supervisor::new("arm").safe_state(stop_the_arm).spawn_actor::<Arm>(|| args).await?;
 //! let server = bus.server(&ARM_COMMAND)?;
 //! tokio::spawn(serve_supervised(server, arm));
