@@ -18,17 +18,16 @@
 //! # Ok(()) }
 //! ```
 
+use super::pubsub::ConsumedWaiter;
 use super::pubsub::Overflow;
-use super::wake::{Notify, Wake};
+use super::wake::{consumed_event, data_event, Notify, Wake};
 use super::{Bus, BusError, Ipc};
 use crate::metrics::{Direction, Metrics};
 use iceoryx2::port::update_connections::UpdateConnections;
-use iceoryx2::port::{BackpressureAction, BackpressureInfo};
+use iceoryx2::port::BackpressureInfo;
 use iceoryx2::prelude::*;
 use robotd_protocol::envelope::{unix_now_ns, TraceContext};
 use std::collections::HashMap;
-use std::sync::Arc;
-use std::time::Duration;
 
 /// Frame width in pixels (the Ned2 wrist camera).
 pub const FRAME_WIDTH: usize = 640;
@@ -219,46 +218,17 @@ impl std::fmt::Debug for FrameSubscriber {
     }
 }
 
-fn data_event(name: &str) -> String {
-    format!("{name}/ready")
-}
-
-fn consumed_event(name: &str) -> String {
-    format!("{name}/consumed")
-}
-
 impl Bus {
     /// Creates a frame publisher on `topic`.
     pub fn frame_publisher(&self, topic: &FrameTopic) -> Result<FramePublisher, BusError> {
         let service = open_frames(self, topic)?;
         let mut builder = service.publisher_builder().max_loaned_samples(2);
         if let Overflow::BackPressure { max_wait, .. } = topic.overflow {
-            let listener = self
-                .node()
-                .service_builder(&self.service_name(&consumed_event(topic.name))?)
-                .event()
-                .max_notifiers(256)
-                .max_listeners(64)
-                .max_nodes(256)
-                .disable_notifier_created_event()
-                .disable_notifier_dropped_event()
-                .disable_notifier_dead_event()
-                .open_or_create()
-                .map_err(|e| BusError::Setup {
-                    what: format!("event service for '{}'", topic.name),
-                    reason: format!("{e:?}"),
-                })?
-                .listener_builder()
-                .create()
-                .map_err(|e| BusError::Setup {
-                    what: format!("listener for '{}'", topic.name),
-                    reason: format!("{e:?}"),
-                })?;
-            let listener = Arc::new(listener);
+            let waiter = ConsumedWaiter::new(self, &consumed_event(topic.name))?;
             builder = builder
                 .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
                 .set_backpressure_handler(move |info: &BackpressureInfo| {
-                    wait_for_room(&listener, info, max_wait)
+                    waiter.on_full(info, max_wait)
                 });
         }
         let port = builder.create().map_err(|e| BusError::Setup {
@@ -301,20 +271,6 @@ impl Bus {
             topic: *topic,
             last_seq: HashMap::new(),
         })
-    }
-}
-
-fn wait_for_room(
-    listener: &iceoryx2::port::listener::Listener<Ipc>,
-    info: &BackpressureInfo,
-    max_wait: Duration,
-) -> BackpressureAction {
-    match max_wait.checked_sub(info.elapsed_time) {
-        Some(left) if !left.is_zero() => {
-            let _ = listener.timed_wait(|_| {}, left);
-            BackpressureAction::Retry
-        }
-        _ => BackpressureAction::DiscardDataAndFail,
     }
 }
 

@@ -7,7 +7,7 @@
 //! is registered before [`Bus::subscriber`] returns, and publishers connect new subscribers
 //! before every send).
 
-use super::wake::{Notify, Wake};
+use super::wake::{consumed_event, data_event, joined_event, Notify, Wake};
 use super::{Bus, BusError, Ipc};
 use crate::metrics::{Direction, Metrics};
 use iceoryx2::port::update_connections::UpdateConnections;
@@ -172,18 +172,6 @@ fn open_service(bus: &Bus, spec: &TopicSpec) -> Result<PubSubFactory, BusError> 
         })
 }
 
-fn consumed_event(name: &str) -> String {
-    format!("{name}/consumed")
-}
-
-fn data_event(name: &str) -> String {
-    format!("{name}/ready")
-}
-
-fn joined_event(name: &str) -> String {
-    format!("{name}/joined")
-}
-
 /// How long a new back-pressure publisher waits for existing subscribers to connect.
 const HANDSHAKE_TIMEOUT: Duration = Duration::from_millis(100);
 
@@ -321,41 +309,24 @@ async fn connect_new_publishers(
 
 /// Blocks a back-pressured sender until a subscriber consumed something, or gives up.
 #[derive(Clone)]
-struct ConsumedWaiter {
+pub(crate) struct ConsumedWaiter {
     listener: Arc<iceoryx2::port::listener::Listener<Ipc>>,
     bus: Bus,
 }
 
 impl ConsumedWaiter {
-    fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
-        let listener = bus
-            .node()
-            .service_builder(&bus.service_name(name)?)
-            .event()
-            .max_notifiers(256)
-            .max_listeners(64)
-            .max_nodes(256)
-            .disable_notifier_created_event()
-            .disable_notifier_dropped_event()
-            .disable_notifier_dead_event()
-            .open_or_create()
-            .map_err(|e| BusError::Setup {
-                what: format!("event service '{name}'"),
-                reason: format!("{e:?}"),
-            })?
-            .listener_builder()
-            .create()
-            .map_err(|e| BusError::Setup {
-                what: format!("listener on '{name}'"),
-                reason: format!("{e:?}"),
-            })?;
+    pub(crate) fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
         Ok(Self {
-            listener: Arc::new(listener),
+            listener: Arc::new(super::wake::listener(bus, name)?),
             bus: bus.clone(),
         })
     }
 
-    fn on_full(&self, info: &BackpressureInfo, max_wait: Duration) -> BackpressureAction {
+    pub(crate) fn on_full(
+        &self,
+        info: &BackpressureInfo,
+        max_wait: Duration,
+    ) -> BackpressureAction {
         if info.retries == 0 {
             // A subscriber whose process died never makes room; remove such leftovers first.
             self.bus.cleanup_dead_nodes();

@@ -34,6 +34,21 @@ pub(crate) struct Notify {
     notifier: Notifier<Ipc>,
 }
 
+/// Name of the event that tells a topic's subscribers that data is waiting.
+pub(crate) fn data_event(topic: &str) -> String {
+    format!("{topic}/ready")
+}
+
+/// Name of the event that tells back-pressured publishers that a subscriber made room.
+pub(crate) fn consumed_event(topic: &str) -> String {
+    format!("{topic}/consumed")
+}
+
+/// Name of the event a new publisher raises so that subscribers connect to it.
+pub(crate) fn joined_event(topic: &str) -> String {
+    format!("{topic}/joined")
+}
+
 fn event_service(
     bus: &Bus,
     name: &str,
@@ -57,13 +72,7 @@ fn event_service(
 impl Wake {
     /// Creates a listener on event service `name`. Must be called inside a tokio runtime.
     pub(crate) fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
-        let listener = event_service(bus, name)?
-            .listener_builder()
-            .create()
-            .map_err(|e| BusError::Setup {
-                what: format!("listener on '{name}'"),
-                reason: format!("{e:?}"),
-            })?;
+        let listener = listener(bus, name)?;
         if tokio::runtime::Handle::try_current().is_err() {
             return Err(BusError::Setup {
                 what: format!("listener on '{name}'"),
@@ -118,6 +127,17 @@ impl Wake {
             tracing::warn!(event = %self.name, error = ?e, "draining bus notifications failed");
         }
     }
+}
+
+/// A plain listener on event service `name`, for blocking waits outside tokio.
+pub(crate) fn listener(bus: &Bus, name: &str) -> Result<Listener<Ipc>, BusError> {
+    event_service(bus, name)?
+        .listener_builder()
+        .create()
+        .map_err(|e| BusError::Setup {
+            what: format!("listener on '{name}'"),
+            reason: format!("{e:?}"),
+        })
 }
 
 impl Notify {
