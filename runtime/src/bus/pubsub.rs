@@ -312,13 +312,18 @@ async fn connect_new_publishers(
 pub(crate) struct ConsumedWaiter {
     listener: Arc<iceoryx2::port::listener::Listener<Ipc>>,
     bus: Bus,
+    last_cleanup: Arc<std::sync::Mutex<std::time::Instant>>,
 }
+
+/// How long a sender waits on a full subscriber before it checks for dead subscribers.
+const DEAD_SUBSCRIBER_CHECK: Duration = Duration::from_millis(100);
 
 impl ConsumedWaiter {
     pub(crate) fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
         Ok(Self {
             listener: Arc::new(super::wake::listener(bus, name)?),
             bus: bus.clone(),
+            last_cleanup: Arc::new(std::sync::Mutex::new(std::time::Instant::now())),
         })
     }
 
@@ -327,9 +332,15 @@ impl ConsumedWaiter {
         info: &BackpressureInfo,
         max_wait: Duration,
     ) -> BackpressureAction {
-        if info.retries == 0 {
-            // A subscriber whose process died never makes room; remove such leftovers first.
-            self.bus.cleanup_dead_nodes();
+        if info.elapsed_time >= DEAD_SUBSCRIBER_CHECK {
+            // Still full after a while: a subscriber whose process died never makes room.
+            // Remove such leftovers (a scan of the nodes, so not on every full buffer).
+            let mut last = self.last_cleanup.lock().unwrap_or_else(|e| e.into_inner());
+            if last.elapsed() >= DEAD_SUBSCRIBER_CHECK {
+                *last = std::time::Instant::now();
+                drop(last);
+                self.bus.cleanup_dead_nodes();
+            }
         }
         let Some(left) = max_wait.checked_sub(info.elapsed_time) else {
             return BackpressureAction::DiscardDataAndFail;
