@@ -85,8 +85,9 @@ fn policy_from(config: &SupervisionConfig) -> SupervisionPolicy {
     }
 }
 
-/// Turns a supervision event into the bus's restart event, when it is one.
-fn restart_event(event: &SupervisionEvent) -> Option<RestartEvent> {
+/// Turns a supervision event into the bus's restart event, when it is one. `safe_state_ok` is
+/// the outcome of the safe-state hook that ran before this restart.
+fn restart_event(event: &SupervisionEvent, safe_state_ok: bool) -> Option<RestartEvent> {
     match event {
         SupervisionEvent::Restarted {
             actor,
@@ -97,7 +98,7 @@ fn restart_event(event: &SupervisionEvent) -> Option<RestartEvent> {
             attempt: *attempt,
             reason: "restarted after a failure".into(),
             backoff_ms: backoff.as_millis() as u64,
-            safe_state_ok: true,
+            safe_state_ok,
             budget_exhausted: false,
         }),
         SupervisionEvent::BudgetExhausted {
@@ -107,7 +108,7 @@ fn restart_event(event: &SupervisionEvent) -> Option<RestartEvent> {
             attempt: *restarts,
             reason: event.to_string(),
             backoff_ms: 0,
-            safe_state_ok: true,
+            safe_state_ok,
             budget_exhausted: true,
         }),
         _ => None,
@@ -187,10 +188,15 @@ async fn start_process_actors(
         let board = health.clone();
         let publisher = restarts.clone();
         let cleanup_bus = bus.clone();
+        let last_safe_state_ok = std::sync::atomic::AtomicBool::new(true);
         let observer = observer_fn(move |event: &SupervisionEvent| {
             tracing::info!(actor = event.actor(), event = %event, "supervision");
             board.apply(event);
-            if let Some(restart) = restart_event(event) {
+            if let SupervisionEvent::SafeState { ok, .. } = event {
+                last_safe_state_ok.store(*ok, std::sync::atomic::Ordering::Relaxed);
+            }
+            let safe_state_ok = last_safe_state_ok.load(std::sync::atomic::Ordering::Relaxed);
+            if let Some(restart) = restart_event(event, safe_state_ok) {
                 if let Ok(publisher) = publisher.lock() {
                     if let Err(error) = publisher.publish(&restart) {
                         tracing::warn!(%error, "publishing a restart event");

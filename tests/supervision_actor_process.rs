@@ -92,6 +92,7 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
         assert_eq!(event.actor, "test_pattern");
         assert_eq!(event.attempt, 1);
         assert!(!event.budget_exhausted);
+        assert!(event.safe_state_ok, "the (empty) safe-state hook succeeded");
     });
 
     let (_, health) = common::http_get(port, "/health");
