@@ -1,0 +1,100 @@
+//! The command line as a user meets it: bad configuration is refused with the place and the
+//! reason, logs land in date-stamped files, and `robotd bench bus --json` reports every figure.
+
+mod common;
+
+use std::process::Command;
+
+#[test]
+fn an_unknown_key_in_a_config_file_stops_the_start_with_file_key_and_reason() {
+    let file = std::env::temp_dir().join(format!("robotd-bad-{}.toml", std::process::id()));
+    std::fs::write(&file, "[http]\nbind = \"127.0.0.1:0\"\nbnid = \"oops\"\n").unwrap();
+    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["serve", "--config"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("bnid"), "names the key: {stderr}");
+    assert!(
+        stderr.contains(&file.display().to_string()),
+        "names the file: {stderr}"
+    );
+    let _ = std::fs::remove_file(&file);
+}
+
+#[test]
+fn an_invalid_value_from_the_environment_is_refused_naming_the_variable() {
+    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .arg("serve")
+        .env("ROBOTD_HTTP__BIND", "not-an-address")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("ROBOTD_HTTP__BIND"), "{stderr}");
+    assert!(stderr.contains("http.bind"), "{stderr}");
+}
+
+#[test]
+fn the_service_writes_a_date_stamped_log_file() {
+    let namespace = common::fresh_namespace("log");
+    let port = common::free_port();
+    let log_dir = std::env::temp_dir().join(format!("robotd-logs-{namespace}"));
+    let robotd = common::start_robotd(
+        &namespace,
+        port,
+        &["--set", &format!("telemetry.log_dir={}", log_dir.display())],
+    );
+    drop(robotd);
+    let names: Vec<String> = std::fs::read_dir(&log_dir)
+        .unwrap()
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .collect();
+    let stamped = names.iter().any(|n| {
+        let date = n.trim_start_matches("robotd.").trim_end_matches(".log");
+        n.starts_with("robotd.")
+            && date.len() == 10
+            && date.chars().filter(|c| *c == '-').count() == 2
+    });
+    assert!(stamped, "log files: {names:?}");
+    let _ = std::fs::remove_dir_all(&log_dir);
+}
+
+#[test]
+fn bench_bus_json_reports_every_figure() {
+    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args([
+            "bench",
+            "bus",
+            "--json",
+            "--round-trips",
+            "200",
+            "--frames",
+            "200",
+            "--restarts",
+            "20",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let figures: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    for key in [
+        "raw_rtt_p50_us",
+        "raw_rtt_p99_us",
+        "bus_rtt_p50_us",
+        "bus_rtt_p99_us",
+        "bus_inproc_rtt_p50_us",
+        "raw_frames_per_s",
+        "bus_frames_per_s",
+        "restart_p50_us",
+        "restart_p99_us",
+    ] {
+        let value = figures[key].as_f64().unwrap_or(f64::NAN);
+        assert!(value.is_finite() && value > 0.0, "{key} = {}", figures[key]);
+    }
+    assert_eq!(figures["bus_frames_lost"], 0);
+    assert_eq!(figures["raw_frames_lost"], 0);
+}
