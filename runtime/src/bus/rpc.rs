@@ -304,16 +304,17 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
     ) -> Result<Envelope<Resp>, BusError> {
         let name = self.service.name;
         let mut replies = self.replies.lock().await;
-        let Some(&server) = self.requests.subscriber_ids().first() else {
+        if !self.has_server() {
             return Err(BusError::NoServer {
                 service: name.to_owned(),
             });
-        };
+        }
         let request_id = self.next_request.fetch_add(1, Ordering::Relaxed);
         let started = Instant::now();
         let deadline_unix_ns = envelope::unix_now_ns()
             .saturating_add(u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX));
-        self.requests
+        let delivered = self
+            .requests
             .publish_ref(self.client_id, request_id, deadline_unix_ns, request)
             .map_err(|e| match e {
                 BusError::NotDelivered { .. } => BusError::NoServer {
@@ -321,6 +322,18 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
                 },
                 other => other,
             })?;
+        if delivered == 0 {
+            return Err(BusError::NoServer {
+                service: name.to_owned(),
+            });
+        }
+        // The server that holds the request (one per service), read after the send so a
+        // server that replaced another in between is the one watched.
+        let Some(&server) = self.requests.subscriber_ids().first() else {
+            return Err(BusError::ServerLost {
+                service: name.to_owned(),
+            });
+        };
         // A timeout too large to represent means: no deadline in practice.
         let deadline = started
             .checked_add(timeout)
