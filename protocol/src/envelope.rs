@@ -194,25 +194,38 @@ pub fn encode_parts<B: Serialize + ?Sized>(
 
 /// Decodes an envelope of `T`, refusing other message types and schema versions.
 pub fn decode<T: Message>(bytes: &[u8]) -> Result<Envelope<T>, DecodeError> {
-    let header: Header = rmp_serde::from_slice(bytes).map_err(|source| DecodeError::Malformed {
-        expected: T::TYPE,
-        source,
-    })?;
-    if header.msg_type != T::TYPE {
-        return Err(DecodeError::WrongType {
-            expected: T::TYPE,
-            got: header.msg_type,
-        });
+    // The common case decodes once; the header is read on its own only to explain a failure
+    // or to refuse a body that happened to fit the wrong type.
+    let check = |msg_type: &str, schema_version: u16| {
+        if msg_type != T::TYPE {
+            return Err(DecodeError::WrongType {
+                expected: T::TYPE,
+                got: msg_type.to_owned(),
+            });
+        }
+        if schema_version != T::SCHEMA_VERSION {
+            return Err(DecodeError::UnsupportedVersion {
+                msg_type: T::TYPE,
+                got: schema_version,
+                supported: T::SCHEMA_VERSION,
+            });
+        }
+        Ok(())
+    };
+    match rmp_serde::from_slice::<Envelope<T>>(bytes) {
+        Ok(envelope) => {
+            check(&envelope.msg_type, envelope.schema_version)?;
+            Ok(envelope)
+        }
+        Err(source) => {
+            // A wrong type or version explains the failure better than the syntax error.
+            if let Ok(header) = rmp_serde::from_slice::<Header>(bytes) {
+                check(&header.msg_type, header.schema_version)?;
+            }
+            Err(DecodeError::Malformed {
+                expected: T::TYPE,
+                source,
+            })
+        }
     }
-    if header.schema_version != T::SCHEMA_VERSION {
-        return Err(DecodeError::UnsupportedVersion {
-            msg_type: T::TYPE,
-            got: header.schema_version,
-            supported: T::SCHEMA_VERSION,
-        });
-    }
-    rmp_serde::from_slice(bytes).map_err(|source| DecodeError::Malformed {
-        expected: T::TYPE,
-        source,
-    })
 }

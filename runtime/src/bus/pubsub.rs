@@ -407,6 +407,11 @@ impl<T: Message> Publisher<T> {
         Ok(())
     }
 
+    /// Number of subscriber ports attached to the topic right now.
+    pub(crate) fn subscriber_count(&self) -> usize {
+        self.factory.dynamic_config().number_of_subscribers()
+    }
+
     /// Ids of the subscriber ports attached to the topic right now.
     pub(crate) fn subscriber_ids(&self) -> Vec<u128> {
         let mut ids = Vec::new();

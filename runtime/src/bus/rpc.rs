@@ -201,6 +201,7 @@ pub struct Client<Req: Message, Resp: Message> {
     client_id: u64,
     next_request: AtomicU64,
     service: Service<Req, Resp>,
+    round_trip_label: String,
     bus: Bus,
 }
 
@@ -229,6 +230,7 @@ impl Bus {
             client_id,
             next_request: AtomicU64::new(1),
             service: *service,
+            round_trip_label: format!("{}/round_trip", service.name),
             bus: self.clone(),
         })
     }
@@ -266,7 +268,7 @@ impl Bus {
 impl<Req: Message, Resp: Message> Client<Req, Resp> {
     /// Whether a server is attached right now.
     pub fn has_server(&self) -> bool {
-        !self.requests.subscriber_ids().is_empty()
+        self.requests.subscriber_count() > 0
     }
 
     /// Waits until a server is attached, up to `timeout`. Returns whether one is.
@@ -344,10 +346,8 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
                     // The late answer to an earlier request that timed out: not ours.
                     continue;
                 }
-                crate::metrics::Metrics::global().bus_latency(
-                    &format!("{name}/round_trip"),
-                    started.elapsed().as_secs_f64(),
-                );
+                crate::metrics::Metrics::global()
+                    .bus_latency(&self.round_trip_label, started.elapsed().as_secs_f64());
                 return match frame.body.reply {
                     Reply::Ok(body) => Ok(Envelope {
                         msg_type: frame.msg_type,

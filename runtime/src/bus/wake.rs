@@ -59,6 +59,8 @@ fn event_service(
         .max_notifiers(256)
         .max_listeners(64)
         .max_nodes(256)
+        // robotd only ever raises event id 0; a small id space keeps each drain cheap.
+        .event_id_max_value(1)
         .disable_notifier_created_event()
         .disable_notifier_dropped_event()
         .disable_notifier_dead_event()
