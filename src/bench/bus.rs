@@ -29,6 +29,19 @@ pub const PING: Service<Ping, Pong> = Service::new("bench/ping");
 pub const BENCH_FRAMES: FrameTopic = FrameTopic::new("bench/frames", Overflow::back_pressure(4));
 
 const RAW_RTT: &str = "raw-rtt";
+const RAW_RTT_WORK: &str = "raw-rtt-work";
+
+/// Simulated handler work per hop in the `raw_rtt_work` diagnostic: about what the bus spends
+/// per hop (encode, decode, metrics, trace context).
+const SIMULATED_WORK: Duration = Duration::from_micros(5);
+
+/// Keeps the CPU busy for `work` (simulated handler work; not a wait for anything).
+fn simulate_work(work: Duration) {
+    let started = Instant::now();
+    while started.elapsed() < work {
+        std::hint::spin_loop();
+    }
+}
 const RAW_FRAMES: &str = "raw-frames";
 const BUS_RTT: &str = "bus-rtt";
 const BUS_FRAMES: &str = "bus-frames";
@@ -57,6 +70,8 @@ pub struct BusFigures {
     pub same_core_raw_rtt_p99_us: f64,
     pub same_core_bus_rtt_p50_us: f64,
     pub same_core_bus_rtt_p99_us: f64,
+    pub raw_rtt_work_p50_us: f64,
+    pub raw_rtt_work_p99_us: f64,
     pub cross_core_raw_rtt_p50_us: Option<f64>,
     pub cross_core_raw_rtt_p99_us: Option<f64>,
     pub cross_core_bus_rtt_p50_us: Option<f64>,
@@ -109,6 +124,10 @@ impl BusFigures {
             ));
         }
         out.push_str(&format!(
+            "raw RTT with 5 µs work per hop   {:>7.1} / {:<7.1} µs (no robotd code)\n",
+            self.raw_rtt_work_p50_us, self.raw_rtt_work_p99_us
+        ));
+        out.push_str(&format!(
             "raw frames/s (921,600 B, lossless) {:>9.0}  lost {}\n",
             self.raw_frames_per_s, self.raw_frames_lost
         ));
@@ -130,27 +149,30 @@ pub fn run(exe: &std::path::Path, namespace: &str, sizes: BenchSizes) -> Result<
         .enable_all()
         .build()?;
     let two_cpus = std::thread::available_parallelism().map_or(1, |n| n.get()) >= 2;
-    let (raw_rtt, bus_rtt, inproc_rtt, same_core, cross_core) = runtime.block_on(async {
-        let n = sizes.round_trips;
-        let (mut raw, mut bus) = rtt_interleaved(exe, namespace, n, Placement::Os).await?;
-        let (mut same_raw, mut same_bus) =
-            rtt_interleaved(exe, namespace, n, Placement::SameCore).await?;
-        let cross_core = if two_cpus {
-            let (mut raw, mut bus) =
-                rtt_interleaved(exe, namespace, n, Placement::CrossCore).await?;
-            Some((Latency::of(&mut raw), Latency::of(&mut bus)))
-        } else {
-            None
-        };
-        let mut inproc = bus_rtt_inproc(namespace, n).await?;
-        anyhow::Ok((
-            Latency::of(&mut raw),
-            Latency::of(&mut bus),
-            Latency::of(&mut inproc),
-            (Latency::of(&mut same_raw), Latency::of(&mut same_bus)),
-            cross_core,
-        ))
-    })?;
+    let (raw_rtt, bus_rtt, inproc_rtt, same_core, cross_core, raw_work) =
+        runtime.block_on(async {
+            let n = sizes.round_trips;
+            let (mut raw, mut bus) = rtt_interleaved(exe, namespace, n, Placement::Os).await?;
+            let (mut same_raw, mut same_bus) =
+                rtt_interleaved(exe, namespace, n, Placement::SameCore).await?;
+            let cross_core = if two_cpus {
+                let (mut raw, mut bus) =
+                    rtt_interleaved(exe, namespace, n, Placement::CrossCore).await?;
+                Some((Latency::of(&mut raw), Latency::of(&mut bus)))
+            } else {
+                None
+            };
+            let mut inproc = bus_rtt_inproc(namespace, n).await?;
+            let mut raw_work = raw_rtt_with_work(exe, namespace, n)?;
+            anyhow::Ok((
+                Latency::of(&mut raw),
+                Latency::of(&mut bus),
+                Latency::of(&mut inproc),
+                (Latency::of(&mut same_raw), Latency::of(&mut same_bus)),
+                cross_core,
+                Latency::of(&mut raw_work),
+            ))
+        })?;
     let raw_frames = frames_publisher(exe, namespace, sizes.frames, false)?;
     let bus_frames = frames_publisher(exe, namespace, sizes.frames, true)?;
     let mut restarts = runtime.block_on(robotd_runtime::supervision::measure_restart_latency(
@@ -168,6 +190,8 @@ pub fn run(exe: &std::path::Path, namespace: &str, sizes: BenchSizes) -> Result<
         same_core_raw_rtt_p99_us: same_core.0.p99_us,
         same_core_bus_rtt_p50_us: same_core.1.p50_us,
         same_core_bus_rtt_p99_us: same_core.1.p99_us,
+        raw_rtt_work_p50_us: raw_work.p50_us,
+        raw_rtt_work_p99_us: raw_work.p99_us,
         cross_core_raw_rtt_p50_us: cross_core.map(|c| c.0.p50_us),
         cross_core_raw_rtt_p99_us: cross_core.map(|c| c.0.p99_us),
         cross_core_bus_rtt_p50_us: cross_core.map(|c| c.1.p50_us),
@@ -373,8 +397,9 @@ impl RawRttClient {
         })
     }
 
-    fn round_trip(&self, tag: u8) -> Result<Duration> {
+    fn round_trip(&self, tag: u8, work: Duration) -> Result<Duration> {
         let started = Instant::now();
+        simulate_work(work);
         let pending = self
             .client
             .send_copy([tag; 64])
@@ -427,7 +452,7 @@ async fn rtt_interleaved(
         payload: vec![7u8; 64],
     };
     for i in 0..warmup + count {
-        let raw_took = raw.round_trip(i as u8)?;
+        let raw_took = raw.round_trip(i as u8, Duration::ZERO)?;
         ping.seq = i as u64;
         let started = Instant::now();
         let pong = client.request(&ping, Duration::from_secs(5)).await?;
@@ -441,6 +466,27 @@ async fn rtt_interleaved(
         }
     }
     Ok((raw_samples, bus_samples))
+}
+
+/// Raw iceoryx2 round trips where each side first spends [`SIMULATED_WORK`] of CPU, as a
+/// handler would: shows what the scheduler does to a ping-pong that does real work.
+fn raw_rtt_with_work(
+    exe: &std::path::Path,
+    namespace: &str,
+    count: usize,
+) -> Result<Vec<Duration>> {
+    let namespace = &format!("{namespace}-work");
+    let raw = RawRttClient::new(namespace)?;
+    let _peer = Peer::start(exe, RAW_RTT_WORK, namespace, count)?;
+    let warmup = (count / 10).max(100);
+    let mut samples = Vec::with_capacity(count);
+    for i in 0..warmup + count {
+        let took = raw.round_trip(i as u8, SIMULATED_WORK)?;
+        if i >= warmup {
+            samples.push(took);
+        }
+    }
+    Ok(samples)
 }
 
 async fn bus_rtt_inproc(namespace: &str, count: usize) -> Result<Vec<Duration>> {
@@ -600,7 +646,8 @@ pub fn run_peer(role: &str, namespace: &str, count: usize, cpu: Option<usize>) -
         pin_current_thread(cpu)?;
     }
     match role {
-        RAW_RTT => raw_rtt_peer(namespace),
+        RAW_RTT => raw_rtt_peer(namespace, Duration::ZERO),
+        RAW_RTT_WORK => raw_rtt_peer(namespace, SIMULATED_WORK),
         RAW_FRAMES => raw_frames_peer(namespace, count),
         BUS_RTT | BUS_FRAMES => {
             let runtime = tokio::runtime::Builder::new_current_thread()
@@ -622,7 +669,7 @@ pub fn run_peer(role: &str, namespace: &str, count: usize, cpu: Option<usize>) -
     }
 }
 
-fn raw_rtt_peer(namespace: &str) -> Result<()> {
+fn raw_rtt_peer(namespace: &str, work: Duration) -> Result<()> {
     let node = raw_node()?;
     let service = raw_rtt_service(&node, namespace)?;
     let server = service
@@ -644,6 +691,7 @@ fn raw_rtt_peer(namespace: &str) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("raw receive: {e:?}"))?
         {
             let payload = *request.payload();
+            simulate_work(work);
             request
                 .send_copy(payload)
                 .map_err(|e| anyhow::anyhow!("raw reply: {e:?}"))?;
