@@ -222,6 +222,16 @@ async fn start_process_actors(
                 child
                     .args(&command[1..])
                     .env("ROBOTD_BUS__NAMESPACE", &namespace);
+                #[cfg(target_os = "linux")]
+                // SAFETY: prctl is async-signal-safe; the closure only calls it.
+                unsafe {
+                    // If robotd itself dies (even by SIGKILL), its actor processes get SIGTERM
+                    // instead of running on as orphans.
+                    child.pre_exec(|| {
+                        libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+                        Ok(())
+                    });
+                }
                 child
             })
             .await

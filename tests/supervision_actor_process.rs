@@ -30,10 +30,10 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
         ),
     )
     .unwrap();
-    let _robotd = common::start_robotd(&namespace, port, &["--config", config.to_str().unwrap()]);
+    let robotd = common::start_robotd(&namespace, port, &["--config", config.to_str().unwrap()]);
 
     let runtime = tokio::runtime::Runtime::new().unwrap();
-    runtime.block_on(async {
+    let actor_pid = runtime.block_on(async {
         let bus = Bus::open(BusOptions::new(&namespace, "e2e-test")).unwrap();
         let mut restarts = bus.subscriber(&HEALTH_RESTARTS).unwrap();
         let camera = bus.client(&TEST_PATTERN).unwrap();
@@ -93,6 +93,7 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
         assert_eq!(event.attempt, 1);
         assert!(!event.budget_exhausted);
         assert!(event.safe_state_ok, "the (empty) safe-state hook succeeded");
+        second.served_by_pid
     });
 
     let (_, health) = common::http_get(port, "/health");
@@ -110,5 +111,17 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
         Some(1.0),
         "{metrics}"
     );
+
+    // If robotd itself is killed, its actor process does not live on as an orphan.
+    signal(robotd.pid(), "-KILL");
+    let gone = (0..100).any(|_| {
+        std::thread::sleep(Duration::from_millis(20));
+        !std::path::Path::new(&format!("/proc/{actor_pid}")).exists()
+            || std::fs::read_to_string(format!("/proc/{actor_pid}/stat"))
+                .map(|stat| stat.contains(") Z "))
+                .unwrap_or(true)
+    });
+    assert!(gone, "actor process {actor_pid} outlived robotd");
+    drop(robotd);
     let _ = std::fs::remove_file(&config);
 }

@@ -233,6 +233,18 @@ impl Peer {
         if let Some(cpu) = cpu {
             command.arg("--cpu").arg(cpu.to_string());
         }
+        #[cfg(target_os = "linux")]
+        {
+            use std::os::unix::process::CommandExt;
+            // SAFETY: prctl is async-signal-safe; the closure only calls it. A peer must not
+            // outlive an interrupted benchmark.
+            unsafe {
+                command.pre_exec(|| {
+                    libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+                    Ok(())
+                });
+            }
+        }
         let mut child = command
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
