@@ -118,6 +118,13 @@ fn restart_event(event: &SupervisionEvent, safe_state_ok: bool) -> Option<Restar
 /// Runs the service until a shutdown signal.
 pub async fn run(config: Config) -> Result<()> {
     let started = Instant::now();
+    if config.redis.url.is_some() {
+        tracing::warn!("[redis] url is set, but this build has no Redis edge yet; it is ignored");
+    }
+    tracing::warn!(
+        driver = ?config.robot.driver,
+        "this build has no robot driver or simulator yet: the robot is unavailable (see /health)"
+    );
     let bus =
         Bus::open(BusOptions::new(&config.bus.namespace, "robotd")).context("joining the bus")?;
     tracing::info!(namespace = %config.bus.namespace, "joined the bus");
