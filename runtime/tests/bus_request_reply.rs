@@ -300,3 +300,27 @@ async fn short_lived_clients_leave_nothing_behind() {
         "{grown} descriptors more after 140 short-lived clients"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_waiting_for_its_server_is_woken_when_it_attaches() {
+    let bus = common::fresh_bus("rpc");
+    let client = bus.client(&ECHO).unwrap();
+    let started = std::time::Instant::now();
+    assert!(!client.wait_for_server(Duration::from_millis(100)).await);
+    assert!(started.elapsed() >= Duration::from_millis(100));
+
+    let server_bus = bus.clone();
+    tokio::spawn(async move {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let mut server = server_bus.server(&ECHO).unwrap();
+        server.serve(|p| async move { Ok(pong(p)) }).await
+    });
+    let started = std::time::Instant::now();
+    assert!(client.wait_for_server(Duration::from_secs(5)).await);
+    assert!(
+        started.elapsed() < Duration::from_secs(2),
+        "{:?}",
+        started.elapsed()
+    );
+    assert_eq!(client.request(&ping(1), SECOND).await.unwrap().seq, 1);
+}

@@ -15,9 +15,10 @@
 //!
 //! Receiving never busy-polls or sleeps in a loop: each port is paired with an iceoryx2 *event*
 //! service whose listener is a file descriptor registered with tokio, so a task waiting for a
-//! message is woken by the kernel when the sender notifies. (Two waits are not events:
-//! [`Client::wait_for_server`], meant for start-up, checks every 5 ms, and a waiting request
-//! checks every 250 ms that its server's process is still alive.)
+//! message is woken by the kernel when the sender notifies; a client waiting for its server is
+//! woken by the event a server raises when it attaches. (One wait is not an event: a request
+//! that has waited 250 ms checks that its server's process is still alive, since a crashed
+//! process cannot announce its death.)
 //!
 //! Overflow is declared per topic ([`Overflow`]): frames use *latest wins* (a slow viewer sees
 //! the newest frame, the camera never waits), control topics use *back-pressure* (the sender

@@ -7,7 +7,7 @@
 //! is registered before [`Bus::subscriber`] returns, and publishers connect new subscribers
 //! before every send).
 
-use super::wake::{consumed_event, data_event, joined_event, Notify, Wake};
+use super::wake::{consumed_event, data_event, joined_event, subscribed_event, Notify, Wake};
 use super::{Bus, BusError, Ipc};
 use crate::metrics::{Direction, Metrics};
 use iceoryx2::port::update_connections::UpdateConnections;
@@ -273,6 +273,8 @@ impl Bus {
             Overflow::LatestWins { .. } => None,
         };
         let joined = Wake::new(self, &joined_event(&topic.name))?;
+        // Tell whoever waits for a subscriber (a client waiting for its server) that one is here.
+        Notify::new(self, &subscribed_event(&topic.name))?.notify();
         let connector = tokio::spawn(connect_new_publishers(
             joined,
             port.clone(),

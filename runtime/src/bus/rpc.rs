@@ -14,6 +14,7 @@
 //! iceoryx2 creation timeout of 1 s, which the bus tests reproduced.)
 
 use super::pubsub::{Publisher, Subscriber, TopicSpec};
+use super::wake::{subscribed_event, Wake};
 use super::{Bus, BusError, Overflow};
 use robotd_protocol::envelope::{self, Envelope, Message, TraceContext};
 use serde::{Deserialize, Serialize};
@@ -202,6 +203,7 @@ pub struct Client<Req: Message, Resp: Message> {
     next_request: AtomicU64,
     service: Service<Req, Resp>,
     round_trip_label: String,
+    server_attached: Wake,
     bus: Bus,
 }
 
@@ -231,6 +233,7 @@ impl Bus {
             next_request: AtomicU64::new(1),
             service: *service,
             round_trip_label: format!("{}/round_trip", service.name),
+            server_attached: Wake::new(self, &subscribed_event(&service.requests().name))?,
             bus: self.clone(),
         })
     }
@@ -273,18 +276,24 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
 
     /// Waits until a server is attached, up to `timeout`. Returns whether one is.
     ///
-    /// Servers announce nothing when they attach, so this checks every 5 ms; it is meant for
-    /// start-up, not for the request path.
+    /// Woken by the event a server raises when it attaches; no polling.
     pub async fn wait_for_server(&self, timeout: Duration) -> bool {
         let deadline = Instant::now() + timeout;
         loop {
             if self.has_server() {
                 return true;
             }
-            if Instant::now() >= deadline {
+            let now = Instant::now();
+            if now >= deadline {
                 return false;
             }
-            tokio::time::sleep(Duration::from_millis(5)).await;
+            match self.server_attached.wait_timeout(deadline - now).await {
+                Ok(_) => {}
+                Err(error) => {
+                    tracing::warn!(service = self.service.name, %error, "waiting for a server");
+                    return self.has_server();
+                }
+            }
         }
     }
 

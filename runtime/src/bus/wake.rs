@@ -44,6 +44,11 @@ pub(crate) fn consumed_event(topic: &str) -> String {
     format!("{topic}/consumed")
 }
 
+/// Name of the event a new subscriber raises (a server attaching to its requests topic, say).
+pub(crate) fn subscribed_event(topic: &str) -> String {
+    format!("{topic}/subscribed")
+}
+
 /// Name of the event a new publisher raises so that subscribers connect to it.
 pub(crate) fn joined_event(topic: &str) -> String {
     format!("{topic}/joined")
