@@ -93,6 +93,8 @@ fn latency_histogram() -> Histogram {
 
 /// Handles of one topic's metrics, cached so the hot path never builds label sets.
 struct TopicHandles {
+    /// The interned topic name, shared by every label set of this topic.
+    topic: Arc<str>,
     sent: Counter,
     received: Counter,
     latency: Histogram,
@@ -196,16 +198,20 @@ impl Metrics {
     }
 
     /// Runs `f` with the cached handles of `topic`, creating them on the topic's first use.
+    ///
+    /// `f` runs with no lock of the topic table held: `std`'s `RwLock` may block a second read
+    /// lock of the same thread behind a waiting writer, so holding the table while `f` takes it
+    /// again would deadlock.
     fn with_topic<R>(&self, topic: &str, f: impl FnOnce(&TopicHandles) -> R) -> R {
-        {
-            let topics = self
-                .inner
-                .topics
-                .read()
-                .unwrap_or_else(PoisonError::into_inner);
-            if let Some(handles) = topics.get(topic) {
-                return f(handles);
-            }
+        let cached = self
+            .inner
+            .topics
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(topic)
+            .map(Arc::clone);
+        if let Some(handles) = cached {
+            return f(&handles);
         }
         let handles = {
             let mut topics = self
@@ -223,6 +229,7 @@ impl Metrics {
                     ))
                 };
                 Arc::new(TopicHandles {
+                    topic: Arc::clone(&key),
                     sent: by_direction(Direction::Sent),
                     received: by_direction(Direction::Received),
                     latency: inner
@@ -274,27 +281,13 @@ impl Metrics {
                 counter.inc();
                 return;
             }
-            let topic_label = self.topic_key(topic);
-            let counter = self
-                .inner
-                .dropped
-                .get_or_create_owned(&[("topic", topic_label), ("reason", Arc::from(reason))]);
+            let counter = self.inner.dropped.get_or_create_owned(&[
+                ("topic", Arc::clone(&handles.topic)),
+                ("reason", Arc::from(reason)),
+            ]);
             counter.inc();
             dropped.push((reason.into(), counter));
         });
-    }
-
-    /// The interned `Arc<str>` of a topic already in the cache (or a new one).
-    fn topic_key(&self, topic: &str) -> Arc<str> {
-        let topics = self
-            .inner
-            .topics
-            .read()
-            .unwrap_or_else(PoisonError::into_inner);
-        topics
-            .get_key_value(topic)
-            .map(|(key, _)| Arc::clone(key))
-            .unwrap_or_else(|| Arc::from(topic))
     }
 
     /// Counts one restart of `actor` by its supervisor.
