@@ -1,0 +1,1 @@
+//! Hardware actors (placeholder: being written).

@@ -1,0 +1,1 @@
+//! Robot kinematics (placeholder: being written).

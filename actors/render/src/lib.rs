@@ -1,0 +1,1 @@
+//! The simulated wrist camera renderer (placeholder: being written).
