@@ -1,0 +1,796 @@
+//! Tests of scenes and of the world's physics.
+
+use crate::*;
+use nalgebra::Vector3;
+use robotd_protocol::geometry::RobotModel;
+use std::f64::consts::FRAC_PI_2;
+
+const PUSH_TOML: &str = include_str!("../../../config/scenes/push.toml");
+const WIDOWX_TOML: &str = include_str!("../../../config/scenes/widowx.toml");
+
+/// Reach of a Ned2-sized arm, roughly: within 0.45 m of the base and below 0.3 m.
+fn roughly_reachable(x: f64, y: f64, z: f64) -> bool {
+    x.hypot(y) < 0.45 && x > 0.05 && z < 0.3
+}
+
+const WS: &str = r#"
+name = "test"
+robot = "ned2"
+
+[[workspaces]]
+id = "niryo_ws"
+upper_left = [0.337, 0.087]
+lower_right = [0.163, -0.087]
+observation_pose = [0.173, -0.002, 0.277, -3.042, 1.327, -3.027]
+"#;
+
+fn cube_toml(label: &str, x: f64, y: f64, size: f64) -> String {
+    format!(
+        "[[objects]]\nlabel = \"{label}\"\nshape = \"box\"\nlength_x_m = {size}\n\
+         width_y_m = {size}\nheight_z_m = {size}\ncolor = \"red\"\nx_m = {x}\ny_m = {y}\n"
+    )
+}
+
+fn parse(objects: &str) -> Result<Scene, SceneError> {
+    Scene::from_toml_str(&format!("{WS}\n{objects}"), "test.toml")
+}
+
+fn empty_world() -> World {
+    World::new(&parse("").unwrap())
+}
+
+fn cube(label: &str, x: f64, y: f64, size: f64) -> ObjectSpec {
+    ObjectSpec::new(
+        label,
+        ObjectShape::Box {
+            length_x_m: size,
+            width_y_m: size,
+            height_z_m: size,
+        },
+        [200, 30, 30],
+        x,
+        y,
+    )
+}
+
+fn large_box(x: f64, y: f64) -> ObjectSpec {
+    ObjectSpec::new(
+        "large box",
+        ObjectShape::Box {
+            length_x_m: 0.090,
+            width_y_m: 0.070,
+            height_z_m: 0.050,
+        },
+        [240, 130, 30],
+        x,
+        y,
+    )
+}
+
+fn find<'a>(world: &'a World, label: &str) -> &'a SimObject {
+    world
+        .objects()
+        .iter()
+        .find(|o| o.spec.label == label)
+        .unwrap()
+}
+
+fn centre(world: &World, label: &str) -> Vector3<f64> {
+    find(world, label).pose.translation.vector
+}
+
+fn down(x: f64, y: f64, z: f64, yaw: f64) -> ToolState {
+    ToolState::pointing_down(x, y, z, yaw, 0.0)
+}
+
+/// Moves there (asserting no collision).
+fn go(world: &mut World, x: f64, y: f64, z: f64, yaw: f64) {
+    let (_, outcome) = world.move_tool(&down(x, y, z, yaw));
+    assert_eq!(outcome.collision, None, "moving to ({x}, {y}, {z})");
+}
+
+/// Picks the object `label` at its centre from above: open, down to mid-height, close, lift.
+fn pick(world: &mut World, label: &str, yaw: f64) -> u32 {
+    let c = centre(world, label);
+    let top = find(world, label).top_z();
+    world.open_gripper(1.0);
+    go(world, c.x, c.y, top + 0.06, yaw);
+    go(world, c.x, c.y, c.z, yaw);
+    match world.close_gripper() {
+        GraspOutcome::Grasped { id, .. } => {
+            go(world, c.x, c.y, top + 0.06, yaw);
+            id
+        }
+        GraspOutcome::Empty { reason } => panic!("could not pick {label}: {reason}"),
+    }
+}
+
+// ---- scenes ----
+
+#[test]
+fn built_in_scenes_parse_and_validate() {
+    let ned2 = Scene::default_ned2();
+    assert_eq!(ned2.robot, RobotModel::Ned2);
+    assert_eq!(ned2.name, "default");
+    let ids: Vec<&str> = ned2.workspaces.iter().map(|w| w.id.as_str()).collect();
+    assert_eq!(ids, ["niryo_ws", "gazebo_1"]);
+    let labels: Vec<&str> = ned2.objects.iter().map(|o| o.label.as_str()).collect();
+    assert_eq!(
+        labels,
+        ["pencil", "red cube", "blue square", "green cylinder"]
+    );
+    let pencil = &ned2.objects[0];
+    assert_eq!(
+        pencil.shape,
+        ObjectShape::Box {
+            length_x_m: 0.12,
+            width_y_m: 0.012,
+            height_z_m: 0.010
+        }
+    );
+    assert_eq!((pencil.x_m, pencil.y_m, pencil.yaw_rad), (0.20, -0.05, 0.0));
+    assert_eq!(pencil.color, colour_by_name("yellow").unwrap());
+    ned2.validate(&roughly_reachable).unwrap();
+
+    let push = Scene::from_toml_str(PUSH_TOML, "push.toml").unwrap();
+    assert!(push.objects.iter().any(|o| o.label == "large box"));
+    push.validate(&roughly_reachable).unwrap();
+
+    let widowx = Scene::default_widowx();
+    assert_eq!(widowx.robot, RobotModel::WidowX250);
+    assert_eq!(widowx.workspaces[0].id, "widowx_ws");
+    assert!(widowx.objects.iter().any(|o| o.container));
+    widowx.validate(&roughly_reachable).unwrap();
+    assert_eq!(
+        Scene::from_toml_str(WIDOWX_TOML, "widowx.toml")
+            .unwrap()
+            .objects,
+        widowx.objects
+    );
+}
+
+#[test]
+fn scene_files_load_from_disk() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes");
+    let scene = Scene::load(&dir.join("default.toml")).unwrap();
+    assert_eq!(scene.objects, Scene::default_ned2().objects);
+    let err = Scene::load(&dir.join("missing.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("missing.toml"), "{err}");
+}
+
+#[test]
+fn unknown_key_is_refused_naming_file_line_and_key() {
+    let text = cube_toml("red cube", 0.28, 0.04, 0.03).replace("color", "colour");
+    let err = parse(&text).unwrap_err().to_string();
+    assert!(err.starts_with("scene file test.toml: line "), "{err}");
+    assert!(err.contains("unknown field `colour`"), "{err}");
+
+    let err = Scene::from_toml_str(&format!("{WS}\nlighting = 3"), "x.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("x.toml") && err.contains("lighting"), "{err}");
+}
+
+#[test]
+fn bad_values_are_refused() {
+    let bad =
+        cube_toml("red cube", 0.28, 0.04, 0.03).replace("length_x_m = 0.03", "length_x_m = -0.03");
+    let err = parse(&bad).unwrap_err().to_string();
+    assert!(err.contains("test.toml"), "{err}");
+    assert!(err.contains("objects[0] 'red cube': length_x_m"), "{err}");
+    assert!(err.contains("-0.03"), "{err}");
+
+    let nan = cube_toml("red cube", 0.28, 0.04, 0.03).replace("x_m = 0.28", "x_m = nan");
+    assert!(parse(&nan)
+        .unwrap_err()
+        .to_string()
+        .contains("x_m must be a finite"));
+
+    let colour = cube_toml("red cube", 0.28, 0.04, 0.03).replace("\"red\"", "\"redd\"");
+    let err = parse(&colour).unwrap_err().to_string();
+    assert!(err.contains("unknown colour 'redd'"), "{err}");
+    let rgb = cube_toml("c", 0.28, 0.04, 0.03).replace("\"red\"", "[1, 2, 3]");
+    assert_eq!(parse(&rgb).unwrap().objects[0].color, [1, 2, 3]);
+    let rgb = cube_toml("c", 0.28, 0.04, 0.03).replace("\"red\"", "[1, 2, 300]");
+    assert!(parse(&rgb).unwrap_err().to_string().contains("300"));
+
+    let empty = cube_toml(" ", 0.28, 0.04, 0.03);
+    assert!(parse(&empty)
+        .unwrap_err()
+        .to_string()
+        .contains("label must not be empty"));
+
+    let cyl_key = format!("{}diameter_m = 0.03\n", cube_toml("c", 0.28, 0.04, 0.03));
+    let err = parse(&cyl_key).unwrap_err().to_string();
+    assert!(
+        err.contains("`diameter_m` does not apply to shape \"box\""),
+        "{err}"
+    );
+
+    let missing = "[[objects]]\nlabel = \"can\"\nshape = \"cylinder\"\ndiameter_m = 0.03\n\
+                   color = \"green\"\nx_m = 0.3\ny_m = 0.0\n";
+    let err = parse(missing).unwrap_err().to_string();
+    assert!(err.contains("a cylinder needs `height_m`"), "{err}");
+
+    let robot = WS.replace("\"ned2\"", "\"ur5\"");
+    let err = Scene::from_toml_str(&robot, "r.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("unknown robot model 'ur5'"), "{err}");
+
+    let ws = WS.replace("[0.163, -0.087]", "[0.4, -0.087]");
+    let err = Scene::from_toml_str(&ws, "w.toml").unwrap_err().to_string();
+    assert!(err.contains("far-left"), "{err}");
+}
+
+#[test]
+fn overlapping_objects_are_refused_naming_both() {
+    let text = format!(
+        "{}{}",
+        cube_toml("red cube", 0.28, 0.04, 0.03),
+        cube_toml("blue cube", 0.30, 0.05, 0.03)
+    );
+    let err = parse(&text)
+        .unwrap()
+        .validate(&roughly_reachable)
+        .unwrap_err()
+        .to_string();
+    assert!(err.starts_with("scene file test.toml:"), "{err}");
+    assert!(
+        err.contains("'red cube'") && err.contains("'blue cube'"),
+        "{err}"
+    );
+    assert!(err.contains("overlap by 10.0 mm"), "{err}");
+    // Touching is fine.
+    let text = format!(
+        "{}{}",
+        cube_toml("red cube", 0.28, 0.04, 0.03),
+        cube_toml("blue cube", 0.28, 0.07, 0.03)
+    );
+    parse(&text).unwrap().validate(&roughly_reachable).unwrap();
+}
+
+#[test]
+fn unreachable_objects_are_refused() {
+    let scene = parse(&cube_toml("far cube", 0.30, 0.0, 0.03)).unwrap();
+    let err = scene
+        .validate(&|x, _y, z| x < 0.25 && z < 0.3)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("test.toml"), "{err}");
+    assert!(
+        err.contains("'far cube'") && err.contains("out of reach of the Niryo Ned2"),
+        "{err}"
+    );
+    assert!(err.contains("(0.300, 0.000, 0.030)"), "{err}");
+}
+
+#[test]
+fn objects_on_markers_are_refused() {
+    let scene = parse(&cube_toml("corner cube", 0.335, 0.085, 0.02)).unwrap();
+    let err = scene.validate(&roughly_reachable).unwrap_err().to_string();
+    assert!(err.contains("covers the workspace marker"), "{err}");
+}
+
+// ---- markers and sheets ----
+
+#[test]
+fn four_markers_per_sheet_one_white_centre_at_upper_left() {
+    let world = World::new(&Scene::default_ned2());
+    // niryo_ws and gazebo_1 share one sheet.
+    let markers = world.markers();
+    assert_eq!(markers.len(), 4);
+    let white: Vec<&Marker> = markers.iter().filter(|m| m.white_centre).collect();
+    assert_eq!(white.len(), 1);
+    assert!((white[0].center.x - 0.337).abs() < 1e-12 && (white[0].center.y - 0.087).abs() < 1e-12);
+    let quads = world.sheet_quads();
+    assert_eq!(quads.len(), 1);
+    let q = quads[0];
+    for m in &markers {
+        assert!(m.center.x - m.outer_radius_m > q[2].x && m.center.x + m.outer_radius_m < q[0].x);
+        assert!(m.center.y - m.outer_radius_m > q[2].y && m.center.y + m.outer_radius_m < q[0].y);
+    }
+    assert!(markers.iter().all(|m| m.center.z > q[0].z));
+
+    let widowx = World::new(&Scene::default_widowx());
+    assert_eq!(widowx.markers().len(), 4);
+}
+
+// ---- grasping ----
+
+#[test]
+fn grasp_succeeds_when_centred_at_mid_height_across_the_short_side() {
+    let mut world = World::new(&Scene::default_ned2());
+    let c = centre(&world, "red cube");
+    world.set_tool(ToolState::pointing_down(c.x, c.y, c.z, 0.0, 0.040));
+    let id = find(&world, "red cube").id;
+    assert_eq!(
+        world.close_gripper(),
+        GraspOutcome::Grasped {
+            id,
+            label: "red cube".into()
+        }
+    );
+    assert_eq!(world.held(), Some(id));
+    assert!(find(&world, "red cube").held);
+    assert!((world.gripper_width_m() - 0.030).abs() < 1e-12);
+    // Closing again keeps it.
+    assert!(matches!(
+        world.close_gripper(),
+        GraspOutcome::Grasped { .. }
+    ));
+}
+
+#[test]
+fn grasp_fails_off_centre_by_a_centimetre() {
+    let mut world = World::new(&Scene::default_ned2());
+    let c = centre(&world, "red cube");
+    world.set_tool(ToolState::pointing_down(c.x + 0.01, c.y, c.z, 0.0, 0.040));
+    let GraspOutcome::Empty { reason } = world.close_gripper() else {
+        panic!("grasped off centre")
+    };
+    assert!(reason.contains("'red cube' is not centred"), "{reason}");
+    assert!(reason.contains("10.0 mm"), "{reason}");
+    assert_eq!(world.gripper_width_m(), 0.0);
+    assert_eq!(world.held(), None);
+}
+
+#[test]
+fn grasp_fails_above_the_object() {
+    let mut world = World::new(&Scene::default_ned2());
+    let c = centre(&world, "red cube");
+    world.set_tool(ToolState::pointing_down(c.x, c.y, 0.040, 0.0, 0.040));
+    let GraspOutcome::Empty { reason } = world.close_gripper() else {
+        panic!("grasped from above")
+    };
+    assert!(reason.contains("10.0 mm short of 'red cube'"), "{reason}");
+    // Far from everything.
+    world.open_gripper(0.04);
+    world.set_tool(ToolState::pointing_down(0.25, -0.01, 0.005, 0.0, 0.040));
+    assert_eq!(
+        world.close_gripper(),
+        GraspOutcome::Empty {
+            reason: "no object between the fingers".into()
+        }
+    );
+}
+
+#[test]
+fn grasp_needs_the_jaw_across_the_short_side() {
+    let mut world = World::new(&Scene::default_ned2());
+    let c = centre(&world, "pencil");
+    // yaw π/2: the fingers close along x, the pencil's length.
+    world.set_tool(ToolState::pointing_down(c.x, c.y, c.z, FRAC_PI_2, 0.040));
+    let GraspOutcome::Empty { reason } = world.close_gripper() else {
+        panic!("grasped along the pencil")
+    };
+    assert!(
+        reason.contains("jaw not across the short side of 'pencil' (off by 90°"),
+        "{reason}"
+    );
+
+    // 20° off: refused; 10° off: grasped and squared up.
+    world.set_tool(ToolState::pointing_down(
+        c.x,
+        c.y,
+        c.z,
+        20f64.to_radians(),
+        0.040,
+    ));
+    let GraspOutcome::Empty { reason } = world.close_gripper() else {
+        panic!("grasped 20° off")
+    };
+    assert!(reason.contains("off by 20°"), "{reason}");
+    world.set_tool(ToolState::pointing_down(
+        c.x,
+        c.y,
+        c.z,
+        10f64.to_radians(),
+        0.040,
+    ));
+    assert!(matches!(
+        world.close_gripper(),
+        GraspOutcome::Grasped { .. }
+    ));
+    assert!((world.gripper_width_m() - 0.012).abs() < 1e-12);
+    assert!((find(&world, "pencil").yaw_rad() - 10f64.to_radians()).abs() < 1e-9);
+}
+
+#[test]
+fn grasp_refuses_objects_wider_than_the_opening() {
+    let mut world = World::new(&Scene::default_ned2());
+    let c = centre(&world, "blue square");
+    world.set_tool(ToolState::pointing_down(c.x, c.y, c.z, 0.0, 0.040));
+    let GraspOutcome::Empty { reason } = world.close_gripper() else {
+        panic!("grasped the wide square")
+    };
+    assert_eq!(
+        reason,
+        "'blue square' is 0.045 m wide, wider than the 0.040 m opening"
+    );
+
+    // A cube narrower than the gripper but wider than the current opening.
+    let c = centre(&world, "red cube");
+    world.set_tool(ToolState::pointing_down(c.x, c.y, c.z, 0.0, 0.025));
+    let GraspOutcome::Empty { reason } = world.close_gripper() else {
+        panic!("grasped through closed fingers")
+    };
+    assert!(
+        reason.contains("wider than the 0.025 m opening"),
+        "{reason}"
+    );
+}
+
+#[test]
+fn cylinders_grasp_at_any_yaw() {
+    let mut world = World::new(&Scene::default_ned2());
+    let c = centre(&world, "green cylinder");
+    world.set_tool(ToolState::pointing_down(c.x, c.y, c.z, 1.0, 0.040));
+    assert!(matches!(
+        world.close_gripper(),
+        GraspOutcome::Grasped { .. }
+    ));
+    assert!((world.gripper_width_m() - 0.030).abs() < 1e-12);
+}
+
+// ---- carrying and releasing ----
+
+#[test]
+fn held_object_follows_the_tool() {
+    let mut world = World::new(&Scene::default_ned2());
+    let id = pick(&mut world, "red cube", 0.0);
+    let tcp = world.tool().tcp.translation.vector;
+    let obj = world.object(id).unwrap().pose.translation.vector;
+    assert!((obj - tcp).norm() < 1e-9, "cube centred on the TCP");
+    assert!((obj.z - 0.09).abs() < 1e-9);
+    go(&mut world, 0.25, -0.02, 0.10, 0.5);
+    let obj = world.object(id).unwrap();
+    assert!((obj.pose.translation.vector - Vector3::new(0.25, -0.02, 0.10)).norm() < 1e-9);
+    assert!((obj.yaw_rad() - 0.5).abs() < 1e-9);
+}
+
+#[test]
+fn release_stacks_on_a_box_and_drops_on_the_table_otherwise() {
+    let mut world = World::new(&Scene::from_toml_str(PUSH_TOML, "push.toml").unwrap());
+    let id = pick(&mut world, "red cube", 0.0);
+    let b = centre(&world, "large box");
+    go(&mut world, b.x, b.y, 0.12, 0.0);
+    // Lowered so that the cube sinks 0.5 mm into the box: tolerated.
+    go(&mut world, b.x, b.y, 0.05 + 0.015 - 0.0005, 0.0);
+    // Further down is a collision with the box, stopped at 2 mm.
+    let (reached, outcome) = world.move_tool(&down(b.x, b.y, 0.05, 0.0));
+    assert_eq!(outcome.collision.as_deref(), Some("large box"));
+    let z = reached.tcp.translation.z;
+    assert!((z - (0.065 - HELD_TOLERANCE_M)).abs() < 1e-4, "{z}");
+    go(&mut world, b.x, b.y, 0.08, 0.0);
+    assert_eq!(world.open_gripper(0.04), Some(id));
+    assert_eq!(world.held(), None);
+    let placed = world.object(id).unwrap();
+    assert!((placed.pose.translation.z - 0.065).abs() < 1e-9);
+    assert!((placed.pose.translation.x - b.x).abs() < 1e-9);
+    assert!(!placed.held);
+
+    // Pick it up again and drop it beside the box.
+    let id = pick(&mut world, "red cube", 0.0);
+    go(&mut world, 0.32, -0.06, 0.08, 0.3);
+    assert_eq!(world.open_gripper(0.04), Some(id));
+    let placed = world.object(id).unwrap();
+    assert!((placed.pose.translation.z - 0.015).abs() < 1e-9);
+    assert!((placed.yaw_rad() - 0.3).abs() < 1e-9, "keeps its yaw");
+}
+
+#[test]
+fn release_above_a_container_goes_inside() {
+    let mut world = empty_world();
+    let tray = world
+        .add_object(
+            ObjectSpec::new(
+                "tray",
+                ObjectShape::Box {
+                    length_x_m: 0.07,
+                    width_y_m: 0.07,
+                    height_z_m: 0.03,
+                },
+                [130, 60, 170],
+                0.22,
+                -0.03,
+            )
+            .as_container(),
+        )
+        .unwrap();
+    let small = world
+        .add_object(
+            ObjectSpec::new(
+                "cup",
+                ObjectShape::Box {
+                    length_x_m: 0.025,
+                    width_y_m: 0.025,
+                    height_z_m: 0.02,
+                },
+                [1, 2, 3],
+                0.30,
+                -0.05,
+            )
+            .as_container(),
+        )
+        .unwrap();
+    world
+        .add_object(cube("red cube", 0.30, 0.05, 0.03))
+        .unwrap();
+    let id = pick(&mut world, "red cube", 0.0);
+    // Lower it into the tray (its walls are hollow): no collision.
+    go(&mut world, 0.22, -0.03, 0.08, 0.0);
+    go(&mut world, 0.22, -0.03, 0.03, 0.0);
+    assert_eq!(world.open_gripper(0.04), Some(id));
+    let inside = world.object(id).unwrap().pose.translation.z;
+    assert!(
+        (inside - (CONTAINER_WALL_M + 0.015)).abs() < 1e-9,
+        "{inside}"
+    );
+    assert_eq!(world.object(tray).unwrap().pose.translation.z, 0.015);
+
+    // Too big for the cup: it rests on the rim.
+    let id = pick(&mut world, "red cube", 0.0);
+    go(&mut world, 0.30, -0.05, 0.08, 0.0);
+    world.open_gripper(0.04);
+    let z = world.object(id).unwrap().pose.translation.z;
+    assert!((z - (0.02 + 0.015)).abs() < 1e-9, "{z}");
+    assert_eq!(world.object(small).unwrap().pose.translation.z, 0.01);
+}
+
+// ---- collisions ----
+
+#[test]
+fn moving_down_into_an_object_or_the_table_stops_at_the_contact() {
+    let mut world = World::new(&Scene::default_ned2());
+    let c = centre(&world, "blue square");
+    world.set_tool(ToolState::pointing_down(c.x, c.y, 0.10, 0.0, 0.040));
+    let (reached, outcome) = world.move_tool(&ToolState::pointing_down(c.x, c.y, 0.0, 0.0, 0.040));
+    assert_eq!(outcome.collision.as_deref(), Some("blue square"));
+    assert_eq!(
+        outcome.contact(),
+        Some(Contact::Collision {
+            what: "blue square".into()
+        })
+    );
+    let z = reached.tcp.translation.z;
+    assert!((z - 0.010).abs() < 2e-4, "stopped at {z}");
+    assert_eq!(world.tool().tcp.translation.z, z);
+    // The square did not move; the tool can go back up.
+    assert_eq!(centre(&world, "blue square"), c);
+    go(&mut world, c.x, c.y, 0.10, 0.0);
+
+    world.set_tool(ToolState::pointing_down(0.25, -0.01, 0.05, 0.0, 0.040));
+    let (reached, outcome) =
+        world.move_tool(&ToolState::pointing_down(0.25, -0.01, -0.02, 0.0, 0.040));
+    assert_eq!(outcome.collision.as_deref(), Some("table"));
+    let z = reached.tcp.translation.z;
+    assert!(z.abs() < 2e-4, "stopped at {z}");
+}
+
+#[test]
+fn an_open_gripper_moving_sideways_into_a_small_object_collides() {
+    let mut world = World::new(&Scene::default_ned2());
+    let c = centre(&world, "red cube");
+    // Fingers open (40 mm, wider than the 30 mm cube), beside the cube along x.
+    world.set_tool(ToolState::pointing_down(
+        c.x - 0.04,
+        c.y + 0.02,
+        0.015,
+        0.0,
+        0.040,
+    ));
+    let (_, outcome) = world.move_tool(&ToolState::pointing_down(
+        c.x,
+        c.y + 0.02,
+        0.015,
+        0.0,
+        0.040,
+    ));
+    assert_eq!(outcome.collision.as_deref(), Some("red cube"));
+    assert!(outcome.pushed.is_empty());
+    assert_eq!(centre(&world, "red cube"), c);
+}
+
+#[test]
+fn a_carried_object_collides_with_others() {
+    let mut world = World::new(&Scene::default_ned2());
+    pick(&mut world, "red cube", 0.0);
+    let c = centre(&world, "green cylinder");
+    go(&mut world, c.x, c.y + 0.005, 0.09, 0.0);
+    let (_, outcome) = world.move_tool(&down(c.x, c.y + 0.005, 0.03, 0.0));
+    assert_eq!(outcome.collision.as_deref(), Some("green cylinder"));
+}
+
+// ---- pushing ----
+
+/// How far the gripper reaches beyond the TCP along +y at its current pose.
+fn reach_along_y(world: &World) -> f64 {
+    let tcp_y = world.tool().tcp.translation.y;
+    world
+        .gripper_boxes()
+        .iter()
+        .flat_map(|b| {
+            let h = b.half_extents_m;
+            [-1.0, 1.0].into_iter().flat_map(move |sx| {
+                [-1.0, 1.0].into_iter().flat_map(move |sy| {
+                    [-1.0, 1.0].into_iter().map(move |sz| {
+                        (b.pose * nalgebra::Point3::new(sx * h.x, sy * h.y, sz * h.z)).y
+                    })
+                })
+            })
+        })
+        .fold(f64::NEG_INFINITY, f64::max)
+        - tcp_y
+}
+
+#[test]
+fn a_closed_gripper_pushes_the_large_box() {
+    let mut world = World::new(&Scene::from_toml_str(PUSH_TOML, "push.toml").unwrap());
+    let b = centre(&world, "large box");
+    let box_id = find(&world, "large box").id;
+    let others: Vec<Vector3<f64>> = ["red cube", "green cylinder"]
+        .iter()
+        .map(|l| centre(&world, l))
+        .collect();
+    // Closed gripper, jaw along x (yaw π/2), 1 cm to the right of the box.
+    world.set_tool(ToolState::pointing_down(b.x, -0.10, 0.10, FRAC_PI_2, 0.040));
+    assert!(matches!(world.close_gripper(), GraspOutcome::Empty { .. }));
+    let gap = 0.010;
+    let start_y = b.y - 0.035 - reach_along_y(&world) - gap;
+    go(&mut world, b.x, start_y, 0.10, FRAC_PI_2);
+    go(&mut world, b.x, start_y, 0.005, FRAC_PI_2);
+    let (reached, outcome) = world.move_tool(&down(b.x, start_y + 0.05, 0.005, FRAC_PI_2));
+    assert_eq!(outcome.collision, None);
+    assert_eq!(outcome.pushed, vec![box_id]);
+    assert!((reached.tcp.translation.y - (start_y + 0.05)).abs() < 1e-9);
+    let moved = find(&world, "large box");
+    let dy = moved.pose.translation.y - b.y;
+    assert!((dy - 0.040).abs() < 0.003, "box moved {dy}");
+    assert!((moved.pose.translation.x - b.x).abs() < 1e-9);
+    assert!((moved.pose.translation.z - b.z).abs() < 1e-9);
+    assert!(moved.yaw_rad().abs() < 1e-9, "no rotation");
+    let after: Vec<Vector3<f64>> = ["red cube", "green cylinder"]
+        .iter()
+        .map(|l| centre(&world, l))
+        .collect();
+    assert_eq!(after, others, "the others stayed put");
+}
+
+#[test]
+fn a_pushed_object_shoves_the_next_one() {
+    let mut world = empty_world();
+    let box_id = world.add_object(large_box(0.25, -0.02)).unwrap();
+    // 10 mm beyond the box's left side.
+    let cube_id = world
+        .add_object(cube("red cube", 0.25, 0.015 + 0.010 + 0.015, 0.03))
+        .unwrap();
+    world.set_tool(ToolState::pointing_down(0.25, -0.10, 0.10, FRAC_PI_2, 0.0));
+    let start_y = -0.055 - reach_along_y(&world) - 0.010;
+    go(&mut world, 0.25, start_y, 0.005, FRAC_PI_2);
+    let (_, outcome) = world.move_tool(&down(0.25, start_y + 0.05, 0.005, FRAC_PI_2));
+    assert_eq!(outcome.collision, None);
+    assert_eq!(outcome.pushed, vec![box_id, cube_id]);
+    let box_y = world.object(box_id).unwrap().pose.translation.y;
+    let cube_y = world.object(cube_id).unwrap().pose.translation.y;
+    assert!((box_y - 0.02).abs() < 0.003, "{box_y}");
+    assert!((cube_y - 0.07).abs() < 0.003, "{cube_y}");
+    let gap = (cube_y - 0.015) - (box_y + 0.035);
+    assert!(gap > -CONTACT_TOLERANCE_M, "box and cube overlap by {gap}");
+}
+
+#[test]
+fn a_pushed_box_carries_what_stands_on_it() {
+    let mut world = empty_world();
+    let box_id = world.add_object(large_box(0.25, -0.02)).unwrap();
+    world
+        .add_object(cube("red cube", 0.30, 0.05, 0.03))
+        .unwrap();
+    let cube_id = pick(&mut world, "red cube", 0.0);
+    go(&mut world, 0.25, -0.02, 0.08, 0.0);
+    world.open_gripper(0.04);
+    world.close_gripper();
+    go(&mut world, 0.25, -0.10, 0.10, FRAC_PI_2);
+    let start_y = -0.055 - reach_along_y(&world) - 0.005;
+    go(&mut world, 0.25, start_y, 0.005, FRAC_PI_2);
+    let (_, outcome) = world.move_tool(&down(0.25, start_y + 0.025, 0.005, FRAC_PI_2));
+    assert_eq!(outcome.collision, None);
+    assert!(outcome.pushed.contains(&box_id) && outcome.pushed.contains(&cube_id));
+    let on_top = world.object(cube_id).unwrap().pose.translation;
+    assert!(
+        (on_top.y - 0.0).abs() < 0.003 && (on_top.z - 0.065).abs() < 1e-9,
+        "{on_top:?}"
+    );
+}
+
+#[test]
+fn pushing_downwards_is_a_collision() {
+    let mut world = World::new(&Scene::from_toml_str(PUSH_TOML, "push.toml").unwrap());
+    world.set_tool(ToolState::pointing_down(0.25, -0.02, 0.10, 0.0, 0.0));
+    let (_, outcome) = world.move_tool(&down(0.25, -0.02, 0.03, 0.0));
+    assert_eq!(outcome.collision.as_deref(), Some("large box"));
+    assert!(outcome.pushed.is_empty());
+}
+
+// ---- world bookkeeping and robustness ----
+
+#[test]
+fn add_and_remove_objects() {
+    let mut world = World::new(&Scene::default_ned2());
+    let err = world
+        .add_object(cube("second cube", 0.29, 0.05, 0.03))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("'second cube'") && err.contains("'red cube'"),
+        "{err}"
+    );
+    let err = world
+        .add_object(cube("", 0.25, 0.0, 0.03))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("label must not be empty"), "{err}");
+    let id = world
+        .add_object(cube("second cube", 0.25, -0.01, 0.02))
+        .unwrap();
+    assert_eq!(world.object(id).unwrap().pose.translation.z, 0.01);
+    let held = pick(&mut world, "red cube", 0.0);
+    assert!(world.remove_object(held));
+    assert_eq!(world.held(), None);
+    assert!(!world.remove_object(held));
+    assert!(world.object(held).is_none());
+    assert_eq!(world.objects().len(), 4);
+}
+
+#[test]
+fn bad_inputs_never_panic() {
+    let mut world = World::new(&Scene::default_ned2());
+    let before = *world.tool();
+    let (reached, outcome) = world.move_tool(&down(f64::NAN, 0.0, 0.1, 0.0));
+    assert_eq!(reached, before);
+    assert_eq!(outcome, StepOutcome::default());
+    world.set_tool(ToolState::pointing_down(
+        f64::INFINITY,
+        0.0,
+        0.1,
+        0.0,
+        f64::NAN,
+    ));
+    assert_eq!(*world.tool(), before);
+    world.set_tool(ToolState::pointing_down(0.2, 0.0, 0.1, 0.0, 5.0));
+    assert_eq!(world.gripper_width_m(), 0.040);
+    world.open_gripper(f64::NAN);
+    assert_eq!(world.gripper_width_m(), 0.040);
+    // A half turn of the tool in place, far above everything.
+    let (_, outcome) = world.move_tool(&ToolState::from_xyz_rpy(
+        [0.2, 0.0, 0.3],
+        [0.0, 0.0, std::f64::consts::PI],
+        0.04,
+    ));
+    assert_eq!(outcome.collision, None);
+}
+
+#[test]
+fn gripper_geometry_per_robot() {
+    assert_eq!(
+        GripperGeometry::for_model(RobotModel::Ned2).max_opening_m,
+        0.040
+    );
+    assert_eq!(
+        GripperGeometry::for_model(RobotModel::WidowX250).max_opening_m,
+        0.044
+    );
+    let world = World::new(&Scene::default_widowx());
+    assert_eq!(world.gripper_width_m(), 0.044);
+    // Fingertips at the TCP, inner faces at ± opening / 2.
+    let world = World::new(&Scene::default_ned2());
+    let [left, right, palm] = world.gripper_boxes();
+    let tcp = world.tool().tcp;
+    let local = |b: &GripperBox| tcp.inverse() * b.pose;
+    assert!((local(&left).translation.y - (0.020 + 0.004)).abs() < 1e-12);
+    assert!((local(&right).translation.y + (0.020 + 0.004)).abs() < 1e-12);
+    assert!((local(&left).translation.x + 0.0175).abs() < 1e-12);
+    assert!(local(&palm).translation.x < -0.035);
+}
