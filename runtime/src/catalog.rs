@@ -23,3 +23,33 @@ pub const TEST_PATTERN_FRAMES: FrameTopic =
 /// metric and a log line.
 pub const HEALTH_RESTARTS: crate::bus::Topic<robotd_protocol::health::RestartEvent> =
     crate::bus::Topic::new("health/restarts", Overflow::latest_wins(64));
+
+/// Commands to the arm actor (motion, queries, stop). Requests are never dropped: a caller
+/// gets the reply or an error. `Stop` and the queries are answered at once, even while a
+/// motion is under way.
+pub const ARM_COMMAND: Service<robotd_protocol::arm::ArmCommand, robotd_protocol::arm::ArmReply> =
+    Service::new("arm/command");
+
+/// Joint states and tool pose of the arm, at the control rate while it moves and about once a
+/// second while it rests. Latest wins: a slow reader only ever misses old poses.
+pub const ARM_STATE: crate::bus::Topic<robotd_protocol::arm::ArmState> =
+    crate::bus::Topic::new("arm/state", Overflow::latest_wins(8));
+
+/// Commands to the gripper actor.
+pub const GRIPPER_COMMAND: Service<
+    robotd_protocol::gripper::GripperCommand,
+    robotd_protocol::gripper::GripperReply,
+> = Service::new("gripper/command");
+
+/// The gripper's state after every command. Latest wins.
+pub const GRIPPER_STATE: crate::bus::Topic<robotd_protocol::gripper::GripperState> =
+    crate::bus::Topic::new("gripper/state", Overflow::latest_wins(8));
+
+/// The wrist camera's frames (640×480 RGB, zero-copy). Latest wins: a slow consumer gets the
+/// newest frame, never an old one.
+pub const CAMERA_FRAMES: FrameTopic = FrameTopic::new("camera/frames", Overflow::latest_wins(2));
+
+/// Engage or release the emergency stop. Back-pressure: an e-stop is never dropped; the
+/// sender gets an error if the arm cannot take it.
+pub const SAFETY_ESTOP: crate::bus::Topic<robotd_protocol::health::EmergencyStop> =
+    crate::bus::Topic::new("safety/estop", Overflow::back_pressure(16));
