@@ -1,3 +1,7 @@
+//! **Not built yet**: this crate is excluded from the workspace until `robotd-kinematics`
+//! (forward/inverse kinematics with `k`) exists; the code below is written against its planned
+//! API and has never been compiled.
+//!
 //! robotd's hardware actors — arm, gripper, wrist camera — and the simulated robot they drive
 //! when there is no hardware.
 //!
