@@ -13,10 +13,8 @@ use robotd_protocol::diagnostics::Pong;
 use robotd_protocol::health::{ActorHealth, ActorState, RestartEvent};
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
 use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
-use robotd_runtime::config::{ActorMode, Config, SupervisionConfig};
-use robotd_runtime::supervision::{
-    observer_fn, RestartPolicy, SupervisedProcess, SupervisionEvent, SupervisionPolicy, Supervisor,
-};
+use robotd_runtime::config::{ActorMode, Config};
+use robotd_runtime::supervision::{observer_fn, SupervisedProcess, SupervisionEvent, Supervisor};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -71,17 +69,6 @@ impl HealthBoard {
             },
             "actors": actors,
         })
-    }
-}
-
-fn policy_from(config: &SupervisionConfig) -> SupervisionPolicy {
-    SupervisionPolicy {
-        max_restarts: config.max_restarts,
-        window: config.window(),
-        backoff_initial: config.backoff_initial(),
-        backoff_max: config.backoff_max(),
-        backoff_multiplier: config.backoff_multiplier,
-        restart: RestartPolicy::Permanent,
     }
 }
 
@@ -212,7 +199,7 @@ async fn start_process_actors(
             }
         });
         let process = Supervisor::new(name.clone())
-            .policy(policy_from(&config.supervision_for(name)))
+            .policy(config.supervision_for(name).policy())
             .observer(observer)
             .on_restart_cleanup(move |_context| {
                 let report = cleanup_bus.cleanup_dead_nodes();

@@ -216,6 +216,18 @@ pub struct SupervisionConfig {
 }
 
 impl SupervisionConfig {
+    /// The restart policy these settings describe (permanent: restarted after any failure).
+    pub fn policy(&self) -> crate::supervision::SupervisionPolicy {
+        crate::supervision::SupervisionPolicy {
+            max_restarts: self.max_restarts,
+            window: self.window(),
+            backoff_initial: self.backoff_initial(),
+            backoff_max: self.backoff_max(),
+            backoff_multiplier: self.backoff_multiplier,
+            restart: crate::supervision::RestartPolicy::Permanent,
+        }
+    }
+
     /// [`Self::window_s`] as a duration.
     pub fn window(&self) -> Duration {
         Duration::from_secs(self.window_s)

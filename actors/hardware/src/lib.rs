@@ -50,9 +50,9 @@ use robotd_runtime::bus::Bus;
 use robotd_runtime::catalog::{
     ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, GRIPPER_COMMAND, GRIPPER_STATE, SAFETY_ESTOP,
 };
-use robotd_runtime::config::{Config, RobotDriver, SupervisionConfig};
+use robotd_runtime::config::{Config, RobotDriver};
 use robotd_runtime::supervision::{
-    safe_state_fn, RestartPolicy, Supervised, SupervisionObserver, SupervisionPolicy, Supervisor,
+    safe_state_fn, Supervised, SupervisionObserver, Supervisor,
 };
 use robotd_sim::Scene;
 use sim::{SimRobot, SimSettings};
@@ -163,16 +163,6 @@ pub fn reachable_from_above(kinematics: &robotd_kinematics::Kinematics, x: f64, 
         })
 }
 
-fn policy_from(config: &SupervisionConfig) -> SupervisionPolicy {
-    SupervisionPolicy {
-        max_restarts: config.max_restarts,
-        window: config.window(),
-        backoff_initial: config.backoff_initial(),
-        backoff_max: config.backoff_max(),
-        backoff_multiplier: config.backoff_multiplier,
-        restart: RestartPolicy::Permanent,
-    }
-}
 
 impl Hardware {
     /// Starts the arm, gripper and camera actors of the configured robot on `bus`, each under
@@ -236,7 +226,7 @@ impl Hardware {
         let halt_driver = context.driver.clone();
         let actor_context = context.clone();
         let arm = Supervisor::new("arm")
-            .policy(policy_from(&config.supervision_for("arm")))
+            .policy(config.supervision_for("arm").policy())
             .observer(observer("arm"))
             .safe_state(safe_state_fn(Duration::from_secs(1), move |reason: String| {
                 let driver = halt_driver.clone();
@@ -276,7 +266,7 @@ impl Hardware {
         // The gripper: its safe state is to hold still (a real gripper keeps its grip).
         let gripper_state = Arc::new(bus.publisher(&GRIPPER_STATE)?);
         let gripper = Supervisor::new("gripper")
-            .policy(policy_from(&config.supervision_for("gripper")))
+            .policy(config.supervision_for("gripper").policy())
             .observer(observer("gripper"))
             .spawn_actor::<GripperActor>(move || {
                 GripperActor::new(gripper_driver.clone(), Some(gripper_state.clone()))
@@ -298,7 +288,7 @@ impl Hardware {
         let frames = Arc::new(bus.frame_publisher(&CAMERA_FRAMES)?);
         let frame_ids = Arc::new(AtomicU64::new(1));
         let camera = Supervisor::new("camera")
-            .policy(policy_from(&config.supervision_for("camera")))
+            .policy(config.supervision_for("camera").policy())
             .observer(observer("camera"))
             .spawn_actor::<CameraActor>(move || {
                 CameraActor::new(camera_driver.clone(), frames.clone(), frame_ids.clone())
