@@ -1,7 +1,7 @@
 //! `robotd`: the runtime for LLM-driven tabletop robots.
 //!
 //! This file is the command line and the wiring only; every piece lives in a crate of its own
-//! (`protocol`, `runtime`, `actors`, `adapters`).
+//! (`protocol`, `runtime`, `actors/*`, `adapters`).
 
 mod bench;
 mod doctor;
@@ -81,6 +81,18 @@ struct DoctorArgs {
 enum BenchCommand {
     /// Round trips and frame throughput through the bus, beside raw iceoryx2.
     Bus(BenchBusArgs),
+    /// The simulator: camera rendering, inverse kinematics, camera frame to the bus.
+    Sim(BenchSimArgs),
+}
+
+#[derive(Debug, Args)]
+struct BenchSimArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Frames rendered per variant.
+    #[arg(long, default_value_t = 300)]
+    frames: usize,
 }
 
 #[derive(Debug, Args)]
@@ -181,6 +193,17 @@ fn run() -> Result<std::process::ExitCode> {
                     restarts: args.restarts.max(1),
                 },
             )?;
+            if args.json {
+                println!("{}", serde_json::to_string(&figures)?);
+            } else {
+                print!("{}", figures.table());
+            }
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Bench {
+            what: BenchCommand::Sim(args),
+        } => {
+            let figures = bench::sim::run(args.frames.max(1))?;
             if args.json {
                 println!("{}", serde_json::to_string(&figures)?);
             } else {

@@ -1,23 +1,30 @@
 //! `robotd serve`: the long-running service.
 //!
 //! Joins the bus (cleaning up what crashed processes left behind), starts robotd's own
-//! `system` service, starts every actor configured to run as its own process under a
+//! `system` service, the robot's hardware actors (arm, gripper, camera; the simulator unless a
+//! real driver is configured), every actor configured to run as its own process, each under a
 //! supervisor, and serves `/health` and `/metrics` on the HTTP port until SIGINT or SIGTERM.
-//!
-//! The robot's hardware actors (arm, gripper, camera) and their simulator are not part of this
-//! build yet; `/health` says so rather than pretending a robot is there.
 
 use anyhow::{Context, Result};
 use robotd_adapters::http::{HealthSource, HttpEdge};
+use robotd_hardware::Hardware;
 use robotd_protocol::diagnostics::Pong;
 use robotd_protocol::health::{ActorHealth, ActorState, RestartEvent};
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
 use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
 use robotd_runtime::config::{ActorMode, Config};
-use robotd_runtime::supervision::{observer_fn, SupervisedProcess, SupervisionEvent, Supervisor};
+use robotd_runtime::supervision::{
+    observer_fn, SupervisedProcess, SupervisionEvent, SupervisionObserver, Supervisor,
+};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
+
+/// What /health says about the robot.
+struct RobotInfo {
+    model: String,
+    scene: String,
+}
 
 /// Health of every supervised actor, kept current by the supervisors' events.
 #[derive(Default)]
@@ -48,7 +55,7 @@ impl HealthBoard {
         }
     }
 
-    fn report(&self, config: &Config, started: Instant) -> serde_json::Value {
+    fn report(&self, config: &Config, robot: &RobotInfo, started: Instant) -> serde_json::Value {
         let actors: Vec<ActorHealth> = self
             .actors
             .lock()
@@ -64,8 +71,9 @@ impl HealthBoard {
             "bus_namespace": config.bus.namespace,
             "robot": {
                 "driver": config.robot.driver,
-                "available": false,
-                "note": "the simulator and hardware drivers are not part of this build yet",
+                "available": true,
+                "model": robot.model,
+                "scene": robot.scene,
             },
             "actors": actors,
         })
@@ -102,16 +110,36 @@ fn restart_event(event: &SupervisionEvent, safe_state_ok: bool) -> Option<Restar
     }
 }
 
+/// The observer of one supervised actor: keeps the health board current, and publishes every
+/// restart (with the outcome of the safe-state hook before it) on `health/restarts`.
+fn supervision_observer(
+    board: Arc<HealthBoard>,
+    publisher: Arc<Mutex<Publisher<RestartEvent>>>,
+) -> impl SupervisionObserver {
+    let last_safe_state_ok = std::sync::atomic::AtomicBool::new(true);
+    observer_fn(move |event: &SupervisionEvent| {
+        tracing::info!(actor = event.actor(), event = %event, "supervision");
+        board.apply(event);
+        if let SupervisionEvent::SafeState { ok, .. } = event {
+            last_safe_state_ok.store(*ok, std::sync::atomic::Ordering::Relaxed);
+        }
+        let safe_state_ok = last_safe_state_ok.load(std::sync::atomic::Ordering::Relaxed);
+        if let Some(restart) = restart_event(event, safe_state_ok) {
+            if let Ok(publisher) = publisher.lock() {
+                if let Err(error) = publisher.publish(&restart) {
+                    tracing::warn!(%error, "publishing a restart event");
+                }
+            }
+        }
+    })
+}
+
 /// Runs the service until a shutdown signal.
 pub async fn run(config: Config) -> Result<()> {
     let started = Instant::now();
     if config.redis.url.is_some() {
         tracing::warn!("[redis] url is set, but this build has no Redis edge yet; it is ignored");
     }
-    tracing::warn!(
-        driver = ?config.robot.driver,
-        "this build has no robot driver or simulator yet: the robot is unavailable (see /health)"
-    );
     let bus =
         Bus::open(BusOptions::new(&config.bus.namespace, "robotd")).context("joining the bus")?;
     tracing::info!(namespace = %config.bus.namespace, "joined the bus");
@@ -137,12 +165,31 @@ pub async fn run(config: Config) -> Result<()> {
     let health = Arc::new(HealthBoard::default());
     let restarts: Arc<Mutex<Publisher<RestartEvent>>> =
         Arc::new(Mutex::new(bus.publisher(&HEALTH_RESTARTS)?));
+    let hardware = Hardware::start(&bus, &config, |_actor| {
+        supervision_observer(health.clone(), restarts.clone())
+    })
+    .await
+    .context("starting the robot's hardware actors")?;
+    let robot = RobotInfo {
+        model: hardware
+            .arm_context
+            .kinematics
+            .model()
+            .display_name()
+            .to_owned(),
+        scene: hardware
+            .sim
+            .as_ref()
+            .map(|sim| sim.with_world(|world| world.scene_name().to_owned()))
+            .unwrap_or_default(),
+    };
+    tracing::info!(model = %robot.model, scene = %robot.scene, "robot ready");
     let processes = start_process_actors(&config, &bus, &health, &restarts).await?;
 
     let report_config = config.clone();
     let report_health = health.clone();
     let health_source: HealthSource =
-        Arc::new(move || report_health.report(&report_config, started));
+        Arc::new(move || report_health.report(&report_config, &robot, started));
     let edge = HttpEdge::bind(config.http.bind, health_source).await?;
     let address = edge.local_addr()?;
     tracing::info!("HTTP edge on http://{address} (/health, /metrics)");
@@ -158,9 +205,13 @@ pub async fn run(config: Config) -> Result<()> {
             tracing::warn!(%error, "stopping an actor process");
         }
     }
+    hardware.shutdown().await;
     system.abort();
     Ok(())
 }
+
+/// The in-process actors of this build (an `[actors.<name>]` table tunes their supervision).
+const BUILT_IN_ACTORS: [&str; 3] = ["arm", "gripper", "camera"];
 
 async fn start_process_actors(
     config: &Config,
@@ -171,6 +222,9 @@ async fn start_process_actors(
     let mut processes = Vec::new();
     for (name, actor) in &config.actors {
         if actor.mode != ActorMode::Process {
+            if BUILT_IN_ACTORS.contains(&name.as_str()) {
+                continue; // its [actors.<name>] table only tunes its supervision
+            }
             tracing::warn!(
                 actor = %name,
                 "no built-in actor of this name in this build; its [actors] entry is ignored"
@@ -179,25 +233,8 @@ async fn start_process_actors(
         }
         let command = actor.command.clone();
         let namespace = config.bus.namespace.clone();
-        let board = health.clone();
-        let publisher = restarts.clone();
+        let observer = supervision_observer(health.clone(), restarts.clone());
         let cleanup_bus = bus.clone();
-        let last_safe_state_ok = std::sync::atomic::AtomicBool::new(true);
-        let observer = observer_fn(move |event: &SupervisionEvent| {
-            tracing::info!(actor = event.actor(), event = %event, "supervision");
-            board.apply(event);
-            if let SupervisionEvent::SafeState { ok, .. } = event {
-                last_safe_state_ok.store(*ok, std::sync::atomic::Ordering::Relaxed);
-            }
-            let safe_state_ok = last_safe_state_ok.load(std::sync::atomic::Ordering::Relaxed);
-            if let Some(restart) = restart_event(event, safe_state_ok) {
-                if let Ok(publisher) = publisher.lock() {
-                    if let Err(error) = publisher.publish(&restart) {
-                        tracing::warn!(%error, "publishing a restart event");
-                    }
-                }
-            }
-        });
         let process = Supervisor::new(name.clone())
             .policy(config.supervision_for(name).policy())
             .observer(observer)

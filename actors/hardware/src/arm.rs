@@ -100,11 +100,17 @@ impl ArmContext {
                 self.tool_pose().map(|pose| ArmReply::Ok { pose })
             }
             ArmCommand::GetPose => self.tool_pose().map(|pose| ArmReply::Ok { pose }),
-            ArmCommand::GetJoints => self.driver.joints().map_err(arm_error).map(|q| {
-                ArmReply::Joints {
-                    joints: JointState::from_positions(q, robotd_protocol::envelope::unix_now_ns()),
-                }
-            }),
+            ArmCommand::GetJoints => {
+                self.driver
+                    .joints()
+                    .map_err(arm_error)
+                    .map(|q| ArmReply::Joints {
+                        joints: JointState::from_positions(
+                            q,
+                            robotd_protocol::envelope::unix_now_ns(),
+                        ),
+                    })
+            }
             ArmCommand::GetCollisionState => Ok(ArmReply::CollisionState {
                 collision_detected: self.driver.flags().collision_detected,
             }),
@@ -246,9 +252,7 @@ pub fn plan(context: &ArmContext, target: Pose, path: PathKind) -> Result<Motion
             Ok(Motion::Joints(q))
         }
         PathKind::Linear => {
-            let start = kin
-                .tool_pose(&q0)
-                .map_err(|e| unreachable(e.to_string()))?;
+            let start = kin.tool_pose(&q0).map_err(|e| unreachable(e.to_string()))?;
             let distance = (goal.translation.vector - start.translation.vector).norm();
             let turn = start.rotation.angle_to(&goal.rotation);
             let steps = ((distance / LINEAR_STEP_M).ceil() as usize)
@@ -393,7 +397,7 @@ pub async fn publish_arm_state(
         ticker.tick().await;
         ticks += 1;
         let moving = context.driver.flags().moving;
-        if moving || was_moving || ticks % idle_every.max(1) == 0 {
+        if moving || was_moving || ticks.is_multiple_of(idle_every.max(1)) {
             match context.state() {
                 Ok(state) => {
                     publisher.publish(&state)?;

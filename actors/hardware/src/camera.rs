@@ -95,7 +95,7 @@ pub async fn run_camera(camera: Supervised<CameraActor>, fps: f64) {
             Err(error) => {
                 failures += 1;
                 // Log the first failure of a streak and then every 100th, not 15 a second.
-                if failures == 1 || failures % 100 == 0 {
+                if failures == 1 || failures.is_multiple_of(100) {
                     tracing::warn!(%error, failures, "the camera did not deliver a frame");
                 }
             }

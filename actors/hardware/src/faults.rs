@@ -49,7 +49,7 @@ impl FaultInjector {
         state.0 += 1;
         let n = state.0;
         let every = self.config.fail_every_n;
-        if every > 0 && n % u64::from(every) == 0 {
+        if every > 0 && n.is_multiple_of(u64::from(every)) {
             return Some(format!(
                 "injected fault in the {} driver: command #{n} ({command}) fails (fail_every_n = {every})",
                 self.actor
@@ -106,7 +106,9 @@ mod tests {
                 ..FaultConfig::default()
             },
         );
-        let failed: Vec<bool> = (0..9).map(|_| faults.next_fault("move").is_some()).collect();
+        let failed: Vec<bool> = (0..9)
+            .map(|_| faults.next_fault("move").is_some())
+            .collect();
         assert_eq!(
             failed,
             [false, false, true, false, false, true, false, false, true]

@@ -21,7 +21,10 @@ pub struct GripperActor {
 
 impl GripperActor {
     /// An actor driving `driver`, publishing its state on `state` when given.
-    pub fn new(driver: Arc<dyn GripperDriver>, state: Option<Arc<Publisher<GripperState>>>) -> Self {
+    pub fn new(
+        driver: Arc<dyn GripperDriver>,
+        state: Option<Arc<Publisher<GripperState>>>,
+    ) -> Self {
         Self { driver, state }
     }
 

@@ -1,7 +1,3 @@
-//! **Not built yet**: this crate is excluded from the workspace until `robotd-kinematics`
-//! (forward/inverse kinematics with `k`) exists; the code below is written against its planned
-//! API and has never been compiled.
-//!
 //! robotd's hardware actors — arm, gripper, wrist camera — and the simulated robot they drive
 //! when there is no hardware.
 //!
@@ -27,7 +23,12 @@
 //!
 //! let config = Config::load(LoadOptions::default())?;
 //! let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd"))?;
-//! let hardware = Hardware::start(&bus, &config, |_actor| ()).await?;
+//! let hardware = Hardware::start(&bus, &config, |_actor| {
+//!     robotd_runtime::supervision::observer_fn(|event: &robotd_runtime::supervision::SupervisionEvent| {
+//!         eprintln!("{event}")
+//!     })
+//! })
+//! .await?;
 //! // ... arm/command, gripper/command and camera/frames are on the bus now.
 //! hardware.shutdown().await;
 //! # Ok(()) }
@@ -51,9 +52,7 @@ use robotd_runtime::catalog::{
     ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, GRIPPER_COMMAND, GRIPPER_STATE, SAFETY_ESTOP,
 };
 use robotd_runtime::config::{Config, RobotDriver};
-use robotd_runtime::supervision::{
-    safe_state_fn, Supervised, SupervisionObserver, Supervisor,
-};
+use robotd_runtime::supervision::{safe_state_fn, Supervised, SupervisionObserver, Supervisor};
 use robotd_sim::Scene;
 use sim::{SimRobot, SimSettings};
 use std::path::Path;
@@ -151,18 +150,27 @@ pub fn load_scene(config: &Config) -> Result<Scene, StartError> {
 }
 
 /// Whether the tool can reach (x, y, z) pointing down, at some yaw.
-pub fn reachable_from_above(kinematics: &robotd_kinematics::Kinematics, x: f64, y: f64, z: f64) -> bool {
+pub fn reachable_from_above(
+    kinematics: &robotd_kinematics::Kinematics,
+    x: f64,
+    y: f64,
+    z: f64,
+) -> bool {
     let yaw0 = y.atan2(x);
-    [0.0, std::f64::consts::FRAC_PI_2, yaw0, -std::f64::consts::FRAC_PI_2]
-        .iter()
-        .any(|yaw| {
-            let pose = Pose::new(x, y, z, 0.0, std::f64::consts::FRAC_PI_2, *yaw);
-            kinematics
-                .inverse(&robotd_kinematics::pose_to_isometry(&pose), None)
-                .is_ok()
-        })
+    [
+        0.0,
+        std::f64::consts::FRAC_PI_2,
+        yaw0,
+        -std::f64::consts::FRAC_PI_2,
+    ]
+    .iter()
+    .any(|yaw| {
+        let pose = Pose::new(x, y, z, 0.0, std::f64::consts::FRAC_PI_2, *yaw);
+        kinematics
+            .inverse(&robotd_kinematics::pose_to_isometry(&pose), None)
+            .is_ok()
+    })
 }
-
 
 impl Hardware {
     /// Starts the arm, gripper and camera actors of the configured robot on `bus`, each under
@@ -206,7 +214,15 @@ impl Hardware {
             control: MotionControl::default(),
             observation_poses,
         };
-        let mut hardware = Self::start_with(bus, config, context, gripper_driver, camera_driver, observer).await?;
+        let mut hardware = Self::start_with(
+            bus,
+            config,
+            context,
+            gripper_driver,
+            camera_driver,
+            observer,
+        )
+        .await?;
         hardware.sim = Some(robot);
         Ok(hardware)
     }
@@ -228,13 +244,16 @@ impl Hardware {
         let arm = Supervisor::new("arm")
             .policy(config.supervision_for("arm").policy())
             .observer(observer("arm"))
-            .safe_state(safe_state_fn(Duration::from_secs(1), move |reason: String| {
-                let driver = halt_driver.clone();
-                async move {
-                    tracing::warn!(%reason, "arm actor failed: halting the arm");
-                    driver.halt().map_err(|e| e.to_string())
-                }
-            }))
+            .safe_state(safe_state_fn(
+                Duration::from_secs(1),
+                move |reason: String| {
+                    let driver = halt_driver.clone();
+                    async move {
+                        tracing::warn!(%reason, "arm actor failed: halting the arm");
+                        driver.halt().map_err(|e| e.to_string())
+                    }
+                },
+            ))
             .spawn_actor::<ArmActor>(move || ArmActor::new(actor_context.clone()))
             .await
             .map_err(|e| StartError::Actor {
@@ -251,7 +270,8 @@ impl Hardware {
         let state_publisher = bus.publisher(&ARM_STATE)?;
         let (state_context, period) = (context.clone(), config.robot.control_period());
         tasks.push(tokio::spawn(async move {
-            if let Err(error) = arm::publish_arm_state(state_publisher, state_context, period).await {
+            if let Err(error) = arm::publish_arm_state(state_publisher, state_context, period).await
+            {
                 tracing::error!(%error, "arm/state stopped publishing");
             }
         }));
@@ -279,7 +299,8 @@ impl Hardware {
         let server = bus.server(&GRIPPER_COMMAND)?;
         let serve_gripper = gripper.clone();
         tasks.push(tokio::spawn(async move {
-            if let Err(error) = robotd_runtime::host::serve_supervised(server, serve_gripper).await {
+            if let Err(error) = robotd_runtime::host::serve_supervised(server, serve_gripper).await
+            {
                 tracing::error!(%error, "gripper/command stopped serving");
             }
         }));

@@ -476,11 +476,15 @@ impl SimCamera {
         let z = tool_x;
         let x = tool_y;
         let y = z.cross(&x);
-        let rotation = UnitQuaternion::from_rotation_matrix(
-            &nalgebra::Rotation3::from_basis_unchecked(&[x, y, z]),
-        );
+        let rotation =
+            UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_basis_unchecked(&[
+                x, y, z,
+            ]));
         let position = tcp.translation.vector - tool_x * 0.05;
-        Ok(Isometry3::from_parts(Translation3::from(position), rotation))
+        Ok(Isometry3::from_parts(
+            Translation3::from(position),
+            rotation,
+        ))
     }
 
     /// What the camera can see: sheets, markers and objects of the world.

@@ -16,7 +16,7 @@ use robotd_runtime::catalog::{
     ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, GRIPPER_COMMAND, SAFETY_ESTOP,
 };
 use robotd_runtime::config::Config;
-use robotd_runtime::supervision::SupervisionEvent;
+use robotd_runtime::supervision::{observer_fn, SupervisionEvent};
 use std::f64::consts::FRAC_PI_2;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
@@ -40,7 +40,9 @@ fn fresh_config(time_scale: f64) -> Config {
 
 async fn start(config: &Config) -> (Bus, Hardware) {
     let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd-test")).expect("bus");
-    let hardware = Hardware::start(&bus, config, |_| ()).await.expect("hardware");
+    let hardware = Hardware::start(&bus, config, |_| observer_fn(|_: &SupervisionEvent| {}))
+        .await
+        .expect("hardware");
     (bus, hardware)
 }
 
@@ -57,7 +59,7 @@ fn pose_of(reply: ArmReply) -> Pose {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_motion_runs_in_time_publishes_its_state_and_reaches_the_target() {
-    let config = fresh_config(0.2);
+    let config = fresh_config(1.0);
     let (bus, hardware) = start(&config).await;
     let arm = bus.client(&ARM_COMMAND).unwrap();
     let mut states = bus.subscriber(&ARM_STATE).unwrap();
@@ -112,7 +114,10 @@ async fn unreachable_targets_and_bad_joints_are_refused_before_anything_moves() 
     let before = hardware.sim.as_ref().unwrap().joints();
 
     let far = down(0.9, 0.0, 0.1, 0.0);
-    let reply = arm.request(&ArmCommand::move_to(far), TIMEOUT).await.unwrap();
+    let reply = arm
+        .request(&ArmCommand::move_to(far), TIMEOUT)
+        .await
+        .unwrap();
     match reply {
         ArmReply::Error {
             error: ArmError::Unreachable { target, reason },
@@ -226,10 +231,7 @@ async fn the_emergency_stop_halts_a_motion_within_one_control_tick() {
         })
         .unwrap();
     tokio::time::sleep(Duration::from_millis(50)).await;
-    let reply = arm
-        .request(&ArmCommand::GetPose, TIMEOUT)
-        .await
-        .unwrap();
+    let reply = arm.request(&ArmCommand::GetPose, TIMEOUT).await.unwrap();
     assert!(matches!(reply, ArmReply::Ok { .. }));
     hardware.shutdown().await;
 }
@@ -342,11 +344,14 @@ async fn the_gripper_grasps_only_what_it_is_really_around() {
     });
     let (id, centre) = cube;
 
-    let mut grasp_at = |dx: f64| {
+    let grasp_at = |dx: f64| {
         let arm = &arm;
         let gripper = &gripper;
         async move {
-            let open = gripper.request(&GripperCommand::Open, TIMEOUT).await.unwrap();
+            let open = gripper
+                .request(&GripperCommand::Open, TIMEOUT)
+                .await
+                .unwrap();
             assert!(!open.holding().unwrap());
             for z in [centre.z + 0.06, centre.z] {
                 arm.request(
@@ -361,13 +366,19 @@ async fn the_gripper_grasps_only_what_it_is_really_around() {
                 .into_result()
                 .unwrap();
             }
-            gripper.request(&GripperCommand::Close, TIMEOUT).await.unwrap()
+            gripper
+                .request(&GripperCommand::Close, TIMEOUT)
+                .await
+                .unwrap()
         }
     };
 
     // 1 cm off the cube's centre: the fingers close on nothing.
     let missed = grasp_at(0.010).await;
-    assert!(matches!(missed, GripperReply::State { holding: false, .. }), "{missed:?}");
+    assert!(
+        matches!(missed, GripperReply::State { holding: false, .. }),
+        "{missed:?}"
+    );
     arm.request(
         &ArmCommand::ShiftPose {
             delta: PoseDelta::translation(0.0, 0.0, 0.06),
@@ -462,7 +473,10 @@ async fn frames_at_the_observation_pose_show_markers_and_objects_where_the_proje
         let [r, g, b] = pixel(p.x, p.y);
         let brightness = (u32::from(r) + u32::from(g) + u32::from(b)) / 3;
         if marker.white_centre {
-            assert!(brightness > 180, "white-centre marker is {brightness} at {p:?}");
+            assert!(
+                brightness > 180,
+                "white-centre marker is {brightness} at {p:?}"
+            );
         } else {
             assert!(brightness < 80, "marker centre is {brightness} at {p:?}");
         }
@@ -470,7 +484,8 @@ async fn frames_at_the_observation_pose_show_markers_and_objects_where_the_proje
     let objects = sim.with_world(|w| w.objects().to_vec());
     for object in &objects {
         // The centre of the object's top face.
-        let top = object.pose.translation.vector + nalgebra::Vector3::new(0.0, 0.0, object_half_height(object));
+        let top = object.pose.translation.vector
+            + nalgebra::Vector3::new(0.0, 0.0, object_half_height(object));
         let p = intrinsics
             .project(&world_to_camera, &nalgebra::Point3::from(top))
             .unwrap();
@@ -557,7 +572,10 @@ async fn injected_faults_restart_the_arm_safely_and_the_next_command_works() {
             kinds.push(event.kind());
         }
     }
-    let failed_at = kinds.iter().position(|k| *k == "failed").expect("a failure event");
+    let failed_at = kinds
+        .iter()
+        .position(|k| *k == "failed")
+        .expect("a failure event");
     assert_eq!(
         &kinds[failed_at..failed_at + 3],
         ["failed", "safe_state", "restarted"],

@@ -123,6 +123,8 @@ struct Chains {
     tcp: k::SerialChain<f64>,
     /// Base to the flange (Ned2 tool_link, WidowX ee_gripper).
     flange: k::SerialChain<f64>,
+    /// Base to the wrist camera (Ned2 camera_link, on wrist_link: joints 1–5).
+    camera: Option<k::SerialChain<f64>>,
 }
 
 impl std::fmt::Debug for Kinematics {
@@ -172,6 +174,7 @@ impl Kinematics {
         let chain = k::Chain::<f64>::from(&robot);
         let tcp = serial_to(&chain, tcp_link);
         let flange = serial_to(&chain, flange_link);
+        let camera = chain.find_link("camera_link").map(k::SerialChain::from_end);
         let limits = tcp
             .iter_joints()
             .map(|joint| {
@@ -188,7 +191,11 @@ impl Kinematics {
             .collect();
         Self {
             model,
-            chain: Arc::new(Mutex::new(Chains { tcp, flange })),
+            chain: Arc::new(Mutex::new(Chains {
+                tcp,
+                flange,
+                camera,
+            })),
             limits,
             cartesian,
         }
@@ -268,10 +275,27 @@ impl Kinematics {
         Ok(chains.flange.end_transform())
     }
 
-    /// Pose of the wrist camera's optical frame. Not modelled yet: always `None` (callers
-    /// derive a camera from the tool pose).
-    pub fn camera_pose(&self, _q: &[f64]) -> Option<Isometry3<f64>> {
-        None
+    /// Pose of the wrist camera's optical frame (z = viewing direction, x = image right,
+    /// y = image down) for joints `q`; `None` for a robot without a modelled camera (WidowX)
+    /// or invalid joints.
+    ///
+    /// The Ned2's `camera_link` looks along its x axis (at the observation pose it points
+    /// straight at the table); image "up" is its y axis, so the far side of a workspace is at
+    /// the top of the image, as on the real robot.
+    pub fn camera_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
+        self.check_joints(q).ok()?;
+        let chains = self.lock();
+        let camera = chains.camera.as_ref()?;
+        let dof = camera.dof();
+        camera.set_joint_positions_unchecked(q.get(..dof)?);
+        let link = camera.end_transform();
+        // Optical axes in camera_link coordinates: x = z_link, y = −y_link, z = x_link.
+        let optical = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
+            0.0, 0.0, 1.0, //
+            0.0, -1.0, 0.0, //
+            1.0, 0.0, 0.0,
+        ));
+        Some(link * UnitQuaternion::from_rotation_matrix(&optical))
     }
 
     /// Joints that put the tool centre point at `target`, inside the joint limits. Tries the

@@ -153,7 +153,12 @@ pub fn run(frames: usize) -> Result<SimFigures> {
     }
     let ik = Latency::of(&mut ik_times);
 
-    // A frame from the camera to a subscriber through the bus (one process).
+    // A frame from the camera to a subscriber through the bus (one process). Bus ports
+    // register their wake-up events with tokio, so they live inside a runtime.
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let _in_runtime = runtime.enter();
     let namespace = format!("bench-sim-{}", std::process::id());
     let bus = Bus::open(BusOptions::new(&namespace, "bench-sim"))?;
     let publisher = bus.frame_publisher(&CAMERA_FRAMES)?;

@@ -25,7 +25,7 @@ fn the_default_service_runs_the_simulated_ned2_that_another_process_can_drive() 
         .as_array()
         .unwrap()
         .iter()
-        .filter_map(|a| a["name"].as_str())
+        .filter_map(|a| a["actor"].as_str())
         .collect();
     for actor in ["arm", "gripper", "camera"] {
         assert!(actors.contains(&actor), "{actor} missing from {body}");
@@ -61,8 +61,13 @@ fn the_default_service_runs_the_simulated_ned2_that_another_process_can_drive() 
         assert_eq!(frame.header().width, 640);
         // A real image: not one flat colour.
         let pixels = frame.pixels();
-        let distinct: std::collections::BTreeSet<u8> = pixels.iter().step_by(997).copied().collect();
-        assert!(distinct.len() > 20, "only {} distinct values", distinct.len());
+        let distinct: std::collections::BTreeSet<u8> =
+            pixels.iter().step_by(997).copied().collect();
+        assert!(
+            distinct.len() > 20,
+            "only {} distinct values",
+            distinct.len()
+        );
     });
 
     let (_, metrics) = common::http_get(port, "/metrics");
@@ -117,5 +122,8 @@ fn bench_sim_json_reports_every_figure() {
         let value = figures[key].as_f64();
         assert!(value.is_some_and(|v| v > 0.0), "{key} in {stdout}");
     }
-    assert!(figures["ik_solve_rate"].as_f64().unwrap() >= 0.99, "{stdout}");
+    assert!(
+        figures["ik_solve_rate"].as_f64().unwrap() >= 0.99,
+        "{stdout}"
+    );
 }
