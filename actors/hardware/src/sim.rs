@@ -565,16 +565,7 @@ impl CameraDriver for SimCamera {
 
     fn intrinsics(&self) -> CameraIntrinsics {
         let renderer = self.renderer.lock().unwrap_or_else(|p| p.into_inner());
-        let i = renderer.intrinsics();
-        CameraIntrinsics {
-            width: i.width,
-            height: i.height,
-            fx: i.fx,
-            fy: i.fy,
-            cx: i.cx,
-            cy: i.cy,
-            distortion: i.distortion,
-        }
+        CameraIntrinsics::from(*renderer.intrinsics())
     }
 
     fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
