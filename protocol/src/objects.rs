@@ -191,13 +191,18 @@ impl Validate for DetectedObject {
 pub struct Detections {
     /// The frame they were detected in.
     pub frame_id: u64,
-    /// Workspace in view.
+    /// Workspace in view; empty when no workspace sheet was found in the frame (then
+    /// `objects` is empty too).
     pub workspace_id: String,
     /// Capture time of the frame, nanoseconds since the Unix epoch.
     pub timestamp_unix_ns: u64,
     /// Who detected them: `"robotd"` for the built-in detector, else the external detector's
     /// model id (so an edge does not feed its own detections back).
     pub source: String,
+    /// True when the arm stood still while the frame was taken (a view the workspace model
+    /// may trust); false for frames taken during a motion, which update nothing.
+    #[serde(default)]
+    pub steady: bool,
     /// The objects, in detector order.
     pub objects: Vec<DetectedObject>,
 }

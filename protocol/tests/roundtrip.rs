@@ -330,15 +330,24 @@ fn objects() -> impl Strategy<Value = Vec<DetectedObject>> {
 }
 
 fn detections() -> impl Strategy<Value = Detections> {
-    (any::<u64>(), text(), any::<u64>(), text(), objects()).prop_map(
-        |(frame_id, workspace_id, timestamp_unix_ns, source, objects)| Detections {
-            frame_id,
-            workspace_id,
-            timestamp_unix_ns,
-            source,
-            objects,
-        },
+    (
+        any::<u64>(),
+        text(),
+        any::<u64>(),
+        text(),
+        any::<bool>(),
+        objects(),
     )
+        .prop_map(
+            |(frame_id, workspace_id, timestamp_unix_ns, source, steady, objects)| Detections {
+                frame_id,
+                workspace_id,
+                timestamp_unix_ns,
+                source,
+                steady,
+                objects,
+            },
+        )
 }
 
 // ---------------------------------------------------------------- strategies: workspace

@@ -53,3 +53,9 @@ pub const CAMERA_FRAMES: FrameTopic = FrameTopic::new("camera/frames", Overflow:
 /// sender gets an error if the arm cannot take it.
 pub const SAFETY_ESTOP: crate::bus::Topic<robotd_protocol::health::EmergencyStop> =
     crate::bus::Topic::new("safety/estop", Overflow::back_pressure(16));
+
+/// Objects found in each processed camera frame (built-in detector, or an external detector
+/// through the Redis edge), in world coordinates, with the frame id they came from. Latest
+/// wins: the workspace model only ever needs the newest view.
+pub const PERCEPTION_DETECTIONS: crate::bus::Topic<robotd_protocol::objects::Detections> =
+    crate::bus::Topic::new("perception/detections", Overflow::latest_wins(16));
