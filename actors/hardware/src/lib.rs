@@ -107,6 +107,9 @@ pub struct Hardware {
     pub camera: Supervised<CameraActor>,
     /// Shared arm state (driver, kinematics, stop signals).
     pub arm_context: ArmContext,
+    /// The camera's intrinsics as its driver reports them (zero distortion when the image is
+    /// already an ideal pinhole image), for the perception actor.
+    pub camera_intrinsics: robotd_protocol::camera::CameraIntrinsics,
     tasks: Vec<tokio::task::JoinHandle<()>>,
 }
 
@@ -237,6 +240,7 @@ impl Hardware {
         observer: impl Fn(&'static str) -> O,
     ) -> Result<Hardware, StartError> {
         let mut tasks = Vec::new();
+        let camera_intrinsics = camera_driver.intrinsics();
 
         // The arm: the safe state halts it through the driver, not through the dead actor.
         let halt_driver = context.driver.clone();
@@ -328,6 +332,7 @@ impl Hardware {
             gripper,
             camera,
             arm_context: context,
+            camera_intrinsics,
             tasks,
         })
     }

@@ -565,7 +565,13 @@ impl CameraDriver for SimCamera {
 
     fn intrinsics(&self) -> CameraIntrinsics {
         let renderer = self.renderer.lock().unwrap_or_else(|p| p.into_inner());
-        CameraIntrinsics::from(*renderer.intrinsics())
+        let mut intrinsics = CameraIntrinsics::from(*renderer.intrinsics());
+        // Without simulated lens distortion the image is an ideal pinhole image: say so, so a
+        // detector does not undistort what was never distorted.
+        if !renderer.options().lens_distortion {
+            intrinsics.distortion = [0.0; 5];
+        }
+        intrinsics
     }
 
     fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError> {

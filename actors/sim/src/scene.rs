@@ -446,6 +446,18 @@ pub struct WorkspaceSpec {
 }
 
 impl WorkspaceSpec {
+    /// The workspace as the rest of robotd describes it (the tools, the workspace model).
+    pub fn to_info(&self, robot: RobotModel) -> robotd_protocol::workspace::WorkspaceInfo {
+        use robotd_protocol::geometry::{Point2, Pose};
+        robotd_protocol::workspace::WorkspaceInfo {
+            id: self.id.clone(),
+            robot,
+            upper_left: Point2::new(self.upper_left[0], self.upper_left[1]),
+            lower_right: Point2::new(self.lower_right[0], self.lower_right[1]),
+            observation_pose: Pose::from_array(self.observation_pose),
+        }
+    }
+
     /// Centre of the sheet `[x, y]`.
     pub fn centre(&self) -> [f64; 2] {
         [
@@ -567,6 +579,14 @@ const DEFAULT_NED2: &str = include_str!("../../../config/scenes/default.toml");
 const DEFAULT_WIDOWX: &str = include_str!("../../../config/scenes/widowx.toml");
 
 impl Scene {
+    /// The scene's workspaces as [`robotd_protocol::workspace::WorkspaceInfo`]s.
+    pub fn workspace_infos(&self) -> Vec<robotd_protocol::workspace::WorkspaceInfo> {
+        self.workspaces
+            .iter()
+            .map(|w| w.to_info(self.robot))
+            .collect()
+    }
+
     /// Parses a scene file's text. `origin` (the file name) is used in messages.
     ///
     /// Refuses unknown keys, wrong types, non-finite or out-of-range numbers, unknown colour

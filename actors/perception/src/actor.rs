@@ -1,0 +1,273 @@
+//! The perception actor on the bus: camera frames in, detections out.
+//!
+//! It runs on a thread of its own (detection is CPU work that must not stall the async
+//! actors) with a small single-threaded runtime for its bus ports. For each frame it takes the
+//! newest one waiting (latest wins: under load it skips frames, it never falls behind), reads
+//! the frame in place in shared memory, and publishes [`Detections`] on
+//! `perception/detections` with the frame's id and capture time. A frame taken while the arm
+//! moved is published with `steady = false`, so the workspace model ignores it.
+//!
+//! A detector that fails or panics on a frame costs that frame only: the failure is logged and
+//! counted, and the next frame is processed as usual.
+
+use crate::detector::FrameView;
+use crate::pipeline::{Pipeline, SheetStatus};
+use robotd_protocol::geometry::Pose;
+use robotd_protocol::objects::Detections;
+use robotd_runtime::bus::{Bus, BusError};
+use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Counters of the running actor (for health, metrics and benchmarks).
+#[derive(Debug, Default)]
+pub struct PerceptionStats {
+    /// Frames processed.
+    pub frames: AtomicU64,
+    /// Frames in which a workspace sheet was found.
+    pub frames_with_sheet: AtomicU64,
+    /// Frames the detector failed on (error or panic).
+    pub failures: AtomicU64,
+    /// Processing time of the last frame, microseconds.
+    pub last_processing_us: AtomicU64,
+    /// Objects found in the last frame.
+    pub last_objects: AtomicU64,
+}
+
+/// The perception actor could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum PerceptionStartError {
+    /// A bus port could not be opened.
+    #[error("perception: cannot open its bus ports: {0}")]
+    Bus(#[from] BusError),
+    /// The thread could not be started.
+    #[error("perception: cannot start its thread: {0}")]
+    Thread(std::io::Error),
+}
+
+/// The running perception actor.
+#[derive(Debug)]
+pub struct Perception {
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+    stats: Arc<PerceptionStats>,
+}
+
+impl Perception {
+    /// Starts the actor on `bus` with `pipeline`. Returns once its bus ports are open, so a
+    /// frame published afterwards is seen.
+    pub fn start(bus: &Bus, pipeline: Pipeline) -> Result<Perception, PerceptionStartError> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let stats = Arc::new(PerceptionStats::default());
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), BusError>>();
+        let thread = {
+            let bus = bus.clone();
+            let stop = stop.clone();
+            let stats = stats.clone();
+            std::thread::Builder::new()
+                .name("perception".into())
+                .spawn(move || run(bus, pipeline, stop, stats, ready_tx))
+                .map_err(PerceptionStartError::Thread)?
+        };
+        match ready_rx.recv() {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => {
+                let _ = thread.join();
+                return Err(e.into());
+            }
+            Err(_) => {
+                let _ = thread.join();
+                return Err(PerceptionStartError::Thread(std::io::Error::other(
+                    "the perception thread ended while starting",
+                )));
+            }
+        }
+        Ok(Perception {
+            stop,
+            thread: Some(thread),
+            stats,
+        })
+    }
+
+    /// The actor's counters.
+    pub fn stats(&self) -> Arc<PerceptionStats> {
+        self.stats.clone()
+    }
+
+    /// Stops the actor and waits for its thread.
+    pub fn shutdown(mut self) {
+        self.stop_and_join();
+    }
+
+    fn stop_and_join(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+impl Drop for Perception {
+    fn drop(&mut self) {
+        self.stop_and_join();
+    }
+}
+
+/// What the actor knows about the arm.
+#[derive(Debug, Default)]
+struct ArmView {
+    /// The latest tool pose.
+    tool_pose: Option<Pose>,
+    /// Whether the latest state said the arm moves.
+    moving: bool,
+    /// Send time of the latest state that said the arm moves.
+    last_moving_ns: u64,
+    /// Whether any arm state was received (without an arm, frames count as steady).
+    heard: bool,
+}
+
+impl ArmView {
+    fn steady_at(&self, capture_ns: u64) -> bool {
+        !self.heard || (!self.moving && capture_ns > self.last_moving_ns)
+    }
+}
+
+fn run(
+    bus: Bus,
+    mut pipeline: Pipeline,
+    stop: Arc<AtomicBool>,
+    stats: Arc<PerceptionStats>,
+    ready: std::sync::mpsc::Sender<Result<(), BusError>>,
+) {
+    let runtime = match tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            let _ = ready.send(Err(BusError::Transfer {
+                topic: "perception".into(),
+                reason: format!("cannot build its runtime: {e}"),
+            }));
+            return;
+        }
+    };
+    runtime.block_on(async move {
+        let ports = (|| {
+            Ok::<_, BusError>((
+                bus.frame_subscriber(&CAMERA_FRAMES)?,
+                bus.subscriber(&ARM_STATE)?,
+                bus.publisher(&PERCEPTION_DETECTIONS)?,
+            ))
+        })();
+        let (mut frames, mut arm_states, publisher) = match ports {
+            Ok(p) => {
+                let _ = ready.send(Ok(()));
+                p
+            }
+            Err(e) => {
+                let _ = ready.send(Err(e));
+                return;
+            }
+        };
+        tracing::info!(
+            detector = pipeline.detector_name(),
+            workspaces = pipeline.workspaces().len(),
+            "perception started"
+        );
+        let mut arm = ArmView::default();
+        let mut missing_sheet_streak = 0u64;
+        while !stop.load(Ordering::SeqCst) {
+            let first =
+                match tokio::time::timeout(Duration::from_millis(100), frames.recv()).await {
+                    Err(_) => continue,
+                    Ok(Err(error)) => {
+                        tracing::warn!(%error, "perception: receiving a frame failed");
+                        tokio::time::sleep(Duration::from_millis(50)).await;
+                        continue;
+                    }
+                    Ok(Ok(sample)) => sample,
+                };
+            // Latest wins: skip to the newest frame waiting.
+            let mut sample = first;
+            while let Ok(Some(newer)) = frames.try_recv() {
+                sample = newer;
+            }
+            while let Ok(Some(state)) = arm_states.try_recv() {
+                arm.heard = true;
+                arm.tool_pose = Some(state.body.tool_pose);
+                arm.moving = state.body.moving;
+                if state.body.moving {
+                    arm.last_moving_ns = state.sent_at_unix_ns;
+                }
+            }
+            let header = *sample.header();
+            let width = header.width as usize;
+            let height = header.height as usize;
+            let pixels = sample.pixels();
+            let bytes = width * height * 3;
+            if header.channels != 3 || header.encoding != 0 || pixels.len() < bytes {
+                stats.failures.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!(
+                    frame_id = header.frame_id,
+                    width,
+                    height,
+                    channels = header.channels,
+                    encoding = header.encoding,
+                    "perception: skipping a frame that is not RGB8 of its stated size"
+                );
+                continue;
+            }
+            let frame = FrameView {
+                rgb: &pixels[..bytes],
+                width,
+                height,
+                frame_id: header.frame_id,
+                timestamp_unix_ns: header.timestamp_unix_ns,
+            };
+            let steady = arm.steady_at(header.timestamp_unix_ns);
+            let started = Instant::now();
+            let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                pipeline.process(&frame, arm.tool_pose.as_ref(), steady)
+            }));
+            let elapsed = started.elapsed();
+            stats.frames.fetch_add(1, Ordering::Relaxed);
+            stats
+                .last_processing_us
+                .store(elapsed.as_micros() as u64, Ordering::Relaxed);
+            let detections: Detections = match outcome {
+                Ok(Ok((detections, status))) => {
+                    if status == SheetStatus::Found {
+                        stats.frames_with_sheet.fetch_add(1, Ordering::Relaxed);
+                        missing_sheet_streak = 0;
+                    } else {
+                        missing_sheet_streak += 1;
+                        if missing_sheet_streak == 1 || missing_sheet_streak.is_multiple_of(300) {
+                            tracing::debug!(?status, "perception: no workspace sheet in view");
+                        }
+                    }
+                    detections
+                }
+                Ok(Err(error)) => {
+                    stats.failures.fetch_add(1, Ordering::Relaxed);
+                    tracing::warn!(%error, frame_id = header.frame_id, "perception: detector failed");
+                    continue;
+                }
+                Err(_) => {
+                    stats.failures.fetch_add(1, Ordering::Relaxed);
+                    tracing::error!(frame_id = header.frame_id, "perception: detector panicked on a frame");
+                    continue;
+                }
+            };
+            drop(sample);
+            stats
+                .last_objects
+                .store(detections.objects.len() as u64, Ordering::Relaxed);
+            if let Err(error) = publisher.publish(&detections) {
+                tracing::warn!(%error, "perception: publishing detections failed");
+            }
+        }
+        tracing::info!("perception stopped");
+    });
+}

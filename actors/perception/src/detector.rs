@@ -1,0 +1,430 @@
+//! Detectors: what turns a frame of a workspace into objects, and the built-in one.
+//!
+//! A [`Detector`] gets the frame and the [`SheetView`] the marker stage found (which workspace,
+//! its table plane, the camera) and returns world-frame objects. Detectors differ in how they
+//! find an object's pixels — [`ColourDetector`] (built in) by colour and shape, a neural
+//! network behind a cargo feature by inference, an external detector by the masks it sends
+//! over Redis — and share [`crate::footprint::measure`] for everything after that, so the
+//! geometry is the same whoever found the object.
+//!
+//! The colour detector, per frame:
+//! 1. looks only inside the sheet (the workspace rectangle grown by a margin, projected into
+//!    the image): outside lies the table, whose brown would look like an orange object;
+//! 2. classifies each pixel with enough hue by its nearest colour of the label table (by hue
+//!    signature, so shading and anti-aliasing against the white sheet do not change it);
+//! 3. groups touching pixels of one colour into blobs;
+//! 4. keeps of each blob its top face — the pixels nearly as bright and as saturated as the
+//!    blob's brightest, since side faces are lit less — and measures it at the object's height
+//!    (first guess the table, then the label rule's height) to name it by the label table.
+
+use crate::camera::Camera;
+use crate::components::Components;
+use crate::footprint::{measure, Footprint};
+use crate::labels::{hue_signature, HeightRule, LabelTable, ShapeClass};
+use crate::plane::TablePlane;
+use crate::rect::{normalise_half_turn, normalise_quarter_turn};
+use robotd_protocol::geometry::Point3;
+use robotd_protocol::objects::{
+    DetectedObject, Dimensions, ImageCoordinates, ObjectPosition, RelBox, RelPoint,
+};
+use robotd_protocol::workspace::WorkspaceInfo;
+
+/// One frame, as row-major RGB8.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameView<'a> {
+    /// The pixels (`width × height × 3` bytes).
+    pub rgb: &'a [u8],
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// The camera's frame id.
+    pub frame_id: u64,
+    /// Capture time, nanoseconds since the Unix epoch.
+    pub timestamp_unix_ns: u64,
+}
+
+/// The workspace sheet found in a frame: which workspace it is and how to map its pixels.
+#[derive(Debug, Clone)]
+pub struct SheetView<'a> {
+    /// The workspace.
+    pub workspace: &'a WorkspaceInfo,
+    /// The table plane from its markers.
+    pub plane: TablePlane,
+    /// The camera.
+    pub camera: &'a Camera,
+}
+
+/// A detector failed on a frame (the frame is skipped; the detector is used again).
+#[derive(Debug, thiserror::Error)]
+#[error("{detector}: {reason}")]
+pub struct DetectError {
+    /// Which detector.
+    pub detector: String,
+    /// What went wrong.
+    pub reason: String,
+}
+
+/// Finds objects in frames of a workspace.
+pub trait Detector: Send {
+    /// Its name, the `source` of the detections it makes.
+    fn name(&self) -> &str;
+    /// The labels it can give.
+    fn labels(&self) -> Vec<String>;
+    /// The objects in `frame`, in world coordinates (ids left empty: the workspace model
+    /// assigns them).
+    fn detect(
+        &mut self,
+        frame: &FrameView<'_>,
+        sheet: &SheetView<'_>,
+    ) -> Result<Vec<DetectedObject>, DetectError>;
+}
+
+/// Settings of the colour detector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColourDetectorSettings {
+    /// How far beyond the workspace rectangle to look, metres (the sheet reaches 18 mm
+    /// beyond its marker centres).
+    pub sheet_margin_m: f64,
+    /// Smallest blob considered, pixels.
+    pub min_blob_px: u32,
+    /// Smallest top face considered, pixels.
+    pub min_top_px: usize,
+    /// Height assumed for objects no label rule names, metres.
+    pub unknown_height_m: f64,
+    /// Objects whose centre lies farther than this outside the workspace are dropped, metres.
+    pub outside_tolerance_m: f64,
+}
+
+impl Default for ColourDetectorSettings {
+    fn default() -> Self {
+        Self {
+            sheet_margin_m: 0.016,
+            min_blob_px: 25,
+            min_top_px: 12,
+            unknown_height_m: 0.02,
+            outside_tolerance_m: 0.01,
+        }
+    }
+}
+
+/// Pixels need at least this much chroma (max − min of r, g, b) to be part of an object.
+const MIN_CHROMA: u8 = 35;
+/// A pixel's hue signature must be this close to a colour of the table to take its class.
+const MAX_HUE_DISTANCE: f32 = 0.45;
+
+/// Top faces closer to square than this (long/short) are treated as squares for the gripper
+/// rotation: it is reported modulo 90°.
+pub const SQUARE_SYMMETRY_ASPECT: f64 = 1.1;
+
+/// The built-in detector: coloured objects on a white sheet.
+#[derive(Debug)]
+pub struct ColourDetector {
+    table: LabelTable,
+    settings: ColourDetectorSettings,
+    classes: Vec<u8>,
+    spans: Vec<(u16, u16)>,
+    components: Components,
+}
+
+impl ColourDetector {
+    /// A detector naming objects with `table`.
+    pub fn new(table: LabelTable, settings: ColourDetectorSettings) -> Self {
+        Self {
+            table,
+            settings,
+            classes: Vec::new(),
+            spans: Vec::new(),
+            components: Components::new(),
+        }
+    }
+
+    /// The label table.
+    pub fn table(&self) -> &LabelTable {
+        &self.table
+    }
+
+    /// For each image row, the columns `[start, end)` inside the sheet.
+    fn sheet_spans(&mut self, sheet: &SheetView<'_>, width: usize, height: usize) {
+        let ws = sheet.workspace;
+        let m = self.settings.sheet_margin_m;
+        let (x0, x1) = (ws.lower_right.x_m - m, ws.upper_left.x_m + m);
+        let (y0, y1) = (ws.lower_right.y_m - m, ws.upper_left.y_m + m);
+        // The sheet's outline, sampled densely enough to follow the lens's curvature.
+        let corners = [[x1, y1], [x1, y0], [x0, y0], [x0, y1]];
+        let mut outline = Vec::with_capacity(64);
+        for k in 0..4 {
+            let (a, b) = (corners[k], corners[(k + 1) % 4]);
+            for s in 0..16 {
+                let t = f64::from(s) / 16.0;
+                let p = [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+                outline.push(sheet.camera.raw_of(sheet.plane.table_to_pixel(p[0], p[1])));
+            }
+        }
+        self.spans.clear();
+        self.spans.resize(height, (0, 0));
+        let mut lo = vec![f64::INFINITY; height];
+        let mut hi = vec![f64::NEG_INFINITY; height];
+        let n = outline.len();
+        for k in 0..n {
+            let (a, b) = (outline[k], outline[(k + 1) % n]);
+            if !(a.iter().chain(&b).all(|c| c.is_finite())) {
+                continue;
+            }
+            let (v_min, v_max) = (a[1].min(b[1]), a[1].max(b[1]));
+            let first = v_min.ceil().max(0.0) as usize;
+            let last = (v_max.floor().min(height as f64 - 1.0)).max(-1.0);
+            if last < 0.0 {
+                continue;
+            }
+            for v in first..=last as usize {
+                let vf = v as f64;
+                let u = if (b[1] - a[1]).abs() < 1e-9 {
+                    a[0]
+                } else {
+                    a[0] + (b[0] - a[0]) * (vf - a[1]) / (b[1] - a[1])
+                };
+                lo[v] = lo[v].min(u);
+                hi[v] = hi[v].max(u);
+            }
+        }
+        for v in 0..height {
+            if lo[v] <= hi[v] {
+                let start = lo[v].ceil().clamp(0.0, width as f64) as u16;
+                let end = (hi[v].floor() + 1.0).clamp(0.0, width as f64) as u16;
+                self.spans[v] = (start, end.max(start));
+            }
+        }
+    }
+
+    fn classify_pixels(&mut self, frame: &FrameView<'_>) {
+        let (w, h) = (frame.width, frame.height);
+        self.classes.clear();
+        self.classes.resize(w * h, 0);
+        let signatures: Vec<[f32; 3]> = self.table.colours.iter().map(|c| c.signature).collect();
+        for v in 0..h {
+            let (start, end) = self.spans[v];
+            let row = v * w;
+            for u in start as usize..end as usize {
+                let i = row + u;
+                let p = &frame.rgb[i * 3..i * 3 + 3];
+                let max = p[0].max(p[1]).max(p[2]);
+                let min = p[0].min(p[1]).min(p[2]);
+                let chroma = max - min;
+                if chroma < MIN_CHROMA || u32::from(chroma) * 4 < u32::from(max) {
+                    continue;
+                }
+                let inv = 1.0 / f32::from(chroma);
+                let s = [
+                    f32::from(p[0] - min) * inv,
+                    f32::from(p[1] - min) * inv,
+                    f32::from(p[2] - min) * inv,
+                ];
+                let mut best = (0usize, f32::MAX);
+                for (k, r) in signatures.iter().enumerate() {
+                    let d = (r[0] - s[0]).powi(2) + (r[1] - s[1]).powi(2) + (r[2] - s[2]).powi(2);
+                    if d < best.1 {
+                        best = (k, d);
+                    }
+                }
+                if best.1 <= MAX_HUE_DISTANCE * MAX_HUE_DISTANCE {
+                    self.classes[i] = best.0 as u8 + 1;
+                }
+            }
+        }
+    }
+}
+
+/// The pixels of a blob that belong to its top face: nearly as bright and as saturated as the
+/// blob's brightest (95th percentile).
+fn top_face(rgb: &[u8], pixels: &[u32]) -> Vec<u32> {
+    let mut brightness = [0u32; 256];
+    let mut chroma = [0u32; 256];
+    for &i in pixels {
+        let p = &rgb[i as usize * 3..i as usize * 3 + 3];
+        let max = p[0].max(p[1]).max(p[2]);
+        let min = p[0].min(p[1]).min(p[2]);
+        brightness[max as usize] += 1;
+        chroma[(max - min) as usize] += 1;
+    }
+    let percentile = |hist: &[u32; 256], q: f64| {
+        let target = (pixels.len() as f64 * q).ceil() as u32;
+        let mut seen = 0;
+        for (value, count) in hist.iter().enumerate() {
+            seen += count;
+            if seen >= target {
+                return value as f64;
+            }
+        }
+        255.0
+    };
+    let (b95, c95) = (percentile(&brightness, 0.95), percentile(&chroma, 0.95));
+    let (b_min, c_min) = (0.8 * b95, 0.6 * c95);
+    pixels
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let p = &rgb[i as usize * 3..i as usize * 3 + 3];
+            let max = p[0].max(p[1]).max(p[2]);
+            let min = p[0].min(p[1]).min(p[2]);
+            f64::from(max) >= b_min && f64::from(max - min) >= c_min
+        })
+        .collect()
+}
+
+impl Detector for ColourDetector {
+    fn name(&self) -> &str {
+        "robotd"
+    }
+
+    fn labels(&self) -> Vec<String> {
+        self.table.labels()
+    }
+
+    fn detect(
+        &mut self,
+        frame: &FrameView<'_>,
+        sheet: &SheetView<'_>,
+    ) -> Result<Vec<DetectedObject>, DetectError> {
+        let (w, h) = (frame.width, frame.height);
+        if frame.rgb.len() < w * h * 3 || w == 0 || h == 0 || w > u16::MAX as usize {
+            return Err(DetectError {
+                detector: self.name().to_owned(),
+                reason: format!(
+                    "frame of {w}x{h} pixels has {} bytes, expected {}",
+                    frame.rgb.len(),
+                    w * h * 3
+                ),
+            });
+        }
+        self.sheet_spans(sheet, w, h);
+        self.classify_pixels(frame);
+        self.components
+            .label(&self.classes, w, h, self.settings.min_blob_px);
+
+        let timestamp = frame.timestamp_unix_ns as f64 / 1e9;
+        let ws = sheet.workspace;
+        let mut objects = Vec::new();
+        for blob in self.components.blobs() {
+            let pixels = self.components.pixels(blob);
+            let top = top_face(frame.rgb, pixels);
+            if top.len() < self.settings.min_top_px {
+                continue;
+            }
+            let colour = usize::from(blob.class - 1);
+            let Some(colour_ref) = self.table.colours.get(colour) else {
+                continue;
+            };
+
+            // Measure on the table first, then at the height of the rule that names it.
+            let mut height_m = 0.0;
+            let mut found: Option<(Footprint, ShapeClass, Option<usize>)> = None;
+            for _ in 0..4 {
+                let Some(fp) = measure(&top, w, sheet.camera, &sheet.plane, height_m) else {
+                    break;
+                };
+                let aspect = fp.rect.long / fp.rect.short.max(1e-6);
+                let shape = ShapeClass::measure(aspect, fp.fill);
+                let rule = self.table.rule_index_for(colour, shape, fp.rect.long);
+                let next = match rule.map(|r| &self.table.rules[r]) {
+                    Some(r) => match r.height {
+                        HeightRule::Fixed(h) => h,
+                        HeightRule::Side => fp.rect.short,
+                    },
+                    None => self.settings.unknown_height_m,
+                };
+                let settled = (next - height_m).abs() < 0.0003;
+                found = Some((fp, shape, rule));
+                if settled {
+                    break;
+                }
+                height_m = next;
+            }
+            let Some((fp, shape, rule)) = found else {
+                continue;
+            };
+            let centre = fp.rect.centre;
+            let outside = self.settings.outside_tolerance_m;
+            if !ws.contains(
+                robotd_protocol::geometry::Point2::new(centre[0], centre[1]),
+                outside,
+            ) {
+                continue;
+            }
+
+            // Mean hue distance of the top face to its colour: how sure the colour is.
+            let mut mean = [0f32; 3];
+            for &i in &top {
+                let p = &frame.rgb[i as usize * 3..i as usize * 3 + 3];
+                for c in 0..3 {
+                    mean[c] += f32::from(p[c]);
+                }
+            }
+            let mean = mean.map(|s| s / top.len() as f32);
+            let hue_distance = hue_signature(mean)
+                .map(|s| {
+                    s.iter()
+                        .zip(&colour_ref.signature)
+                        .map(|(a, b)| (a - b) * (a - b))
+                        .sum::<f32>()
+                        .sqrt()
+                })
+                .unwrap_or(1.0);
+            let shape_fit = if rule.is_some() { 1.0 } else { 0.6 };
+            let confidence =
+                (f64::from(1.0 - hue_distance / MAX_HUE_DISTANCE) * shape_fit).clamp(0.05, 0.99);
+
+            let (label, class_id) = match rule {
+                Some(r) => (self.table.rules[r].label.clone(), r as i64),
+                None => (format!("{} {}", colour_ref.name, shape.noun()), -1),
+            };
+            let (width_m, height_m_along_x) = fp.rect.width_height();
+            // A square looks the same turned by 90°: report the smallest such rotation.
+            let aspect = fp.rect.long / fp.rect.short.max(1e-6);
+            let gripper_rotation = match shape {
+                ShapeClass::Round => 0.0,
+                _ if aspect < SQUARE_SYMMETRY_ASPECT => normalise_quarter_turn(fp.rect.angle),
+                _ => normalise_half_turn(fp.rect.angle),
+            };
+            let z = fp.height_m / 2.0;
+            let (wf, hf) = (w as f64, h as f64);
+            let (com_u, com_v) = (blob.u_mean, blob.v_mean);
+            let bbox = RelBox {
+                u_min: f64::from(blob.u_min) / wf,
+                v_min: f64::from(blob.v_min) / hf,
+                u_max: f64::from(blob.u_max + 1) / wf,
+                v_max: f64::from(blob.v_max + 1) / hf,
+            };
+            objects.push(DetectedObject {
+                id: String::new(),
+                label,
+                workspace_id: ws.id.clone(),
+                timestamp_unix_s: timestamp,
+                position: ObjectPosition {
+                    center_of_mass: Point3::new(fp.centre_of_mass[0], fp.centre_of_mass[1], z),
+                    center: Point3::new(centre[0], centre[1], z),
+                },
+                image_coordinates: ImageCoordinates {
+                    center_rel: RelPoint {
+                        u: (bbox.u_min + bbox.u_max) / 2.0,
+                        v: (bbox.v_min + bbox.v_max) / 2.0,
+                    },
+                    center_of_mass_rel: RelPoint {
+                        u: (com_u + 0.5) / wf,
+                        v: (com_v + 0.5) / hf,
+                    },
+                    bounding_box_rel: bbox,
+                },
+                dimensions: Dimensions {
+                    width_m,
+                    height_m: height_m_along_x,
+                    size_m2: width_m * height_m_along_x,
+                },
+                gripper_rotation_rad: gripper_rotation,
+                confidence,
+                class_id,
+            });
+        }
+        Ok(objects)
+    }
+}

@@ -1,0 +1,214 @@
+//! One frame through perception: markers → table plane → detector → [`Detections`].
+//!
+//! [`Pipeline`] is the whole per-frame computation without the bus, so the actor, the tests
+//! and `robotd bench perception` run exactly the same code. Which workspace the camera looks
+//! at is decided from the arm's pose (the configured workspace whose observation pose is
+//! nearest the tool) — workspaces can share one sheet (`niryo_ws` and `gazebo_1`) — but where
+//! the sheet is, and so where every object is, comes from the markers in the pixels alone.
+
+use crate::camera::Camera;
+use crate::detector::{DetectError, Detector, FrameView, SheetView};
+use crate::markers::{assign_corners, MarkerFinder};
+use crate::plane::TablePlane;
+use robotd_protocol::camera::CameraIntrinsics;
+use robotd_protocol::geometry::Pose;
+use robotd_protocol::location::WorkspacePoint;
+use robotd_protocol::objects::Detections;
+use robotd_protocol::validate::Validate;
+use robotd_protocol::workspace::WorkspaceInfo;
+
+/// The pipeline could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    /// The camera intrinsics are unusable.
+    #[error("camera intrinsics are invalid: {0}")]
+    Intrinsics(String),
+    /// No workspace is configured, or one is invalid.
+    #[error("workspaces: {0}")]
+    Workspaces(String),
+}
+
+/// Why a frame gave no sheet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SheetStatus {
+    /// The sheet was found and the detector ran.
+    Found,
+    /// Not all four markers (with exactly one origin marker) were seen.
+    MarkersMissing {
+        /// How many markers were seen.
+        seen: usize,
+    },
+    /// The markers were seen but give no sensible camera pose.
+    Degenerate,
+}
+
+/// Markers, plane and detector, for one camera.
+pub struct Pipeline {
+    camera: Camera,
+    workspaces: Vec<WorkspaceInfo>,
+    markers: MarkerFinder,
+    detector: Box<dyn Detector>,
+}
+
+impl std::fmt::Debug for Pipeline {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Pipeline")
+            .field("workspaces", &self.workspaces.len())
+            .field("detector", &self.detector.name())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Pipeline {
+    /// A pipeline for a camera with `intrinsics`, the configured `workspaces` and `detector`.
+    pub fn new(
+        intrinsics: &CameraIntrinsics,
+        workspaces: Vec<WorkspaceInfo>,
+        detector: Box<dyn Detector>,
+    ) -> Result<Pipeline, PipelineError> {
+        intrinsics
+            .validate()
+            .map_err(|e| PipelineError::Intrinsics(e.to_string()))?;
+        if intrinsics.width == 0 || intrinsics.height == 0 || intrinsics.width > 8192 {
+            return Err(PipelineError::Intrinsics(format!(
+                "image size {}x{} is not usable",
+                intrinsics.width, intrinsics.height
+            )));
+        }
+        if workspaces.is_empty() {
+            return Err(PipelineError::Workspaces(
+                "no workspace is configured, so there is no sheet to look for".into(),
+            ));
+        }
+        for ws in &workspaces {
+            ws.validate()
+                .map_err(|e| PipelineError::Workspaces(format!("{}: {e}", ws.id)))?;
+        }
+        Ok(Pipeline {
+            camera: Camera::new(intrinsics),
+            workspaces,
+            markers: MarkerFinder::new(),
+            detector,
+        })
+    }
+
+    /// The detector's name.
+    pub fn detector_name(&self) -> &str {
+        self.detector.name()
+    }
+
+    /// The labels the detector can give.
+    pub fn detector_labels(&self) -> Vec<String> {
+        self.detector.labels()
+    }
+
+    /// The configured workspaces.
+    pub fn workspaces(&self) -> &[WorkspaceInfo] {
+        &self.workspaces
+    }
+
+    /// The workspace the camera is taken to look at: the one whose observation pose is nearest
+    /// `tool_pose` (the first configured one without a pose).
+    pub fn workspace_for(&self, tool_pose: Option<&Pose>) -> &WorkspaceInfo {
+        let first = &self.workspaces[0];
+        let Some(tool) = tool_pose else {
+            return first;
+        };
+        self.workspaces
+            .iter()
+            .min_by(|a, b| {
+                pose_gap(&a.observation_pose, tool).total_cmp(&pose_gap(&b.observation_pose, tool))
+            })
+            .unwrap_or(first)
+    }
+
+    /// Finds the sheet of `workspace` in `frame`: its table plane.
+    pub fn locate_sheet(
+        &mut self,
+        frame: &FrameView<'_>,
+        workspace: &WorkspaceInfo,
+    ) -> Result<TablePlane, SheetStatus> {
+        let markers = self
+            .markers
+            .find_markers(frame.rgb, frame.width, frame.height);
+        let Some(orders) = assign_corners(&markers) else {
+            return Err(SheetStatus::MarkersMissing {
+                seen: markers.len(),
+            });
+        };
+        let world = [
+            WorkspacePoint::UpperLeftCorner,
+            WorkspacePoint::UpperRightCorner,
+            WorkspacePoint::LowerLeftCorner,
+            WorkspacePoint::LowerRightCorner,
+        ]
+        .map(|p| {
+            let q = workspace.point(p);
+            [q.x_m, q.y_m]
+        });
+        for order in orders {
+            let ideal = order.map(|m| self.camera.ideal_of(m.centre_px));
+            if let Some(plane) =
+                TablePlane::from_correspondences(&ideal, &world, self.camera.intrinsics())
+            {
+                return Ok(plane);
+            }
+        }
+        Err(SheetStatus::Degenerate)
+    }
+
+    /// Runs one frame. `tool_pose` (the arm's pose when the frame was taken) picks the
+    /// workspace; `steady` is copied into the result.
+    pub fn process(
+        &mut self,
+        frame: &FrameView<'_>,
+        tool_pose: Option<&Pose>,
+        steady: bool,
+    ) -> Result<(Detections, SheetStatus), DetectError> {
+        let (w, h) = self.camera.size();
+        let mut detections = Detections {
+            frame_id: frame.frame_id,
+            workspace_id: String::new(),
+            timestamp_unix_ns: frame.timestamp_unix_ns,
+            source: self.detector.name().to_owned(),
+            steady,
+            objects: Vec::new(),
+        };
+        if frame.width != w || frame.height != h {
+            return Err(DetectError {
+                detector: self.detector.name().to_owned(),
+                reason: format!(
+                    "frame is {}x{} but the camera intrinsics are for {w}x{h}",
+                    frame.width, frame.height
+                ),
+            });
+        }
+        let workspace = self.workspace_for(tool_pose).clone();
+        let plane = match self.locate_sheet(frame, &workspace) {
+            Ok(plane) => plane,
+            Err(status) => return Ok((detections, status)),
+        };
+        let sheet = SheetView {
+            workspace: &workspace,
+            plane,
+            camera: &self.camera,
+        };
+        detections.objects = self.detector.detect(frame, &sheet)?;
+        detections.workspace_id = workspace.id.clone();
+        Ok((detections, SheetStatus::Found))
+    }
+}
+
+/// How far apart two poses are, for picking the nearest observation pose: metres plus
+/// radians/10 (1 cm ≈ 0.1 rad).
+fn pose_gap(a: &Pose, b: &Pose) -> f64 {
+    let d = a.distance_to(b);
+    let angle = |x: f64, y: f64| {
+        let diff = (x - y).rem_euclid(std::f64::consts::TAU);
+        diff.min(std::f64::consts::TAU - diff)
+    };
+    let r = angle(a.roll_rad, b.roll_rad)
+        + angle(a.pitch_rad, b.pitch_rad)
+        + angle(a.yaw_rad, b.yaw_rad);
+    d + r / 10.0
+}
