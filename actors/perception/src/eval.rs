@@ -99,6 +99,11 @@ impl Lab {
         })
     }
 
+    /// The camera's intrinsics (without distortion unless the lab simulates the lens).
+    pub fn intrinsics(&self) -> robotd_protocol::camera::CameraIntrinsics {
+        self.camera.intrinsics()
+    }
+
     /// The workspace in view.
     pub fn workspace(&self) -> &WorkspaceInfo {
         &self.workspace

@@ -1,0 +1,101 @@
+//! The perception actor on a real bus: frames in shared memory in, detections out.
+
+use robotd_perception::detector::{ColourDetector, ColourDetectorSettings};
+use robotd_perception::eval::{random_objects, rng, Lab};
+use robotd_perception::labels::LabelTable;
+use robotd_perception::{Perception, Pipeline};
+use robotd_protocol::arm::ArmState;
+use robotd_protocol::envelope::unix_now_ns;
+use robotd_protocol::objects::Detections;
+use robotd_runtime::bus::{Bus, BusOptions, FramePublisher, Subscriber};
+use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
+use std::time::Duration;
+
+fn publish(publisher: &FramePublisher, rgb: &[u8], frame_id: u64) -> u64 {
+    let mut frame = publisher.loan().unwrap();
+    frame.pixels_mut()[..rgb.len()].copy_from_slice(rgb);
+    let header = frame.header_mut();
+    header.frame_id = frame_id;
+    let now = unix_now_ns();
+    header.timestamp_unix_ns = now;
+    frame.send().unwrap();
+    now
+}
+
+async fn detections_of(sub: &mut Subscriber<Detections>, frame_id: u64) -> Detections {
+    loop {
+        let msg = tokio::time::timeout(Duration::from_secs(5), sub.recv())
+            .await
+            .expect("detections within 5 s")
+            .unwrap();
+        if msg.body.frame_id == frame_id {
+            return msg.body;
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn frames_become_detections_with_their_frame_id_and_steadiness() {
+    let mut lab = Lab::new(2.0, false).unwrap();
+    let workspace = lab.workspace().clone();
+    let table = LabelTable::builtin();
+    let objects = random_objects(&mut rng(3), &table, &workspace, 4);
+    lab.set_objects(&objects).unwrap();
+    lab.capture().unwrap();
+
+    let namespace = format!("test-perc-{}", std::process::id());
+    let bus = Bus::open(BusOptions::new(&namespace, "perception-test")).unwrap();
+    let pipeline = Pipeline::new(
+        &lab.intrinsics(),
+        vec![workspace.clone()],
+        Box::new(ColourDetector::new(
+            table,
+            ColourDetectorSettings::default(),
+        )),
+    )
+    .unwrap();
+    let perception = Perception::start(&bus, pipeline).unwrap();
+    let frames = bus.frame_publisher(&CAMERA_FRAMES).unwrap();
+    let arm = bus.publisher(&ARM_STATE).unwrap();
+    let mut detections = bus.subscriber(&PERCEPTION_DETECTIONS).unwrap();
+
+    // A frame of the scene: every object, tagged with the frame's id and time.
+    let taken = publish(&frames, lab.frame(), 1);
+    let d = detections_of(&mut detections, 1).await;
+    assert_eq!(d.workspace_id, "niryo_ws");
+    assert_eq!(d.timestamp_unix_ns, taken);
+    assert_eq!(d.source, "robotd");
+    assert!(d.steady, "no arm heard of: a fixed camera is steady");
+    assert_eq!(d.objects.len(), objects.len(), "{:?}", d.objects);
+
+    // While the arm moves, frames are published as not steady.
+    let mut state = ArmState {
+        joints: Default::default(),
+        tool_pose: workspace.observation_pose,
+        moving: true,
+        collision_detected: false,
+        calibrated: true,
+    };
+    arm.publish(&state).unwrap();
+    tokio::time::sleep(Duration::from_millis(20)).await;
+    publish(&frames, lab.frame(), 2);
+    assert!(!detections_of(&mut detections, 2).await.steady);
+
+    // Once it has stopped, the next frame is steady again.
+    state.moving = false;
+    arm.publish(&state).unwrap();
+    tokio::time::sleep(Duration::from_millis(20)).await;
+    publish(&frames, lab.frame(), 3);
+    assert!(detections_of(&mut detections, 3).await.steady);
+
+    // A frame without the sheet (the camera looks elsewhere): no workspace, no objects.
+    let grey = vec![90u8; lab.frame().len()];
+    publish(&frames, &grey, 4);
+    let d = detections_of(&mut detections, 4).await;
+    assert_eq!(d.workspace_id, "");
+    assert!(d.objects.is_empty());
+
+    let stats = perception.stats();
+    assert!(stats.frames.load(std::sync::atomic::Ordering::Relaxed) >= 4);
+    perception.shutdown();
+}
