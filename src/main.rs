@@ -83,6 +83,22 @@ enum BenchCommand {
     Bus(BenchBusArgs),
     /// The simulator: camera rendering, inverse kinematics, camera frame to the bus.
     Sim(BenchSimArgs),
+    /// Perception: detector speed on one core, accuracy on random simulated scenes, and a
+    /// camera frame to objects in the workspace model through the bus.
+    Perception(BenchPerceptionArgs),
+}
+
+#[derive(Debug, Args)]
+struct BenchPerceptionArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Random scenes for speed and accuracy.
+    #[arg(long, default_value_t = 60)]
+    scenes: usize,
+    /// Frames sent through the bus for the frame-to-objects latency.
+    #[arg(long, default_value_t = 100)]
+    bus_frames: usize,
 }
 
 #[derive(Debug, Args)]
@@ -204,6 +220,17 @@ fn run() -> Result<std::process::ExitCode> {
             what: BenchCommand::Sim(args),
         } => {
             let figures = bench::sim::run(args.frames.max(1))?;
+            if args.json {
+                println!("{}", serde_json::to_string(&figures)?);
+            } else {
+                print!("{}", figures.table());
+            }
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Bench {
+            what: BenchCommand::Perception(args),
+        } => {
+            let figures = bench::perception::run(args.scenes.max(1), args.bus_frames.max(1))?;
             if args.json {
                 println!("{}", serde_json::to_string(&figures)?);
             } else {

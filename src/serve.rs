@@ -8,14 +8,19 @@
 use anyhow::{Context, Result};
 use robotd_adapters::http::{HealthSource, HttpEdge};
 use robotd_hardware::Hardware;
+use robotd_perception::detector::{ColourDetector, ColourDetectorSettings};
+use robotd_perception::labels::LabelTable;
+use robotd_perception::{Perception, Pipeline};
 use robotd_protocol::diagnostics::Pong;
 use robotd_protocol::health::{ActorHealth, ActorState, RestartEvent};
+use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
 use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
-use robotd_runtime::config::{ActorMode, Config};
+use robotd_runtime::config::{ActorMode, Config, WorkspaceConfig};
 use robotd_runtime::supervision::{
     observer_fn, SupervisedProcess, SupervisionEvent, SupervisionObserver, Supervisor,
 };
+use robotd_workspace_model::{MemorySettings, WorkspaceModel, WorkspaceModelSettings};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -184,6 +189,23 @@ pub async fn run(config: Config) -> Result<()> {
             .unwrap_or_default(),
     };
     tracing::info!(model = %robot.model, scene = %robot.scene, "robot ready");
+    let workspaces = hardware
+        .sim
+        .as_ref()
+        .map(|sim| {
+            sim.with_world(|world| {
+                world
+                    .workspaces()
+                    .iter()
+                    .map(|w| w.to_info(world.robot()))
+                    .collect::<Vec<_>>()
+            })
+        })
+        .unwrap_or_default();
+    let labels = load_label_table(&config)?;
+    let workspace_model =
+        start_workspace_model(&bus, workspaces.clone(), &labels, &config.workspace)?;
+    let perception = start_perception(&bus, &hardware, workspaces.clone(), labels.clone())?;
     let processes = start_process_actors(&config, &bus, &health, &restarts).await?;
 
     let report_config = config.clone();
@@ -205,6 +227,8 @@ pub async fn run(config: Config) -> Result<()> {
             tracing::warn!(%error, "stopping an actor process");
         }
     }
+    perception.shutdown();
+    workspace_model.shutdown().await;
     hardware.shutdown().await;
     system.abort();
     Ok(())
@@ -294,4 +318,50 @@ async fn shutdown_signal() {
     {
         let _ = interrupt.await;
     }
+}
+
+/// The label table of the built-in detector: `[perception] labels` when set, else the
+/// built-in `config/labels.toml`.
+fn load_label_table(config: &Config) -> Result<LabelTable> {
+    match &config.perception.labels {
+        Some(path) => LabelTable::load(path).context("loading [perception] labels"),
+        None => Ok(LabelTable::builtin()),
+    }
+}
+
+/// Starts the workspace model (scene memory) for `workspaces`, with the built-in detector's
+/// labels as the detectable ones.
+pub fn start_workspace_model(
+    bus: &Bus,
+    workspaces: Vec<WorkspaceInfo>,
+    labels: &LabelTable,
+    config: &WorkspaceConfig,
+) -> Result<WorkspaceModel> {
+    let builtin = labels.labels();
+    Ok(WorkspaceModel::start(
+        bus,
+        WorkspaceModelSettings {
+            workspaces,
+            labels: builtin.clone(),
+            builtin_labels: builtin,
+            memory: MemorySettings {
+                free_space_margin_m: config.free_space_margin_m,
+                expire_after_frames: config.expire_after_frames,
+            },
+            default_fresh_wait: std::time::Duration::from_millis(config.fresh_wait_ms),
+        },
+    )?)
+}
+
+/// Starts the perception actor on the camera's frames.
+fn start_perception(
+    bus: &Bus,
+    hardware: &Hardware,
+    workspaces: Vec<WorkspaceInfo>,
+    labels: LabelTable,
+) -> Result<Perception> {
+    let detector = ColourDetector::new(labels, ColourDetectorSettings::default());
+    let pipeline = Pipeline::new(&hardware.camera_intrinsics, workspaces, Box::new(detector))
+        .context("setting up perception")?;
+    Ok(Perception::start(bus, pipeline)?)
 }

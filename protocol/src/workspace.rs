@@ -183,6 +183,20 @@ pub enum WorkspaceRequest {
     },
     /// Every configured workspace. Replies `Workspaces`.
     ListWorkspaces,
+    /// The skills picked this object up: it is in the gripper, not on the table (it leaves
+    /// the object queries and the free-space map). Replies `Object` with the object.
+    ObjectPicked {
+        /// The object's id.
+        object_id: String,
+    },
+    /// The skills put this object down at `at`: memory moves it there until the camera
+    /// confirms it (or, not seeing it, forgets it). Replies `Object` with the object.
+    ObjectPlaced {
+        /// The object's id.
+        object_id: String,
+        /// Where it was put, base frame, metres.
+        at: Point2,
+    },
 }
 
 impl Validate for WorkspaceRequest {
@@ -209,6 +223,11 @@ impl Validate for WorkspaceRequest {
             Self::GetWorkspacePoint { workspace_id, .. }
             | Self::GetObservationPose { workspace_id } => non_empty("workspace_id", workspace_id),
             Self::AddLabel { label } => non_empty("label", label),
+            Self::ObjectPicked { object_id } => non_empty("object_id", object_id),
+            Self::ObjectPlaced { object_id, at } => {
+                non_empty("object_id", object_id)?;
+                at.validate().map_err(|e| e.within("at"))
+            }
             Self::GetLargestObject
             | Self::GetSmallestObject
             | Self::GetObjectsSorted { .. }
@@ -299,6 +318,9 @@ pub enum WorkspaceReply {
     Labels {
         /// The labels.
         labels: Vec<String>,
+        /// Those of them the built-in detector can see; the others need an external detector.
+        #[serde(default)]
+        builtin: Vec<String>,
     },
     /// Outcome of `AddLabel`.
     LabelAdded {
@@ -355,6 +377,73 @@ pub struct DetectableLabels {
 
 impl Message for DetectableLabels {
     const TYPE: &'static str = "workspace.labels";
+}
+
+/// A [`WorkspaceRequest`] on the bus, with how fresh the view it is answered from must be.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WorkspaceQuery {
+    /// The question.
+    pub request: WorkspaceRequest,
+    /// Answer only from a detection of a frame taken after this time (ns since the Unix
+    /// epoch) while the arm stood still; `None` answers from memory at once.
+    #[serde(default)]
+    pub fresh_after_unix_ns: Option<u64>,
+    /// Longest to wait for such a detection, ms (at most [`MAX_FRESH_WAIT_MS`]); the answer is
+    /// then [`WorkspaceError::NoFreshDetection`].
+    #[serde(default)]
+    pub max_wait_ms: u64,
+}
+
+/// Upper bound of [`WorkspaceQuery::max_wait_ms`].
+pub const MAX_FRESH_WAIT_MS: u64 = 60_000;
+
+impl WorkspaceQuery {
+    /// A query answered from memory at once.
+    pub fn now(request: WorkspaceRequest) -> Self {
+        Self {
+            request,
+            fresh_after_unix_ns: None,
+            max_wait_ms: 0,
+        }
+    }
+}
+
+impl Validate for WorkspaceQuery {
+    fn validate(&self) -> Result<(), ValidationError> {
+        self.request.validate().map_err(|e| e.within("request"))?;
+        if self.max_wait_ms > MAX_FRESH_WAIT_MS {
+            return Err(ValidationError::Invalid {
+                field: "max_wait_ms".into(),
+                reason: format!(
+                    "must be at most {MAX_FRESH_WAIT_MS} ms, got {}",
+                    self.max_wait_ms
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Message for WorkspaceQuery {
+    const TYPE: &'static str = "workspace.query";
+}
+
+/// The objects the workspace model remembers for a workspace, with stable ids, published
+/// after every detection it applied.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackedObjects {
+    /// The workspace.
+    pub workspace_id: String,
+    /// The camera frame of the detection just applied.
+    pub frame_id: u64,
+    /// Its capture time, ns since the Unix epoch.
+    pub timestamp_unix_ns: u64,
+    /// The objects on the table (held ones excluded).
+    pub objects: Vec<DetectedObject>,
+}
+
+impl Message for TrackedObjects {
+    const TYPE: &'static str = "workspace.objects";
 }
 
 #[cfg(test)]

@@ -414,7 +414,7 @@ fn workspace_reply() -> impl Strategy<Value = WorkspaceReply> {
         (float(), point2())
             .prop_map(|(area_m2, center)| WorkspaceReply::FreeSpace { area_m2, center }),
         point2().prop_map(|coordinate| WorkspaceReply::Coordinate { coordinate }),
-        texts().prop_map(|labels| WorkspaceReply::Labels { labels }),
+        (texts(), texts()).prop_map(|(labels, builtin)| WorkspaceReply::Labels { labels, builtin }),
         (text(), any::<bool>()).prop_map(|(label, already_known)| WorkspaceReply::LabelAdded {
             label,
             already_known

@@ -59,3 +59,18 @@ pub const SAFETY_ESTOP: crate::bus::Topic<robotd_protocol::health::EmergencyStop
 /// wins: the workspace model only ever needs the newest view.
 pub const PERCEPTION_DETECTIONS: crate::bus::Topic<robotd_protocol::objects::Detections> =
     crate::bus::Topic::new("perception/detections", Overflow::latest_wins(16));
+
+/// Questions to the workspace model (the detection and workspace tools), optionally asking
+/// for a view fresher than a given time.
+pub const WORKSPACE_QUERY: Service<
+    robotd_protocol::workspace::WorkspaceQuery,
+    robotd_protocol::workspace::WorkspaceReply,
+> = Service::new("workspace/query");
+
+/// The objects the workspace model remembers, with stable ids, after every applied detection.
+pub const WORKSPACE_OBJECTS: crate::bus::Topic<robotd_protocol::workspace::TrackedObjects> =
+    crate::bus::Topic::new("workspace/objects", Overflow::latest_wins(8));
+
+/// The detectable-label list, at start and on every change.
+pub const WORKSPACE_LABELS: crate::bus::Topic<robotd_protocol::workspace::DetectableLabels> =
+    crate::bus::Topic::new("workspace/labels", Overflow::latest_wins(8));

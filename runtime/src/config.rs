@@ -107,6 +107,12 @@ pub struct Config {
     /// `[redis]`: the Redis edge to the Python tools.
     #[serde(default)]
     pub redis: RedisConfig,
+    /// `[perception]`: the built-in detector.
+    #[serde(default)]
+    pub perception: PerceptionConfig,
+    /// `[workspace]`: the scene memory the detection tools answer from.
+    #[serde(default)]
+    pub workspace: WorkspaceConfig,
     /// `[actors.<name>]`: per-actor settings; actors without an entry run in-process with
     /// the `[supervision]` policy.
     #[serde(default)]
@@ -442,6 +448,54 @@ pub struct RedisConfig {
     pub url: Option<String>,
 }
 
+/// `[perception]`
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PerceptionConfig {
+    /// Label table of the built-in colour/shape detector (see `config/labels.toml`); `None`
+    /// uses the built-in table.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub labels: Option<PathBuf>,
+}
+
+/// `[workspace]`
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorkspaceConfig {
+    /// Margin kept free around every object when looking for free space, metres (0 … 0.1).
+    #[serde(default = "WorkspaceConfig::free_space_margin_m")]
+    pub free_space_margin_m: f64,
+    /// An object not seen in this many steady frames of its workspace in a row is forgotten
+    /// (1 … 1000).
+    #[serde(default = "WorkspaceConfig::expire_after_frames")]
+    pub expire_after_frames: u32,
+    /// Longest a detection tool waits for a fresh view of the workspace, ms (1 … 60000).
+    #[serde(default = "WorkspaceConfig::fresh_wait_ms")]
+    pub fresh_wait_ms: u64,
+}
+
+impl Default for WorkspaceConfig {
+    fn default() -> Self {
+        Self {
+            free_space_margin_m: Self::free_space_margin_m(),
+            expire_after_frames: Self::expire_after_frames(),
+            fresh_wait_ms: Self::fresh_wait_ms(),
+        }
+    }
+}
+
+impl WorkspaceConfig {
+    fn free_space_margin_m() -> f64 {
+        0.01
+    }
+    fn expire_after_frames() -> u32 {
+        3
+    }
+    fn fresh_wait_ms() -> u64 {
+        3000
+    }
+}
+
 /// Where an actor runs.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -727,6 +781,34 @@ impl Config {
             }
         }
 
+        let ws = &self.workspace;
+        if !(ws.free_space_margin_m.is_finite() && (0.0..=0.1).contains(&ws.free_space_margin_m)) {
+            out.push((
+                "workspace.free_space_margin_m".into(),
+                format!("must be from 0 to 0.1 m, got {}", ws.free_space_margin_m),
+            ));
+        }
+        if !(1..=1000).contains(&ws.expire_after_frames) {
+            out.push((
+                "workspace.expire_after_frames".into(),
+                format!("must be from 1 to 1000, got {}", ws.expire_after_frames),
+            ));
+        }
+        if !(1..=60_000).contains(&ws.fresh_wait_ms) {
+            out.push((
+                "workspace.fresh_wait_ms".into(),
+                format!("must be from 1 to 60000 ms, got {}", ws.fresh_wait_ms),
+            ));
+        }
+        if let Some(path) = &self.perception.labels {
+            if path.as_os_str().is_empty() {
+                out.push((
+                    "perception.labels".into(),
+                    "must name a label table file (or be left out for the built-in one)".into(),
+                ));
+            }
+        }
+
         if let Some(url) = &self.redis.url {
             if let Err(reason) = check_url(url, &["redis", "rediss", "redis+unix", "unix"]) {
                 out.push((
@@ -835,7 +917,7 @@ fn extract(figment: &Figment) -> Result<Config, ConfigError> {
 }
 
 /// The sections of [`Config`], in file order.
-const SECTIONS: [&str; 8] = [
+const SECTIONS: [&str; 10] = [
     "service",
     "http",
     "bus",
@@ -843,6 +925,8 @@ const SECTIONS: [&str; 8] = [
     "supervision",
     "robot",
     "redis",
+    "perception",
+    "workspace",
     "actors",
 ];
 
@@ -897,6 +981,8 @@ fn deserialization_problems(figment: &Figment, first: figment::Error) -> Vec<Pro
     read::<SupervisionConfig>(figment, &top, "supervision", p);
     read::<RobotConfig>(figment, &top, "robot", p);
     read::<RedisConfig>(figment, &top, "redis", p);
+    read::<PerceptionConfig>(figment, &top, "perception", p);
+    read::<WorkspaceConfig>(figment, &top, "workspace", p);
     match top.get("actors").map(|actors| actors.as_dict()) {
         Some(Some(actors)) => {
             for name in actors.keys().filter(|name| !name.contains('.')) {
