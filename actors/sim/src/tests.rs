@@ -128,7 +128,7 @@ fn built_in_scenes_parse_and_validate() {
             height_z_m: 0.010
         }
     );
-    assert_eq!((pencil.x_m, pencil.y_m, pencil.yaw_rad), (0.20, -0.05, 0.0));
+    assert_eq!((pencil.x_m, pencil.y_m, pencil.yaw_rad), (0.22, -0.05, 0.0));
     assert_eq!(pencil.color, colour_by_name("yellow").unwrap());
     ned2.validate(&roughly_reachable).unwrap();
 
