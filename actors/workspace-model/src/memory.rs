@@ -389,7 +389,7 @@ mod tests {
         };
         let gazebo = WorkspaceInfo {
             id: "gazebo_1".into(),
-            observation_pose: Pose::new(0.18, 0.0, 0.36, 2.4, 1.5708, 2.4),
+            observation_pose: Pose::new(0.18, 0.0, 0.36, 2.4, std::f64::consts::FRAC_PI_2, 2.4),
             ..niryo.clone()
         };
         vec![niryo, gazebo]
