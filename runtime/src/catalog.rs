@@ -74,3 +74,17 @@ pub const WORKSPACE_OBJECTS: crate::bus::Topic<robotd_protocol::workspace::Track
 /// The detectable-label list, at start and on every change.
 pub const WORKSPACE_LABELS: crate::bus::Topic<robotd_protocol::workspace::DetectableLabels> =
     crate::bus::Topic::new("workspace/labels", Overflow::latest_wins(8));
+
+/// Texts for the TTS actor to say. Back-pressure: a request is never silently lost (the
+/// actor's own queue decides what to drop, and says so on `speech/events`); sending returns at
+/// once.
+pub const SPEECH_SPEAK: crate::bus::Topic<robotd_protocol::speech::SpeakRequest> =
+    crate::bus::Topic::new("speech/speak", Overflow::back_pressure(64));
+
+/// What happened to each text: started, finished, dropped (and why).
+pub const SPEECH_EVENTS: crate::bus::Topic<robotd_protocol::speech::SpeechEvent> =
+    crate::bus::Topic::new("speech/events", Overflow::latest_wins(64));
+
+/// Texts to show over the video (robot speech, the user's task, system messages).
+pub const OVERLAY_TEXT: crate::bus::Topic<robotd_protocol::speech::TextOverlay> =
+    crate::bus::Topic::new("overlay/text", Overflow::latest_wins(32));

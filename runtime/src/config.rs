@@ -113,6 +113,9 @@ pub struct Config {
     /// `[workspace]`: the scene memory the detection tools answer from.
     #[serde(default)]
     pub workspace: WorkspaceConfig,
+    /// `[tts]`: text to speech.
+    #[serde(default)]
+    pub tts: TtsConfig,
     /// `[actors.<name>]`: per-actor settings; actors without an entry run in-process with
     /// the `[supervision]` policy.
     #[serde(default)]
@@ -496,6 +499,52 @@ impl WorkspaceConfig {
     }
 }
 
+/// `[tts]`
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TtsConfig {
+    /// "auto", "espeak-ng", "elevenlabs" or "none".
+    pub engine: String,
+    /// espeak-ng voice.
+    pub voice: String,
+    /// espeak-ng speed, words per minute (80 … 450).
+    pub rate_wpm: u32,
+    /// "auto" (the audio device when there is one, else the spool), "device" or "spool".
+    pub output: String,
+    /// Directory of the WAV spool.
+    pub spool_dir: PathBuf,
+    /// Largest size of the spool, MB (oldest files are deleted first).
+    pub spool_max_mb: u64,
+    /// Texts that may wait (1 … 1000).
+    pub queue_capacity: usize,
+    /// The same text within this many ms is spoken once.
+    pub duplicate_window_ms: u64,
+    /// Base URL of the ElevenLabs API.
+    pub elevenlabs_base_url: String,
+    /// ElevenLabs voice id.
+    pub elevenlabs_voice_id: String,
+    /// ElevenLabs model id.
+    pub elevenlabs_model_id: String,
+}
+
+impl Default for TtsConfig {
+    fn default() -> Self {
+        Self {
+            engine: "auto".into(),
+            voice: "en".into(),
+            rate_wpm: 160,
+            output: "auto".into(),
+            spool_dir: PathBuf::from("log/speech"),
+            spool_max_mb: 50,
+            queue_capacity: 50,
+            duplicate_window_ms: 2000,
+            elevenlabs_base_url: "https://api.elevenlabs.io".into(),
+            elevenlabs_voice_id: "21m00Tcm4TlvDq8ikWAM".into(),
+            elevenlabs_model_id: "eleven_multilingual_v2".into(),
+        }
+    }
+}
+
 /// Where an actor runs.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -800,6 +849,58 @@ impl Config {
                 format!("must be from 1 to 60000 ms, got {}", ws.fresh_wait_ms),
             ));
         }
+        let tts = &self.tts;
+        if !["auto", "espeak-ng", "elevenlabs", "none"].contains(&tts.engine.as_str()) {
+            out.push((
+                "tts.engine".into(),
+                format!(
+                    "unknown value \"{}\"; expected one of \"auto\", \"espeak-ng\", \"elevenlabs\", \"none\"",
+                    tts.engine
+                ),
+            ));
+        }
+        if !["auto", "device", "spool"].contains(&tts.output.as_str()) {
+            out.push((
+                "tts.output".into(),
+                format!(
+                    "unknown value \"{}\"; expected one of \"auto\", \"device\", \"spool\"",
+                    tts.output
+                ),
+            ));
+        }
+        if !(80..=450).contains(&tts.rate_wpm) {
+            out.push((
+                "tts.rate_wpm".into(),
+                format!("must be from 80 to 450, got {}", tts.rate_wpm),
+            ));
+        }
+        if !(1..=1000).contains(&tts.queue_capacity) {
+            out.push((
+                "tts.queue_capacity".into(),
+                format!("must be from 1 to 1000, got {}", tts.queue_capacity),
+            ));
+        }
+        if tts.duplicate_window_ms > 600_000 {
+            out.push((
+                "tts.duplicate_window_ms".into(),
+                format!("must be at most 600000 ms, got {}", tts.duplicate_window_ms),
+            ));
+        }
+        if !(1..=100_000).contains(&tts.spool_max_mb) {
+            out.push((
+                "tts.spool_max_mb".into(),
+                format!("must be from 1 to 100000, got {}", tts.spool_max_mb),
+            ));
+        }
+        if tts.voice.trim().is_empty() || tts.voice.starts_with('-') {
+            out.push((
+                "tts.voice".into(),
+                format!(
+                    "must be an espeak-ng voice name such as \"en\", got \"{}\"",
+                    tts.voice
+                ),
+            ));
+        }
         if let Some(path) = &self.perception.labels {
             if path.as_os_str().is_empty() {
                 out.push((
@@ -917,7 +1018,7 @@ fn extract(figment: &Figment) -> Result<Config, ConfigError> {
 }
 
 /// The sections of [`Config`], in file order.
-const SECTIONS: [&str; 10] = [
+const SECTIONS: [&str; 11] = [
     "service",
     "http",
     "bus",
@@ -927,6 +1028,7 @@ const SECTIONS: [&str; 10] = [
     "redis",
     "perception",
     "workspace",
+    "tts",
     "actors",
 ];
 
@@ -983,6 +1085,7 @@ fn deserialization_problems(figment: &Figment, first: figment::Error) -> Vec<Pro
     read::<RedisConfig>(figment, &top, "redis", p);
     read::<PerceptionConfig>(figment, &top, "perception", p);
     read::<WorkspaceConfig>(figment, &top, "workspace", p);
+    read::<TtsConfig>(figment, &top, "tts", p);
     match top.get("actors").map(|actors| actors.as_dict()) {
         Some(Some(actors)) => {
             for name in actors.keys().filter(|name| !name.contains('.')) {
