@@ -5,6 +5,7 @@
 
 mod bench;
 mod doctor;
+mod say;
 mod serve;
 
 use anyhow::{Context, Result};
@@ -51,6 +52,8 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Say one text with the configured speech engine: play it, or write it with --out.
+    Say(SayArgs),
     /// The other process of a two-process benchmark (started by `robotd bench`).
     #[command(hide = true)]
     BenchPeer {
@@ -62,6 +65,15 @@ enum Command {
         #[arg(long)]
         cpu: Option<usize>,
     },
+}
+
+#[derive(Debug, Args)]
+struct SayArgs {
+    /// What to say.
+    text: String,
+    /// Write the audio to this WAV file instead of playing it.
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -167,6 +179,12 @@ fn run() -> Result<std::process::ExitCode> {
                 .build()
                 .context("starting the tokio runtime")?;
             runtime.block_on(serve::run(config))?;
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Say(args) => {
+            let config = load_config(&cli.config)?;
+            let said = say::run(&config, &args.text, args.out.as_deref())?;
+            eprintln!("robotd: {said}");
             Ok(std::process::ExitCode::SUCCESS)
         }
         Command::Doctor(args) => {

@@ -20,6 +20,7 @@ use robotd_runtime::config::{ActorMode, Config, WorkspaceConfig};
 use robotd_runtime::supervision::{
     observer_fn, SupervisedProcess, SupervisionEvent, SupervisionObserver, Supervisor,
 };
+use robotd_speech::{Speech, SpeechSettings};
 use robotd_workspace_model::{MemorySettings, WorkspaceModel, WorkspaceModelSettings};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
@@ -206,6 +207,12 @@ pub async fn run(config: Config) -> Result<()> {
     let workspace_model =
         start_workspace_model(&bus, workspaces.clone(), &labels, &config.workspace)?;
     let perception = start_perception(&bus, &hardware, workspaces.clone(), labels.clone())?;
+    let speech = start_speech(
+        &bus,
+        &config,
+        supervision_observer(health.clone(), restarts.clone()),
+    )
+    .await?;
     let processes = start_process_actors(&config, &bus, &health, &restarts).await?;
 
     let report_config = config.clone();
@@ -228,6 +235,7 @@ pub async fn run(config: Config) -> Result<()> {
         }
     }
     perception.shutdown();
+    speech.shutdown().await;
     workspace_model.shutdown().await;
     hardware.shutdown().await;
     system.abort();
@@ -235,7 +243,7 @@ pub async fn run(config: Config) -> Result<()> {
 }
 
 /// The in-process actors of this build (an `[actors.<name>]` table tunes their supervision).
-const BUILT_IN_ACTORS: [&str; 3] = ["arm", "gripper", "camera"];
+const BUILT_IN_ACTORS: [&str; 4] = ["arm", "gripper", "camera", "tts"];
 
 async fn start_process_actors(
     config: &Config,
@@ -364,4 +372,34 @@ fn start_perception(
     let pipeline = Pipeline::new(&hardware.camera_intrinsics, workspaces, Box::new(detector))
         .context("setting up perception")?;
     Ok(Perception::start(bus, pipeline)?)
+}
+
+/// Starts the text-to-speech actor with the configured engine and output (falling back to the
+/// `none` engine, with one warning, when no engine is available).
+async fn start_speech(
+    bus: &Bus,
+    config: &Config,
+    observer: impl SupervisionObserver,
+) -> Result<Speech> {
+    let key = std::env::var(robotd_speech::ELEVENLABS_KEY_VAR).ok();
+    let (engine, warning) =
+        robotd_speech::choose_engine(&config.tts, key.as_deref()).context("[tts] engine")?;
+    if let Some(warning) = warning {
+        tracing::warn!("{warning}");
+    }
+    let output = robotd_speech::choose_output(&config.tts).context("[tts] output")?;
+    tracing::info!(engine = engine.name(), output = ?output, "speech engine chosen");
+    Ok(Speech::start(
+        bus,
+        SpeechSettings {
+            engine,
+            output,
+            scratch_dir: config.tts.spool_dir.clone(),
+            queue_capacity: config.tts.queue_capacity,
+            duplicate_window: std::time::Duration::from_millis(config.tts.duplicate_window_ms),
+            policy: config.supervision_for("tts").policy(),
+        },
+        observer,
+    )
+    .await?)
 }
