@@ -12,9 +12,9 @@
 //! Engines are chosen by configuration ([`choose_engine`]): ElevenLabs when a key is set,
 //! espeak-ng when installed, otherwise `none`, which only logs — with one warning saying so.
 //!
-//! HTTPS: this build's HTTP client is the one already in robotd's dependency tree, without a
-//! TLS stack, so the ElevenLabs engine talks plain HTTP only (a local mock, or a local TLS
-//! proxy) and says so clearly when given an `https://` URL.
+//! The ElevenLabs engine uses the HTTP client already in robotd's dependency tree (reqwest,
+//! blocking) with HTTPS by rustls on the `ring` provider, checking certificates against the
+//! system's roots.
 
 pub mod engine;
 pub mod output;

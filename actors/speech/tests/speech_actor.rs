@@ -323,3 +323,27 @@ async fn elevenlabs_engine_against_a_local_mock() {
         .unwrap_err();
     assert!(error.to_string().contains("ELEVENLABS_API_KEY"), "{error}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn elevenlabs_speaks_tls_to_https_urls() {
+    use tokio::io::AsyncReadExt;
+    // A server that only looks at what the engine sends first: over https:// that must be a
+    // TLS handshake record (0x16, version 3.x), not a plain HTTP request.
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let url = format!("https://{}", listener.local_addr().unwrap());
+    let first_bytes = tokio::spawn(async move {
+        let (mut socket, _) = listener.accept().await.unwrap();
+        let mut buf = [0u8; 3];
+        socket.read_exact(&mut buf).await.unwrap();
+        buf
+    });
+    let engine = ElevenLabsEngine::new(&url, "test-key", "voice-1", "model-x").unwrap();
+    let result = tokio::task::spawn_blocking(move || engine.synthesize("Hello"))
+        .await
+        .unwrap();
+    let error = result.unwrap_err();
+    assert!(error.to_string().contains("elevenlabs failed"), "{error}");
+    let bytes = first_bytes.await.unwrap();
+    assert_eq!(bytes[0], 0x16, "not a TLS handshake: {bytes:?}");
+    assert_eq!(bytes[1], 3, "not a TLS handshake: {bytes:?}");
+}
