@@ -391,6 +391,7 @@ fn tracer_provider(
     let Some(endpoint) = endpoint else {
         return Ok(builder.with_sampler(Sampler::AlwaysOff).build());
     };
+    install_tls_provider();
     let exporter = opentelemetry_otlp::SpanExporter::builder()
         .with_http()
         .with_protocol(Protocol::HttpBinary)
@@ -736,4 +737,12 @@ mod tests {
         assert_eq!(file_prefix(""), "robotd");
         assert_eq!(file_prefix(".."), "robotd..");
     }
+}
+
+/// Makes rustls (the TLS of every HTTPS client in robotd: the OTLP exporter, the ElevenLabs
+/// engine) use the `ring` crypto provider. An HTTP client built before any provider is
+/// installed panics, so each place that builds one calls this first; calling it again does
+/// nothing.
+pub fn install_tls_provider() {
+    let _ = rustls::crypto::ring::default_provider().install_default();
 }

@@ -261,8 +261,7 @@ impl ElevenLabsEngine {
                 "base URL '{base_url}' must start with http:// or https://"
             )));
         }
-        // HTTPS goes through rustls with the `ring` provider; installing it twice is harmless.
-        let _ = rustls::crypto::ring::default_provider().install_default();
+        robotd_runtime::telemetry::install_tls_provider();
         Ok(Self {
             base_url: base_url.trim_end_matches('/').to_owned(),
             api_key: api_key.to_owned(),
