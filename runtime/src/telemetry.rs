@@ -494,6 +494,14 @@ impl Extractor for ContextReader<'_> {
     }
 }
 
+/// Makes rustls (the TLS of every HTTPS client in robotd: the OTLP exporter, the ElevenLabs
+/// engine) use the `ring` crypto provider. An HTTP client built before any provider is
+/// installed panics, so each place that builds one calls this first; calling it again does
+/// nothing.
+pub fn install_tls_provider() {
+    let _ = rustls::crypto::ring::default_provider().install_default();
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -737,12 +745,4 @@ mod tests {
         assert_eq!(file_prefix(""), "robotd");
         assert_eq!(file_prefix(".."), "robotd..");
     }
-}
-
-/// Makes rustls (the TLS of every HTTPS client in robotd: the OTLP exporter, the ElevenLabs
-/// engine) use the `ring` crypto provider. An HTTP client built before any provider is
-/// installed panics, so each place that builds one calls this first; calling it again does
-/// nothing.
-pub fn install_tls_provider() {
-    let _ = rustls::crypto::ring::default_provider().install_default();
 }
