@@ -100,6 +100,8 @@ pub const MESSAGE_TYPES: &[(&str, u16)] = &[
     entry::<workspace::WorkspaceRequest>(),
     entry::<workspace::WorkspaceReply>(),
     entry::<workspace::DetectableLabels>(),
+    entry::<workspace::WorkspaceQuery>(),
+    entry::<workspace::TrackedObjects>(),
     entry::<speech::SpeakRequest>(),
     entry::<speech::SpeechEvent>(),
     entry::<speech::TextOverlay>(),

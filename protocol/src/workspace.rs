@@ -1,10 +1,14 @@
 //! Questions about the workspace and the objects on it, and their answers.
 //!
-//! The workspace model actor keeps the latest detections, the configured workspaces and the
-//! list of detectable labels. It serves [`WorkspaceRequest`] (`"workspace.request"`) with one
-//! [`WorkspaceReply`] (`"workspace.reply"`) — one request variant per detection or workspace
-//! tool of `spec/mcp-tools.md` — and publishes [`DetectableLabels`] (`"workspace.labels"`)
-//! whenever the label list changes.
+//! The workspace model actor keeps the objects of each workspace with stable ids, the
+//! configured workspaces and the list of detectable labels. It answers a [`WorkspaceRequest`] —
+//! one variant per detection or workspace tool of `spec/mcp-tools.md`, plus the skills' hooks
+//! [`WorkspaceRequest::ObjectPicked`] and [`WorkspaceRequest::ObjectPlaced`] — with one
+//! [`WorkspaceReply`] (`"workspace.reply"`). On the bus a request travels wrapped in a
+//! [`WorkspaceQuery`] (`"workspace.query"`), which can ask for an answer from a view taken after
+//! a given time. The actor publishes [`TrackedObjects`] (`"workspace.objects"`) after every
+//! detection it applied, and [`DetectableLabels`] (`"workspace.labels"`) at start and whenever
+//! the label list changes.
 //!
 //! A [`WorkspaceInfo`] describes one configured workspace: its rectangle on the table (upper =
 //! far from the robot, left = +y) and the pose from which the camera sees it whole.
@@ -373,6 +377,10 @@ pub struct DetectableLabels {
     pub labels: Vec<String>,
     /// The label just added, when this publication is due to an addition.
     pub added: Option<String>,
+    /// Those of `labels` the built-in detector can see; the others need an external detector
+    /// (empty from senders that predate this field).
+    #[serde(default)]
+    pub builtin: Vec<String>,
 }
 
 impl Message for DetectableLabels {
@@ -388,8 +396,9 @@ pub struct WorkspaceQuery {
     /// epoch) while the arm stood still; `None` answers from memory at once.
     #[serde(default)]
     pub fresh_after_unix_ns: Option<u64>,
-    /// Longest to wait for such a detection, ms (at most [`MAX_FRESH_WAIT_MS`]); the answer is
-    /// then [`WorkspaceError::NoFreshDetection`].
+    /// Longest to wait for such a detection, ms (at most [`MAX_FRESH_WAIT_MS`]; 0 = the
+    /// workspace model's configured default); the answer is then
+    /// [`WorkspaceError::NoFreshDetection`].
     #[serde(default)]
     pub max_wait_ms: u64,
 }
@@ -527,5 +536,27 @@ mod tests {
         ))
         .unwrap();
         assert!(req.validate().is_ok());
+    }
+
+    #[test]
+    fn labels_from_older_senders_read_without_the_builtin_list() {
+        let labels: DetectableLabels =
+            serde_json::from_value(serde_json::json!({"labels": ["pencil"], "added": null}))
+                .unwrap();
+        assert_eq!(labels.labels, ["pencil"]);
+        assert!(labels.builtin.is_empty());
+    }
+
+    #[test]
+    fn queries_wait_at_most_the_cap() {
+        let mut q = WorkspaceQuery::now(WorkspaceRequest::GetLabels);
+        assert!(q.validate().is_ok());
+        q.max_wait_ms = MAX_FRESH_WAIT_MS + 1;
+        assert_eq!(q.validate().unwrap_err().field(), "max_wait_ms");
+        q.max_wait_ms = MAX_FRESH_WAIT_MS;
+        q.request = WorkspaceRequest::ObjectPicked {
+            object_id: " ".into(),
+        };
+        assert_eq!(q.validate().unwrap_err().field(), "request.object_id");
     }
 }

@@ -19,7 +19,8 @@ use robotd_protocol::objects::{
 };
 use robotd_protocol::speech::{OverlayKind, SpeakRequest, SpeechEvent, TextOverlay};
 use robotd_protocol::workspace::{
-    DetectableLabels, WorkspaceError, WorkspaceInfo, WorkspaceReply, WorkspaceRequest,
+    DetectableLabels, TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceQuery,
+    WorkspaceReply, WorkspaceRequest,
 };
 use std::fmt::Debug;
 
@@ -394,7 +395,36 @@ fn workspace_request() -> impl Strategy<Value = WorkspaceRequest> {
         text().prop_map(|label| WorkspaceRequest::AddLabel { label }),
         text().prop_map(|workspace_id| WorkspaceRequest::GetObservationPose { workspace_id }),
         Just(WorkspaceRequest::ListWorkspaces),
+        text().prop_map(|object_id| WorkspaceRequest::ObjectPicked { object_id }),
+        (text(), point2())
+            .prop_map(|(object_id, at)| WorkspaceRequest::ObjectPlaced { object_id, at }),
     ]
+}
+
+fn workspace_query() -> impl Strategy<Value = WorkspaceQuery> {
+    (
+        workspace_request(),
+        prop::option::of(any::<u64>()),
+        any::<u64>(),
+    )
+        .prop_map(
+            |(request, fresh_after_unix_ns, max_wait_ms)| WorkspaceQuery {
+                request,
+                fresh_after_unix_ns,
+                max_wait_ms,
+            },
+        )
+}
+
+fn tracked_objects() -> impl Strategy<Value = TrackedObjects> {
+    (text(), any::<u64>(), any::<u64>(), objects()).prop_map(
+        |(workspace_id, frame_id, timestamp_unix_ns, objects)| TrackedObjects {
+            workspace_id,
+            frame_id,
+            timestamp_unix_ns,
+            objects,
+        },
+    )
 }
 
 fn workspace_reply() -> impl Strategy<Value = WorkspaceReply> {
@@ -427,8 +457,13 @@ fn workspace_reply() -> impl Strategy<Value = WorkspaceReply> {
 }
 
 fn detectable_labels() -> impl Strategy<Value = DetectableLabels> {
-    (texts(), prop::option::of(text()))
-        .prop_map(|(labels, added)| DetectableLabels { labels, added })
+    (texts(), prop::option::of(text()), texts()).prop_map(|(labels, added, builtin)| {
+        DetectableLabels {
+            labels,
+            added,
+            builtin,
+        }
+    })
 }
 
 // ---------------------------------------------------------------- strategies: speech, agent, health
@@ -668,6 +703,8 @@ round_trip_tests! {
     workspace_request_round_trips: workspace_request();
     workspace_reply_round_trips: workspace_reply();
     detectable_labels_round_trip: detectable_labels();
+    workspace_query_round_trips: workspace_query();
+    tracked_objects_round_trip: tracked_objects();
     speak_request_round_trips: speak_request();
     speech_event_round_trips: speech_event();
     text_overlay_round_trips: text_overlay();

@@ -5,6 +5,25 @@
 //! footprint (centre ± width/2 along y, ± height/2 along x) grown by a safety margin; the
 //! largest all-free axis-aligned rectangle of cells (the classic histogram-and-stack
 //! algorithm, O(cells)) gives the area (cells / 10 000 × the workspace's area) and centre.
+//! Of equally large rectangles the first found wins (scanning rows from the near edge).
+//! Held objects are not passed in: they are not on the table.
+//!
+//! ```
+//! use robotd_protocol::geometry::{Point2, Pose, RobotModel};
+//! use robotd_protocol::workspace::WorkspaceInfo;
+//! use robotd_workspace_model::free_space::largest_free_space;
+//!
+//! let ws = WorkspaceInfo {
+//!     id: "niryo_ws".into(),
+//!     robot: RobotModel::Ned2,
+//!     upper_left: Point2::new(0.337, 0.087),
+//!     lower_right: Point2::new(0.163, -0.087),
+//!     observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
+//! };
+//! let (area_m2, center) = largest_free_space(&ws, &[], 0.01);
+//! assert!((area_m2 - 0.174 * 0.174).abs() < 1e-12); // an empty sheet is all free
+//! assert!((center.x_m - 0.25).abs() < 1e-12);
+//! ```
 
 use robotd_protocol::geometry::Point2;
 use robotd_protocol::objects::DetectedObject;
@@ -128,6 +147,45 @@ mod tests {
         assert!((area - 0.67 * 0.174 * 0.174).abs() < 1e-9, "{area}");
         assert!(
             (c.x_m - 0.27871).abs() < 1e-6 && c.y_m.abs() < 1e-9,
+            "{c:?}"
+        );
+    }
+
+    #[test]
+    fn one_cube_in_the_middle_leaves_the_near_strip() {
+        // A 3 cm cube at the centre (0.25, 0) with a 1 cm margin occupies |x − 0.25| ≤ 0.025
+        // and |y| ≤ 0.025. Row i's centre is x = 0.163 + (i + 0.5) · 0.00174: row 35 is at
+        // 0.22477 (25.2 mm away, free), row 36 at 0.22651 (23.5 mm, occupied) … row 63 at
+        // 0.27349 (occupied), row 64 at 0.27523 (25.2 mm, free) — rows 36..=63 are blocked,
+        // and by symmetry columns 36..=63.
+        // Four free strips of 36 × 100 = 3600 cells each (near, far, right, left); the first
+        // found, scanning rows near → far, is the near strip, rows 0..=35:
+        // x ∈ [0.163, 0.163 + 36 · 0.00174 = 0.22564], centre x = 0.19432, y = 0;
+        // area = 0.36 · 0.174² = 0.01089936 m².
+        let ws = niryo();
+        let (area, c) = largest_free_space(&ws, &[object(0.25, 0.0, 0.03, 0.03)], 0.01);
+        assert!((area - 0.01089936).abs() < 1e-9, "{area}");
+        assert!(
+            (c.x_m - 0.19432).abs() < 1e-9 && c.y_m.abs() < 1e-9,
+            "{c:?}"
+        );
+    }
+
+    #[test]
+    fn a_corner_object_leaves_an_l_whose_larger_arm_wins() {
+        // A 5 cm × 5 cm object (no margin) centred on the far-left corner (0.337, 0.087)
+        // covers x ≥ 0.312 and y ≥ 0.062. Row 85's centre, 0.163 + 85.5 · 0.00174 = 0.31177,
+        // is 25.2 mm from 0.337 (free); row 86's, 0.31351, 23.5 mm (occupied): rows 86..=99
+        // are blocked where the object is, and likewise columns 86..=99.
+        // Free: rows 0..=85 × all 100 columns = 8600 cells, or all rows × columns 0..=85 =
+        // 8600 cells; the row strip is found first (at row 85), the column strip ties and does
+        // not replace it. Area 0.86 · 0.030276 = 0.02603736 m²; centre
+        // x = 0.163 + 86 · 0.00174 / 2 = 0.23782, y = 0.
+        let ws = niryo();
+        let (area, c) = largest_free_space(&ws, &[object(0.337, 0.087, 0.05, 0.05)], 0.0);
+        assert!((area - 0.02603736).abs() < 1e-9, "{area}");
+        assert!(
+            (c.x_m - 0.23782).abs() < 1e-9 && c.y_m.abs() < 1e-9,
             "{c:?}"
         );
     }

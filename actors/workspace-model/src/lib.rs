@@ -1,30 +1,67 @@
 //! robotd's scene memory: the workspace model actor.
 //!
 //! The detection and workspace tools (`get_detected_objects`, `get_largest_free_space_with_center`,
-//! `get_workspace_coordinate_from_point`, …) are answered from here, instantly, instead of moving
+//! `get_workspace_coordinate_from_point`, …) are answered from here, at once, instead of moving
 //! the arm and waiting for a detector on every call as the Python server does. The actor:
 //!
 //! - subscribes to `perception/detections` and keeps, per workspace, the objects on the table
-//!   with ids that stay stable while they are tracked ([`memory`]);
-//! - serves `workspace/query` ([`WorkspaceQuery`]): each [`WorkspaceRequest`] of the tools,
-//!   optionally "from a view taken after time t", in which case the answer waits (bounded) for
-//!   such a view while other queries are answered meanwhile;
-//! - publishes the remembered objects on `workspace/objects` after every applied view, and the
-//!   detectable labels on `workspace/labels` at start and whenever one is added;
-//! - follows what the skills do (`ObjectPicked`, `ObjectPlaced`).
+//!   with ids that stay stable while they are tracked ([`tracker`]); only steady views (the arm
+//!   stood still) of a configured workspace count;
+//! - serves `workspace/query` ([`WorkspaceQuery`]): each [`WorkspaceRequest`] of the tools
+//!   ([`queries`], [`free_space`], [`labels`]), optionally "from a view taken after time t" —
+//!   such a query waits (bounded) for that view while other queries are answered meanwhile,
+//!   and fails with [`WorkspaceError::NoFreshDetection`] when none comes;
+//! - follows what the skills do: [`WorkspaceRequest::ObjectPicked`] (the object is held, off
+//!   the table) and [`WorkspaceRequest::ObjectPlaced`] (back on the table where it was put,
+//!   until the camera confirms it or, not finding it, forgets it);
+//! - publishes the remembered objects of the workspace in view on `workspace/objects`
+//!   ([`TrackedObjects`]) after every applied view, and the detectable labels on
+//!   `workspace/labels` ([`DetectableLabels`]) at start and whenever one is added.
 //!
 //! Workspaces come from configuration (the simulator's scene files), never from code.
+//!
+//! ```no_run
+//! # async fn demo(
+//! #     workspaces: Vec<robotd_protocol::workspace::WorkspaceInfo>,
+//! # ) -> Result<(), Box<dyn std::error::Error>> {
+//! use robotd_protocol::envelope::unix_now_ns;
+//! use robotd_protocol::workspace::{WorkspaceQuery, WorkspaceRequest};
+//! use robotd_runtime::bus::{Bus, BusOptions};
+//! use robotd_runtime::catalog::WORKSPACE_QUERY;
+//! use robotd_workspace_model::{WorkspaceModel, WorkspaceModelSettings};
+//! use std::time::Duration;
+//!
+//! let bus = Bus::open(BusOptions::new("lab", "example"))?;
+//! let model = WorkspaceModel::start(&bus, WorkspaceModelSettings::new(workspaces))?;
+//!
+//! // "What is on the table now?": wait up to 2 s for a view taken after this moment.
+//! let client = bus.client(&WORKSPACE_QUERY)?;
+//! let query = WorkspaceQuery {
+//!     request: WorkspaceRequest::GetObjectsSorted { ascending: true },
+//!     fresh_after_unix_ns: Some(unix_now_ns()),
+//!     max_wait_ms: 2000,
+//! };
+//! let reply = client.request(&query, Duration::from_secs(3)).await?;
+//! println!("{reply:?}");
+//! model.shutdown().await;
+//! # Ok(())
+//! # }
+//! ```
 
 pub mod free_space;
+pub mod labels;
 pub mod memory;
+pub mod queries;
+pub mod tracker;
 
 pub use memory::{MemorySettings, SceneMemory};
+pub use tracker::{IgnoredView, ASSOCIATION_GATE_M};
 
 use robotd_protocol::objects::Detections;
 use robotd_protocol::validate::Validate;
 use robotd_protocol::workspace::{
-    DetectableLabels, WorkspaceError, WorkspaceInfo, WorkspaceQuery, WorkspaceReply,
-    WorkspaceRequest, MAX_FRESH_WAIT_MS,
+    DetectableLabels, TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceQuery,
+    WorkspaceReply, WorkspaceRequest, MAX_FRESH_WAIT_MS,
 };
 use robotd_runtime::bus::{Bus, BusError, PendingReply, Publisher, Server, Subscriber};
 use robotd_runtime::catalog::{
@@ -35,19 +72,38 @@ use std::time::Duration;
 use tokio::sync::Notify;
 use tokio::time::Instant;
 
+/// How long a fresh-view query waits when it names no limit, unless configured (config
+/// `workspace.fresh_wait_ms`).
+pub const DEFAULT_FRESH_WAIT: Duration = Duration::from_millis(3000);
+
 /// How the workspace model starts.
 #[derive(Debug, Clone)]
 pub struct WorkspaceModelSettings {
-    /// The configured workspaces (at least one).
+    /// The configured workspaces (at least one; ids unique).
     pub workspaces: Vec<WorkspaceInfo>,
     /// Labels detectable at start (any detector).
     pub labels: Vec<String>,
-    /// Labels the built-in detector can see.
+    /// Labels the built-in detector can see (added to `labels` when missing there).
     pub builtin_labels: Vec<String>,
     /// Tracking and free-space settings.
     pub memory: MemorySettings,
-    /// How long a fresh-view query waits when it names no limit.
+    /// How long a fresh-view query waits when it names no limit (`max_wait_ms` = 0); at most
+    /// [`MAX_FRESH_WAIT_MS`].
     pub default_fresh_wait: Duration,
+}
+
+impl WorkspaceModelSettings {
+    /// Settings for `workspaces` with no labels and the defaults: free-space margin 0.01 m,
+    /// objects forgotten after 3 missed views, fresh-view wait 3 s.
+    pub fn new(workspaces: Vec<WorkspaceInfo>) -> Self {
+        Self {
+            workspaces,
+            labels: Vec::new(),
+            builtin_labels: Vec::new(),
+            memory: MemorySettings::default(),
+            default_fresh_wait: DEFAULT_FRESH_WAIT,
+        }
+    }
 }
 
 /// The workspace model could not start.
@@ -57,8 +113,16 @@ pub enum WorkspaceStartError {
     #[error("workspace model: cannot open its bus ports: {0}")]
     Bus(#[from] BusError),
     /// No workspace to remember.
-    #[error("workspace model: no workspace is configured")]
+    #[error("workspace model: no workspace is configured (add one to the scene file)")]
     NoWorkspace,
+    /// A workspace is malformed or its id is taken twice.
+    #[error("workspace model: workspace '{workspace_id}' is invalid: {reason}")]
+    BadWorkspace {
+        /// The workspace.
+        workspace_id: String,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 /// The running workspace model.
@@ -69,14 +133,13 @@ pub struct WorkspaceModel {
 }
 
 impl WorkspaceModel {
-    /// Starts the actor on `bus` (inside a tokio runtime). Its ports are open on return.
+    /// Starts the actor on `bus` (inside a tokio runtime). Its ports are open on return, and
+    /// the label list has been published.
     pub fn start(
         bus: &Bus,
         settings: WorkspaceModelSettings,
     ) -> Result<WorkspaceModel, WorkspaceStartError> {
-        if settings.workspaces.is_empty() {
-            return Err(WorkspaceStartError::NoWorkspace);
-        }
+        check_workspaces(&settings.workspaces)?;
         let ports = Ports {
             detections: bus.subscriber(&PERCEPTION_DETECTIONS)?,
             server: bus.server(&WORKSPACE_QUERY)?,
@@ -89,27 +152,48 @@ impl WorkspaceModel {
             &settings.builtin_labels,
             settings.memory.clone(),
         );
+        publish_labels(&ports.labels, memory.labels_message(None));
+        let default_wait = settings
+            .default_fresh_wait
+            .min(Duration::from_millis(MAX_FRESH_WAIT_MS));
         let stop = Arc::new(Notify::new());
-        let task = tokio::spawn(run(
-            ports,
-            memory,
-            settings.default_fresh_wait,
-            stop.clone(),
-        ));
+        let task = tokio::spawn(run(ports, memory, default_wait, stop.clone()));
         Ok(WorkspaceModel { stop, task })
     }
 
-    /// Stops the actor.
+    /// Stops the actor. Queries still waiting for a fresh view are answered with
+    /// [`WorkspaceError::Unavailable`].
     pub async fn shutdown(self) {
         self.stop.notify_one();
         let _ = self.task.await;
     }
 }
 
+fn check_workspaces(workspaces: &[WorkspaceInfo]) -> Result<(), WorkspaceStartError> {
+    if workspaces.is_empty() {
+        return Err(WorkspaceStartError::NoWorkspace);
+    }
+    for (i, ws) in workspaces.iter().enumerate() {
+        if let Err(e) = ws.validate() {
+            return Err(WorkspaceStartError::BadWorkspace {
+                workspace_id: ws.id.clone(),
+                reason: e.to_string(),
+            });
+        }
+        if workspaces[..i].iter().any(|w| w.id == ws.id) {
+            return Err(WorkspaceStartError::BadWorkspace {
+                workspace_id: ws.id.clone(),
+                reason: "the id is used by two workspaces".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
 struct Ports {
     detections: Subscriber<Detections>,
     server: Server<WorkspaceQuery, WorkspaceReply>,
-    objects: Publisher<robotd_protocol::workspace::TrackedObjects>,
+    objects: Publisher<TrackedObjects>,
     labels: Publisher<DetectableLabels>,
 }
 
@@ -122,15 +206,15 @@ struct Waiter {
 }
 
 async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, stop: Arc<Notify>) {
-    publish_labels(&ports.labels, &memory, None);
     let mut waiters: Vec<Waiter> = Vec::new();
+    let mut last_warning = String::new();
     loop {
         let next_deadline = waiters.iter().map(|w| w.deadline).min();
         tokio::select! {
             _ = stop.notified() => break,
             received = ports.detections.recv() => match received {
-                Ok(message) => {
-                    if let Some(tracked) = memory.apply(&message.body) {
+                Ok(message) => match memory.apply(&message.body) {
+                    Ok(tracked) => {
                         if let Err(error) = ports.objects.publish(&tracked) {
                             tracing::debug!(%error, "workspace model: publishing objects failed");
                         }
@@ -140,11 +224,12 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
                             waiters.drain(..).partition(|w| view > w.after_ns);
                         waiters = waiting;
                         for w in ready {
-                            let reply = memory.answer(&w.request);
+                            let reply = serve(&mut memory, &ports.labels, &w.request);
                             respond(&mut ports.server, w.pending, reply);
                         }
                     }
-                }
+                    Err(ignored) => report_ignored(&ignored, &mut last_warning),
+                },
                 Err(error) => {
                     tracing::warn!(%error, "workspace model: a detection could not be read");
                 }
@@ -153,8 +238,8 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
                 Ok(incoming) => {
                     let (envelope, pending) = incoming.split();
                     let query = envelope.body;
-                    if let Err(e) = query.validate() {
-                        respond(&mut ports.server, pending, WorkspaceError::from(e).into());
+                    if let Err(error) = check_query(&query) {
+                        respond(&mut ports.server, pending, error.into());
                         continue;
                     }
                     match query.fresh_after_unix_ns {
@@ -162,7 +247,7 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
                             let wait = if query.max_wait_ms == 0 {
                                 default_wait
                             } else {
-                                Duration::from_millis(query.max_wait_ms.min(MAX_FRESH_WAIT_MS))
+                                Duration::from_millis(query.max_wait_ms)
                             };
                             waiters.push(Waiter {
                                 after_ns: after,
@@ -172,16 +257,7 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
                             });
                         }
                         _ => {
-                            let added = match &query.request {
-                                WorkspaceRequest::AddLabel { .. } => Some(()),
-                                _ => None,
-                            };
-                            let reply = memory.answer(&query.request);
-                            if let (Some(()), WorkspaceReply::LabelAdded { label, already_known: false }) =
-                                (added, &reply)
-                            {
-                                publish_labels(&ports.labels, &memory, Some(label.clone()));
-                            }
+                            let reply = serve(&mut memory, &ports.labels, &query.request);
                             respond(&mut ports.server, pending, reply);
                         }
                     }
@@ -198,14 +274,91 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
                 waiters = waiting;
                 for w in expired {
                     let error = WorkspaceError::NoFreshDetection {
-                        reason: "the camera gave no steady view of the workspace in time \
-                                 (is the arm at the observation pose and the camera running?)"
-                            .into(),
+                        reason: no_fresh_view_reason(&memory, w.after_ns),
                     };
                     respond(&mut ports.server, w.pending, error.into());
                 }
             }
         }
+    }
+    if !waiters.is_empty() {
+        for w in waiters {
+            let error = WorkspaceError::Unavailable {
+                reason: "the workspace model is shutting down".into(),
+            };
+            respond(&mut ports.server, w.pending, error.into());
+        }
+        // A reply whose publisher closes at once can be lost before the client reads it:
+        // keep the ports open a moment for the clients to collect these last answers.
+        tokio::time::sleep(SHUTDOWN_GRACE).await;
+    }
+}
+
+/// How long the actor keeps its ports open after answering waiting queries at shutdown.
+const SHUTDOWN_GRACE: Duration = Duration::from_millis(100);
+
+/// The query's own checks: the request's fields (a location filter without a coordinate is
+/// the tools' `CoordinateRequired`), and the wait limit.
+fn check_query(query: &WorkspaceQuery) -> Result<(), WorkspaceError> {
+    memory::check_request(&query.request)?;
+    query.validate().map_err(WorkspaceError::from)
+}
+
+fn no_fresh_view_reason(memory: &SceneMemory, after_ns: u64) -> String {
+    let last = memory.last_view_ns();
+    let age = if last == 0 {
+        "no steady view of a workspace has arrived yet".to_owned()
+    } else {
+        format!(
+            "the newest steady view was taken {:.1} s before the time asked for",
+            after_ns.saturating_sub(last) as f64 / 1e9
+        )
+    };
+    format!(
+        "the camera gave no steady view of the workspace in time ({age}); is the arm at the \
+         observation pose and the camera running?"
+    )
+}
+
+/// Answers `request`, publishing the label list when it changed.
+fn serve(
+    memory: &mut SceneMemory,
+    labels: &Publisher<DetectableLabels>,
+    request: &WorkspaceRequest,
+) -> WorkspaceReply {
+    let reply = memory.answer(request);
+    if let WorkspaceReply::LabelAdded {
+        label,
+        already_known: false,
+    } = &reply
+    {
+        publish_labels(labels, memory.labels_message(Some(label.clone())));
+    }
+    reply
+}
+
+/// Logs why a frame changed nothing: frames during motion or without a sheet are routine; a
+/// misconfigured or misbehaving detector is warned about once per distinct problem in a row.
+fn report_ignored(ignored: &IgnoredView, last_warning: &mut String) {
+    match ignored {
+        IgnoredView::Moving { .. } | IgnoredView::NoWorkspace { .. } => {
+            tracing::trace!(%ignored, "workspace model: view ignored");
+        }
+        IgnoredView::UnknownWorkspace { workspace_id, .. } => {
+            warn_once(last_warning, &format!("unknown:{workspace_id}"), ignored);
+        }
+        IgnoredView::Stale { source_id, .. } | IgnoredView::Invalid { source_id, .. } => {
+            warn_once(last_warning, &format!("source:{source_id}"), ignored);
+        }
+    }
+}
+
+fn warn_once(last_warning: &mut String, key: &str, ignored: &IgnoredView) {
+    if last_warning != key {
+        tracing::warn!(%ignored, "workspace model: view ignored");
+        *last_warning = key.to_owned();
+    } else {
+        tracing::debug!(%ignored, "workspace model: view ignored");
     }
 }
 
@@ -226,15 +379,7 @@ fn respond(
     }
 }
 
-fn publish_labels(
-    publisher: &Publisher<DetectableLabels>,
-    memory: &SceneMemory,
-    added: Option<String>,
-) {
-    let message = DetectableLabels {
-        labels: memory.labels().to_vec(),
-        added,
-    };
+fn publish_labels(publisher: &Publisher<DetectableLabels>, message: DetectableLabels) {
     if let Err(error) = publisher.publish(&message) {
         tracing::debug!(%error, "workspace model: publishing labels failed");
     }

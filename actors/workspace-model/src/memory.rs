@@ -1,34 +1,73 @@
-//! The scene memory: which objects lie where, with ids that stay the same while they are
-//! tracked, and the answers to every detection and workspace question of the MCP tools.
+//! The scene memory: the configured workspaces, the objects on them with stable ids, and the
+//! detectable labels — and the answer to every detection and workspace question of the tools.
 //!
-//! Detections come per camera frame. Only *steady* frames (the arm stood still) of a
-//! workspace in view update memory. Each detection is associated with the remembered object of
-//! the same label nearest to it (within [`ASSOCIATION_GATE_M`]), greedily by distance; the
-//! object takes the new measurement and keeps its id. Detections matching nothing become new
-//! objects with fresh ids (`obj-1`, `obj-2`, … never reused). A remembered object the camera
-//! misses in `expire_after_frames` steady views of its workspace in a row is forgotten.
+//! [`SceneMemory`] is the workspace model actor's state without the bus: [`SceneMemory::apply`]
+//! takes one frame's [`Detections`], [`SceneMemory::answer`] one [`WorkspaceRequest`]. It ties
+//! together the [tracker](crate::tracker) (ids, expiry, picks and places), the
+//! [queries] (filters and sorting), [free space](crate::free_space) and the
+//! [label registry](crate::labels).
 //!
-//! The skills tell memory what they did: a picked object is *held* (off the table: out of the
-//! queries and the free-space map); a placed one is back on the table where it was put,
-//! unconfirmed until the camera sees it there.
+//! The object questions are about the *current* workspace: the one of the newest steady view
+//! applied (the first configured one until then), as the Python server answers about the
+//! workspace its camera looks at. Workspace questions name their workspace; an id that is not
+//! configured is answered with [`WorkspaceError::UnknownWorkspace`], which lists the known ones.
+//!
+//! ```
+//! use robotd_protocol::geometry::{Point2, Point3, Pose, RobotModel};
+//! use robotd_protocol::objects::{DetectedObject, Detections};
+//! use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceReply, WorkspaceRequest};
+//! use robotd_workspace_model::{MemorySettings, SceneMemory};
+//!
+//! let ws = WorkspaceInfo {
+//!     id: "niryo_ws".into(),
+//!     robot: RobotModel::Ned2,
+//!     upper_left: Point2::new(0.337, 0.087),
+//!     lower_right: Point2::new(0.163, -0.087),
+//!     observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
+//! };
+//! let mut memory = SceneMemory::new(vec![ws], &[], &["pencil".into()], MemorySettings::default());
+//! let mut pencil = DetectedObject { label: "pencil".into(), ..Default::default() };
+//! pencil.position.center_of_mass = Point3::new(0.2, 0.0, 0.005);
+//! let view = Detections {
+//!     frame_id: 1,
+//!     workspace_id: "niryo_ws".into(),
+//!     timestamp_unix_ns: 1,
+//!     source: "robotd".into(),
+//!     steady: true,
+//!     objects: vec![pencil],
+//! };
+//! assert_eq!(memory.apply(&view).unwrap().objects[0].id, "obj-1");
+//! let reply = memory.answer(&WorkspaceRequest::GetObjectNear {
+//!     coordinate: Point2::new(0.21, 0.0),
+//!     label: Some("PEN".into()),
+//! });
+//! assert!(matches!(reply, WorkspaceReply::Object { object: Some(o) } if o.id == "obj-1"));
+//! ```
 
 use crate::free_space::largest_free_space;
-use robotd_protocol::geometry::Point3;
-use robotd_protocol::location::CLOSE_TO_RADIUS_M;
+use crate::labels::LabelRegistry;
+use crate::queries;
+use crate::tracker::{IgnoredView, Tracker};
+use robotd_protocol::geometry::Point2;
 use robotd_protocol::objects::{DetectedObject, Detections};
+use robotd_protocol::validate::Validate;
 use robotd_protocol::workspace::{
-    TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceReply, WorkspaceRequest,
+    DetectableLabels, TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceReply,
+    WorkspaceRequest,
 };
 
-/// A detection this close to a remembered object of the same label is that object, metres.
-pub const ASSOCIATION_GATE_M: f64 = 0.03;
+/// A placed object stays in its workspace when the place point lies within this distance of
+/// it; otherwise it moves to a workspace that contains the point, metres.
+pub const PLACE_WORKSPACE_MARGIN_M: f64 = 0.02;
 
 /// Settings of the memory.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MemorySettings {
-    /// Margin around objects for the free-space search, metres.
+    /// Margin around objects for the free-space search, metres (config
+    /// `workspace.free_space_margin_m`, default 0.01).
     pub free_space_margin_m: f64,
-    /// Steady views of its workspace an object may be missed in before it is forgotten.
+    /// Steady views of its workspace an object may be missed in, in a row, before it is
+    /// forgotten (config `workspace.expire_after_frames`, default 3).
     pub expire_after_frames: u32,
 }
 
@@ -41,55 +80,56 @@ impl Default for MemorySettings {
     }
 }
 
-#[derive(Debug, Clone)]
-struct Tracked {
-    object: DetectedObject,
-    missed: u32,
-    held: bool,
-    confirmed: bool,
-}
-
 /// Workspaces, remembered objects and detectable labels.
 #[derive(Debug)]
 pub struct SceneMemory {
     settings: MemorySettings,
     workspaces: Vec<WorkspaceInfo>,
-    objects: Vec<Tracked>,
-    next_id: u64,
+    tracker: Tracker,
+    labels: LabelRegistry,
     current: Option<usize>,
-    last_view_ns: u64,
-    labels: Vec<String>,
-    builtin: Vec<String>,
+}
+
+/// The error a request earns before it is looked at further: a location filter without a
+/// coordinate is [`WorkspaceError::CoordinateRequired`] (the tools' own text), any other
+/// invalid field [`WorkspaceError::InvalidRequest`].
+pub fn check_request(request: &WorkspaceRequest) -> Result<(), WorkspaceError> {
+    if let WorkspaceRequest::GetObjects {
+        location,
+        coordinate: None,
+        ..
+    } = request
+    {
+        if location.needs_coordinate() {
+            return Err(WorkspaceError::CoordinateRequired {
+                location: *location,
+            });
+        }
+    }
+    request.validate().map_err(WorkspaceError::from)
 }
 
 impl SceneMemory {
-    /// Memory of `workspaces`, with the detectable labels `labels` of which the built-in
-    /// detector sees `builtin`.
+    /// Memory of `workspaces`, with the detectable labels `labels` (then those of `builtin`
+    /// not among them), of which the built-in detector sees `builtin`.
     pub fn new(
         workspaces: Vec<WorkspaceInfo>,
         labels: &[String],
         builtin: &[String],
         settings: MemorySettings,
     ) -> Self {
-        let mut memory = Self {
+        Self {
+            tracker: Tracker::new(settings.expire_after_frames),
+            labels: LabelRegistry::new(labels, builtin),
             settings,
             workspaces,
-            objects: Vec::new(),
-            next_id: 1,
             current: None,
-            last_view_ns: 0,
-            labels: Vec::new(),
-            builtin: builtin.iter().map(|l| l.trim().to_lowercase()).collect(),
-        };
-        for label in labels.iter().chain(builtin) {
-            memory.add_label(label);
         }
-        memory
     }
 
     /// Capture time of the latest steady view applied, ns since the Unix epoch (0: none yet).
     pub fn last_view_ns(&self) -> u64 {
-        self.last_view_ns
+        self.tracker.last_view_ns()
     }
 
     /// The workspace the object questions are about: the one last seen, else the first.
@@ -106,114 +146,54 @@ impl SceneMemory {
 
     /// The detectable labels.
     pub fn labels(&self) -> &[String] {
-        &self.labels
+        self.labels.labels()
     }
 
-    /// Adds a label (trimmed, lower-case); false when it was already known or is empty.
-    pub fn add_label(&mut self, label: &str) -> bool {
-        let label = label.trim().to_lowercase();
-        if label.is_empty() || self.labels.contains(&label) {
-            return false;
-        }
-        self.labels.push(label);
-        true
+    /// The label registry as published on `workspace/labels`.
+    pub fn labels_message(&self, added: Option<String>) -> DetectableLabels {
+        self.labels.snapshot(added)
     }
 
-    /// Applies one frame's detections. Returns the objects now remembered for its workspace
-    /// when the frame updated memory (a steady view of a configured workspace), else `None`.
-    pub fn apply(&mut self, detections: &Detections) -> Option<TrackedObjects> {
-        if !detections.steady || detections.workspace_id.is_empty() {
-            return None;
+    /// The objects tracked (on the table or held).
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
+    }
+
+    /// Applies one frame's detections. A steady view of a configured workspace updates memory
+    /// and makes that workspace the current one; the objects now on its table are returned.
+    /// Any other frame changes nothing and says why.
+    pub fn apply(&mut self, detections: &Detections) -> Result<TrackedObjects, IgnoredView> {
+        let frame_id = detections.frame_id;
+        if !detections.steady {
+            return Err(IgnoredView::Moving { frame_id });
         }
-        let ws_index = self
+        if detections.workspace_id.is_empty() {
+            return Err(IgnoredView::NoWorkspace { frame_id });
+        }
+        let Some(index) = self
             .workspaces
             .iter()
-            .position(|w| w.id == detections.workspace_id)?;
-        self.current = Some(ws_index);
-        self.last_view_ns = self.last_view_ns.max(detections.timestamp_unix_ns);
-        let ws_id = &detections.workspace_id;
-
-        // Greedy association by distance, same label only.
-        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
-        for (t, tracked) in self.objects.iter().enumerate() {
-            if tracked.held || tracked.object.workspace_id != *ws_id {
-                continue;
-            }
-            for (d, det) in detections.objects.iter().enumerate() {
-                if !tracked.object.label_is(&det.label) {
-                    continue;
-                }
-                let dist = tracked.object.xy().distance_to(&det.xy());
-                if dist <= ASSOCIATION_GATE_M {
-                    pairs.push((dist, t, d));
-                }
-            }
-        }
-        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut track_taken = vec![false; self.objects.len()];
-        let mut det_taken = vec![false; detections.objects.len()];
-        for (_, t, d) in pairs {
-            if track_taken[t] || det_taken[d] {
-                continue;
-            }
-            track_taken[t] = true;
-            det_taken[d] = true;
-            let tracked = &mut self.objects[t];
-            let id = std::mem::take(&mut tracked.object.id);
-            tracked.object = detections.objects[d].clone();
-            tracked.object.id = id;
-            tracked.object.workspace_id = ws_id.clone();
-            tracked.missed = 0;
-            tracked.confirmed = true;
-        }
-        // Missed objects of this workspace age; too old ones are forgotten.
-        let limit = self.settings.expire_after_frames;
-        let mut index = 0;
-        self.objects.retain_mut(|tracked| {
-            let seen = track_taken.get(index).copied().unwrap_or(true);
-            index += 1;
-            if seen || tracked.held || tracked.object.workspace_id != *ws_id {
-                return true;
-            }
-            tracked.missed += 1;
-            tracked.missed < limit
-        });
-        // New objects.
-        for (d, det) in detections.objects.iter().enumerate() {
-            if det_taken[d] {
-                continue;
-            }
-            let mut object = det.clone();
-            object.id = format!("obj-{}", self.next_id);
-            object.workspace_id = ws_id.clone();
-            self.next_id += 1;
-            self.objects.push(Tracked {
-                object,
-                missed: 0,
-                held: false,
-                confirmed: true,
+            .position(|w| w.id == detections.workspace_id)
+        else {
+            return Err(IgnoredView::UnknownWorkspace {
+                frame_id,
+                workspace_id: detections.workspace_id.clone(),
+                known: self.known_ids(),
             });
-        }
-        Some(TrackedObjects {
-            workspace_id: ws_id.clone(),
-            frame_id: detections.frame_id,
-            timestamp_unix_ns: detections.timestamp_unix_ns,
-            objects: self.on_table(ws_id).cloned().collect(),
-        })
+        };
+        let tracked = self.tracker.apply(detections)?;
+        self.current = Some(index);
+        Ok(tracked)
     }
 
-    /// The objects on the table of workspace `ws_id`, in the order they were first seen.
-    fn on_table<'a>(&'a self, ws_id: &'a str) -> impl Iterator<Item = &'a DetectedObject> + 'a {
-        self.objects
-            .iter()
-            .filter(move |t| !t.held && t.object.workspace_id == ws_id)
-            .map(|t| &t.object)
+    fn known_ids(&self) -> Vec<String> {
+        self.workspaces.iter().map(|w| w.id.clone()).collect()
     }
 
-    /// The objects of the current workspace on the table.
+    /// The objects of the current workspace on the table, first seen first.
     fn current_objects(&self) -> Vec<&DetectedObject> {
         match self.current_workspace() {
-            Some(ws) => self.on_table(&ws.id).collect(),
+            Some(ws) => self.tracker.on_table(&ws.id).collect(),
             None => Vec::new(),
         }
     }
@@ -224,81 +204,73 @@ impl SceneMemory {
             .find(|w| w.id == id.trim())
             .ok_or_else(|| WorkspaceError::UnknownWorkspace {
                 workspace_id: id.to_owned(),
-                known: self.workspaces.iter().map(|w| w.id.clone()).collect(),
+                known: self.known_ids(),
             })
     }
 
-    /// Answers one request (the request is validated first).
-    pub fn answer(&mut self, request: &WorkspaceRequest) -> WorkspaceReply {
-        use robotd_protocol::validate::Validate;
-        if let Err(e) = request.validate() {
-            return WorkspaceError::from(e).into();
+    /// The workspace a placed object belongs to: its own when `at` lies in it (within
+    /// [`PLACE_WORKSPACE_MARGIN_M`]), else the first that contains `at`, else its own.
+    fn place_workspace(&self, own: &str, at: Point2) -> String {
+        let inside = |w: &&WorkspaceInfo| w.contains(at, PLACE_WORKSPACE_MARGIN_M);
+        if self.workspaces.iter().filter(inside).any(|w| w.id == own) {
+            return own.to_owned();
         }
-        match self.answer_valid(request) {
+        match self.workspaces.iter().find(inside) {
+            Some(w) => w.id.clone(),
+            None => own.to_owned(),
+        }
+    }
+
+    /// Answers one request (checked with [`check_request`] first).
+    pub fn answer(&mut self, request: &WorkspaceRequest) -> WorkspaceReply {
+        match check_request(request).and_then(|()| self.answer_checked(request)) {
             Ok(reply) => reply,
             Err(error) => error.into(),
         }
     }
 
-    fn answer_valid(
+    fn answer_checked(
         &mut self,
         request: &WorkspaceRequest,
     ) -> Result<WorkspaceReply, WorkspaceError> {
-        let by_size = |a: &&DetectedObject, b: &&DetectedObject| {
-            a.dimensions.size_m2.total_cmp(&b.dimensions.size_m2)
-        };
+        let cloned = |o: Option<&DetectedObject>| o.cloned();
+        let all_cloned = |v: Vec<&DetectedObject>| v.into_iter().cloned().collect();
         Ok(match request {
             WorkspaceRequest::GetObjects {
                 location,
                 coordinate,
                 label,
-            } => {
-                let objects = self
-                    .current_objects()
-                    .into_iter()
-                    .filter(|o| label.as_deref().is_none_or(|l| o.label_contains(l)))
-                    .filter(|o| match coordinate {
-                        Some(c) => location.filter_accepts(o.xy(), *c),
-                        None => true,
-                    })
-                    .cloned()
-                    .collect();
-                WorkspaceReply::Objects { objects }
-            }
-            WorkspaceRequest::GetObjectNear { coordinate, label } => {
-                let object = self
-                    .current_objects()
-                    .into_iter()
-                    .filter(|o| label.as_deref().is_none_or(|l| o.label_contains(l)))
-                    .map(|o| (o.xy().distance_to(coordinate), o))
-                    .filter(|(d, _)| *d <= CLOSE_TO_RADIUS_M)
-                    .min_by(|a, b| a.0.total_cmp(&b.0))
-                    .map(|(_, o)| o.clone());
-                WorkspaceReply::Object { object }
-            }
+            } => WorkspaceReply::Objects {
+                objects: all_cloned(queries::matching(
+                    self.current_objects(),
+                    *location,
+                    *coordinate,
+                    label.as_deref(),
+                )?),
+            },
+            WorkspaceRequest::GetObjectNear { coordinate, label } => WorkspaceReply::Object {
+                object: cloned(queries::nearest(
+                    self.current_objects(),
+                    *coordinate,
+                    label.as_deref(),
+                )),
+            },
             WorkspaceRequest::GetLargestObject => WorkspaceReply::Object {
-                object: self.current_objects().into_iter().max_by(by_size).cloned(),
+                object: cloned(queries::largest(self.current_objects())),
             },
             WorkspaceRequest::GetSmallestObject => WorkspaceReply::Object {
-                object: self.current_objects().into_iter().min_by(by_size).cloned(),
+                object: cloned(queries::smallest(self.current_objects())),
             },
-            WorkspaceRequest::GetObjectsSorted { ascending } => {
-                let mut objects = self.current_objects();
-                objects.sort_by(by_size);
-                if !ascending {
-                    objects.reverse();
-                }
-                WorkspaceReply::Objects {
-                    objects: objects.into_iter().cloned().collect(),
-                }
-            }
+            WorkspaceRequest::GetObjectsSorted { ascending } => WorkspaceReply::Objects {
+                objects: all_cloned(queries::sorted_by_size(self.current_objects(), *ascending)),
+            },
             WorkspaceRequest::GetLargestFreeSpace => {
                 let ws = self
                     .current_workspace()
                     .ok_or_else(|| WorkspaceError::Unavailable {
                         reason: "no workspace is configured".into(),
                     })?;
-                let objects: Vec<DetectedObject> = self.on_table(&ws.id).cloned().collect();
+                let objects: Vec<DetectedObject> = self.tracker.on_table(&ws.id).cloned().collect();
                 let (area_m2, center) =
                     largest_free_space(ws, &objects, self.settings.free_space_margin_m);
                 WorkspaceReply::FreeSpace { area_m2, center }
@@ -310,19 +282,19 @@ impl SceneMemory {
                 coordinate: self.workspace(workspace_id)?.point(*point),
             },
             WorkspaceRequest::GetLabels => WorkspaceReply::Labels {
-                labels: self.labels.clone(),
-                builtin: self
-                    .labels
-                    .iter()
-                    .filter(|l| self.builtin.contains(l))
-                    .cloned()
-                    .collect(),
+                labels: self.labels.labels().to_vec(),
+                builtin: self.labels.builtin(),
             },
             WorkspaceRequest::AddLabel { label } => {
-                let added = self.add_label(label);
+                let added = self
+                    .labels
+                    .add(label)
+                    .map_err(|e| WorkspaceError::InvalidRequest {
+                        reason: e.to_string(),
+                    })?;
                 WorkspaceReply::LabelAdded {
-                    label: label.trim().to_lowercase(),
-                    already_known: !added,
+                    label: added.label,
+                    already_known: added.already_known,
                 }
             }
             WorkspaceRequest::GetObservationPose { workspace_id } => {
@@ -334,49 +306,40 @@ impl SceneMemory {
                 workspaces: self.workspaces.clone(),
             },
             WorkspaceRequest::ObjectPicked { object_id } => {
-                let tracked = self.tracked_mut(object_id)?;
-                tracked.held = true;
+                let object = self.tracker.pick(object_id).map_err(unknown_object)?;
                 WorkspaceReply::Object {
-                    object: Some(tracked.object.clone()),
+                    object: Some(object.clone()),
                 }
             }
             WorkspaceRequest::ObjectPlaced { object_id, at } => {
-                let tracked = self.tracked_mut(object_id)?;
-                let z = tracked.object.position.center_of_mass.z_m;
-                tracked.held = false;
-                tracked.confirmed = false;
-                tracked.missed = 0;
-                tracked.object.position.center_of_mass = Point3::new(at.x_m, at.y_m, z);
-                tracked.object.position.center = Point3::new(at.x_m, at.y_m, z);
+                let own = self
+                    .tracker
+                    .get(object_id)
+                    .map(|o| o.workspace_id.clone())
+                    .unwrap_or_default();
+                let ws = self.place_workspace(&own, *at);
+                let object = self
+                    .tracker
+                    .place(object_id, *at, &ws)
+                    .map_err(unknown_object)?;
                 WorkspaceReply::Object {
-                    object: Some(tracked.object.clone()),
+                    object: Some(object.clone()),
                 }
             }
         })
     }
+}
 
-    fn tracked_mut(&mut self, id: &str) -> Result<&mut Tracked, WorkspaceError> {
-        let known: Vec<String> = self.objects.iter().map(|t| t.object.id.clone()).collect();
-        self.objects
-            .iter_mut()
-            .find(|t| t.object.id == id.trim())
-            .ok_or_else(|| WorkspaceError::InvalidRequest {
-                reason: format!(
-                    "unknown object id '{id}'; remembered: {}",
-                    if known.is_empty() {
-                        "none".to_owned()
-                    } else {
-                        known.join(", ")
-                    }
-                ),
-            })
+fn unknown_object(e: crate::tracker::UnknownObject) -> WorkspaceError {
+    WorkspaceError::InvalidRequest {
+        reason: e.to_string(),
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use robotd_protocol::geometry::{Point2, Pose, RobotModel};
+    use robotd_protocol::geometry::{Point2, Point3, Pose, RobotModel};
     use robotd_protocol::location::{Location, WorkspacePoint};
 
     fn workspaces() -> Vec<WorkspaceInfo> {
@@ -506,8 +469,10 @@ mod tests {
         assert!(labels_of(m.answer(&get(Location::Inside, c, None))).is_empty());
         match m.answer(&get(Location::Above, None, None)) {
             WorkspaceReply::Error { error } => assert_eq!(
-                error.to_string(),
-                "invalid request: coordinate: Coordinate must be provided for location filter: above"
+                error,
+                WorkspaceError::CoordinateRequired {
+                    location: Location::Above
+                }
             ),
             other => panic!("{other:?}"),
         }
@@ -681,7 +646,10 @@ mod tests {
         // Frames taken while the arm moved change nothing.
         let mut moving = view(200, vec![]);
         moving.steady = false;
-        assert!(m.apply(&moving).is_none());
+        assert!(matches!(
+            m.apply(&moving),
+            Err(IgnoredView::Moving { frame_id: 200 })
+        ));
         // The pencil is gone: missed in 3 steady views, then forgotten; a new object gets a
         // new id, never an old one.
         let without_pencil: Vec<_> = scene()
@@ -753,5 +721,136 @@ mod tests {
                 .contains("unknown object id 'obj-99'; remembered: obj-1")),
             other => panic!("{other:?}"),
         }
+    }
+
+    fn cube_in_the_middle() -> DetectedObject {
+        object("red cube", 0.25, 0.0, 0.03, 0.03)
+    }
+
+    fn free_space(m: &mut SceneMemory) -> (f64, Point2) {
+        match m.answer(&WorkspaceRequest::GetLargestFreeSpace) {
+            WorkspaceReply::FreeSpace { area_m2, center } => (area_m2, center),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn free_space_counts_the_objects_on_the_table_of_the_current_workspace() {
+        let mut m = SceneMemory::new(workspaces(), &[], &[], MemorySettings::default());
+        m.apply(&view(1, vec![cube_in_the_middle()])).unwrap();
+        // Worked out in free_space::tests::one_cube_in_the_middle_leaves_the_near_strip.
+        let (area, center) = free_space(&mut m);
+        assert!((area - 0.01089936).abs() < 1e-9, "{area}");
+        assert!((center.x_m - 0.19432).abs() < 1e-9 && center.y_m.abs() < 1e-9);
+        // Held: off the table, the whole sheet is free.
+        m.answer(&WorkspaceRequest::ObjectPicked {
+            object_id: "obj-1".into(),
+        });
+        let (area, _) = free_space(&mut m);
+        assert!((area - 0.174 * 0.174).abs() < 1e-12, "{area}");
+        // Placed on the far-left corner: the near 86 rows stay free (see
+        // free_space::tests::a_corner_object_leaves_an_l_whose_larger_arm_wins; a 3 cm cube
+        // with the 1 cm margin blocks the same 5 cm × 5 cm square).
+        m.answer(&WorkspaceRequest::ObjectPlaced {
+            object_id: "obj-1".into(),
+            at: Point2::new(0.337, 0.087),
+        });
+        let (area, center) = free_space(&mut m);
+        assert!((area - 0.02603736).abs() < 1e-9, "{area}");
+        assert!((center.x_m - 0.23782).abs() < 1e-9, "{center:?}");
+    }
+
+    #[test]
+    fn object_questions_follow_the_workspace_in_view() {
+        let mut m = memory();
+        let mut gazebo = view(2, vec![object("pencil", 0.2, 0.0, 0.01, 0.1)]);
+        gazebo.workspace_id = "gazebo_1".into();
+        let t = m.apply(&gazebo).unwrap();
+        assert_eq!(t.workspace_id, "gazebo_1");
+        assert_eq!(m.current_workspace().unwrap().id, "gazebo_1");
+        // Now the detection tools answer about gazebo_1 only (a new object there: obj-5).
+        match m.answer(&get(Location::None, None, None)) {
+            WorkspaceReply::Objects { objects } => {
+                assert_eq!(objects.len(), 1);
+                assert_eq!(objects[0].id, "obj-5");
+                assert_eq!(objects[0].workspace_id, "gazebo_1");
+            }
+            other => panic!("{other:?}"),
+        }
+        // Back to niryo_ws: its four objects were kept (not in view, not missed).
+        m.apply(&view(3, scene())).unwrap();
+        assert_eq!(
+            labels_of(m.answer(&get(Location::None, None, None))).len(),
+            4
+        );
+    }
+
+    #[test]
+    fn views_of_unknown_workspaces_change_nothing_and_say_why() {
+        let mut m = memory();
+        let mut other = view(2, vec![]);
+        other.workspace_id = "foo_ws".into();
+        let err = m.apply(&other).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "frame 2 shows workspace 'foo_ws', which is not configured (known: niryo_ws, \
+             gazebo_1); check the scene file and the detector's workspace ids"
+        );
+        assert_eq!(m.current_workspace().unwrap().id, "niryo_ws");
+        assert_eq!(
+            labels_of(m.answer(&get(Location::None, None, None))).len(),
+            4
+        );
+    }
+
+    #[test]
+    fn a_placed_object_moves_to_the_workspace_it_was_put_in() {
+        let far = WorkspaceInfo {
+            id: "far_ws".into(),
+            robot: RobotModel::Ned2,
+            upper_left: Point2::new(0.337, 0.4),
+            lower_right: Point2::new(0.163, 0.2),
+            observation_pose: Pose::new(0.2, 0.3, 0.3, 0.0, 1.5, 0.0),
+        };
+        let mut all = workspaces();
+        all.push(far);
+        let mut m = SceneMemory::new(all, &[], &[], MemorySettings::default());
+        m.apply(&view(1, scene())).unwrap();
+        // Placed 1 cm outside niryo_ws (within the margin): stays there.
+        let placed = m.answer(&WorkspaceRequest::ObjectPlaced {
+            object_id: "obj-2".into(),
+            at: Point2::new(0.2, -0.097),
+        });
+        assert!(
+            matches!(placed, WorkspaceReply::Object { object: Some(ref o) } if o.workspace_id == "niryo_ws")
+        );
+        // Placed on the far workspace: it belongs there now, and leaves niryo_ws's answers.
+        let placed = m.answer(&WorkspaceRequest::ObjectPlaced {
+            object_id: "obj-2".into(),
+            at: Point2::new(0.25, 0.3),
+        });
+        assert!(
+            matches!(placed, WorkspaceReply::Object { object: Some(ref o) } if o.workspace_id == "far_ws")
+        );
+        assert!(labels_of(m.answer(&get(Location::None, None, Some("pencil")))).is_empty());
+        // Empty and unknown ids are refused.
+        assert!(matches!(
+            m.answer(&WorkspaceRequest::ObjectPlaced {
+                object_id: " ".into(),
+                at: Point2::new(0.25, 0.0),
+            }),
+            WorkspaceReply::Error {
+                error: WorkspaceError::InvalidRequest { .. }
+            }
+        ));
+        assert!(matches!(
+            m.answer(&WorkspaceRequest::ObjectPlaced {
+                object_id: "obj-77".into(),
+                at: Point2::new(0.25, 0.0),
+            }),
+            WorkspaceReply::Error {
+                error: WorkspaceError::InvalidRequest { .. }
+            }
+        ));
     }
 }
