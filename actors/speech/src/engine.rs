@@ -224,7 +224,7 @@ pub fn parse_wav(bytes: &[u8]) -> Result<Audio, String> {
 }
 
 /// The ElevenLabs text-to-speech API.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct ElevenLabsEngine {
     /// Base URL, e.g. `https://api.elevenlabs.io`.
     pub base_url: String,
@@ -234,6 +234,18 @@ pub struct ElevenLabsEngine {
     pub voice_id: String,
     /// Model id.
     pub model_id: String,
+}
+
+/// Shows everything but the key, so the engine can be logged.
+impl std::fmt::Debug for ElevenLabsEngine {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ElevenLabsEngine")
+            .field("base_url", &self.base_url)
+            .field("api_key", &"<redacted>")
+            .field("voice_id", &self.voice_id)
+            .field("model_id", &self.model_id)
+            .finish()
+    }
 }
 
 /// Sample rate asked of ElevenLabs (`output_format=pcm_16000`).
@@ -379,6 +391,12 @@ mod tests {
         assert!(e.to_string().contains("set ELEVENLABS_API_KEY"), "{e}");
         let e = ElevenLabsEngine::new("ftp://x", "k", "v", "m").unwrap_err();
         assert!(e.to_string().contains("must start with http"), "{e}");
-        assert!(ElevenLabsEngine::new("https://api.elevenlabs.io", "k", "v", "m").is_ok());
+        let engine =
+            ElevenLabsEngine::new("https://api.elevenlabs.io", "sk-secret", "v", "m").unwrap();
+        let shown = format!("{engine:?}");
+        assert!(
+            !shown.contains("sk-secret") && shown.contains("redacted"),
+            "{shown}"
+        );
     }
 }

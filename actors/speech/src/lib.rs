@@ -29,7 +29,7 @@ use robotd_protocol::validate::Validate;
 use robotd_runtime::bus::{Bus, BusError, Publisher};
 use robotd_runtime::catalog::{OVERLAY_TEXT, SPEECH_EVENTS, SPEECH_SPEAK};
 use robotd_runtime::config::TtsConfig;
-use robotd_runtime::supervision::{Supervised, SupervisionObserver, Supervisor};
+use robotd_runtime::supervision::{Supervised, SupervisedError, SupervisionObserver, Supervisor};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -219,6 +219,9 @@ impl Speech {
             .await
             .map_err(|e| SpeechStartError::Engine(e.to_string()))?;
         let engine_name = settings.engine.name();
+        // A text that finds the engine restarting waits this long for it (the longest backoff
+        // and a margin) instead of being lost with the one that crashed it.
+        let restart_wait = settings.policy.backoff_max + Duration::from_secs(1);
         let stop = Arc::new(Notify::new());
         let task = {
             let engine = engine.clone();
@@ -261,6 +264,7 @@ impl Speech {
                             speaking = Some(tokio::spawn(speak_one(
                                 next.text,
                                 engine.clone(),
+                                restart_wait,
                                 settings.output.clone(),
                                 settings.scratch_dir.clone(),
                                 outlets.clone(),
@@ -314,9 +318,44 @@ fn report_rejected(outlets: &Outlets, rejected: Option<Rejected>, capacity: usiz
     }
 }
 
+/// Has the supervised engine synthesise `text`. A text that finds the engine restarting (it
+/// was not delivered, so nothing ran) waits once for the restart and is sent again; only the
+/// text the engine crashed on is lost.
+async fn synthesize(
+    engine: &Supervised<EngineActor>,
+    text: &str,
+    restart_wait: Duration,
+) -> Result<Utterance, String> {
+    let mut waited = false;
+    loop {
+        match engine.ask(Synthesize(text.to_owned())).await {
+            Ok(utterance) => return Ok(utterance),
+            Err(SupervisedError::Restarting { .. }) if !waited => {
+                waited = true;
+                if let Err(error) = engine.wait_ready(restart_wait).await {
+                    return Err(format!(
+                        "the speech engine did not come back from a restart: {error}"
+                    ));
+                }
+            }
+            Err(SupervisedError::ActorFailed { reason, .. }) => {
+                return Err(format!(
+                    "the speech engine crashed on this text ({reason}); it is restarted for the \
+                     next one"
+                ))
+            }
+            Err(SupervisedError::Handler { error, .. }) => {
+                return Err(format!("speech engine: {error}"))
+            }
+            Err(error) => return Err(format!("speech engine: {error}")),
+        }
+    }
+}
+
 async fn speak_one(
     text: String,
     engine: Supervised<EngineActor>,
+    restart_wait: Duration,
     output: Output,
     scratch: PathBuf,
     outlets: Arc<Outlets>,
@@ -327,7 +366,7 @@ async fn speak_one(
     if let Err(error) = outlets.overlays.publish(&overlay) {
         tracing::debug!(%error, "speech: publishing the overlay failed");
     }
-    let outcome = match engine.ask(Synthesize(text.clone())).await {
+    let outcome = match synthesize(&engine, &text, restart_wait).await {
         Ok(Utterance::Audio(audio)) => {
             match tokio::task::spawn_blocking(move || output.emit(&audio, &scratch)).await {
                 Ok(Ok(place)) => Ok(place),
@@ -338,7 +377,7 @@ async fn speak_one(
         Ok(Utterance::LoggedOnly) => {
             Err("not spoken: no speech engine is available (the text was logged)".into())
         }
-        Err(error) => Err(format!("speech engine: {error}")),
+        Err(reason) => Err(reason),
     };
     match outcome {
         Ok(place) => {

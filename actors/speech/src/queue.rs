@@ -3,7 +3,8 @@
 //! Higher priority first, then older first. It holds at most `capacity` texts: when one more
 //! arrives, the lowest-priority oldest text (which may be the new one) is dropped. The same
 //! text (case and surrounding spaces ignored) asked again within the duplicate window of its
-//! last acceptance is dropped too — three skills announcing the same thing say it once.
+//! last acceptance is dropped too — three skills announcing the same thing say it once. A text
+//! the full queue dropped was never said, so asking for it again is not a duplicate.
 
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
@@ -36,7 +37,8 @@ pub struct SpeechQueue {
     duplicate_window: Duration,
     items: Vec<Queued>,
     next_seq: u64,
-    accepted_at: HashMap<String, Instant>,
+    /// Normalised text → when it was last accepted, and the `seq` it was accepted as.
+    accepted_at: HashMap<String, (Instant, u64)>,
 }
 
 impl SpeechQueue {
@@ -71,14 +73,14 @@ impl SpeechQueue {
         now: Instant,
     ) -> Option<Rejected> {
         let key = text.trim().to_lowercase();
-        if let Some(at) = self.accepted_at.get(&key) {
+        if let Some((at, _)) = self.accepted_at.get(&key) {
             if now.saturating_duration_since(*at) < self.duplicate_window {
                 return Some(Rejected::Duplicate(text.to_owned()));
             }
         }
         self.accepted_at
-            .retain(|_, at| now.saturating_duration_since(*at) < self.duplicate_window);
-        self.accepted_at.insert(key, now);
+            .retain(|_, (at, _)| now.saturating_duration_since(*at) < self.duplicate_window);
+        self.accepted_at.insert(key, (now, self.next_seq));
         self.items.push(Queued {
             text: text.to_owned(),
             priority,
@@ -93,7 +95,16 @@ impl SpeechQueue {
                 .enumerate()
                 .min_by_key(|(_, q)| (q.priority, q.seq))
                 .map(|(i, _)| i)?;
-            return Some(Rejected::QueueFull(self.items.remove(victim)));
+            let victim = self.items.remove(victim);
+            let key = victim.text.trim().to_lowercase();
+            if self
+                .accepted_at
+                .get(&key)
+                .is_some_and(|(_, seq)| *seq == victim.seq)
+            {
+                self.accepted_at.remove(&key);
+            }
+            return Some(Rejected::QueueFull(victim));
         }
         None
     }
@@ -160,5 +171,23 @@ mod tests {
         }
         let order: Vec<String> = std::iter::from_fn(|| q.pop()).map(|i| i.text).collect();
         assert_eq!(order, ["high", "mid", "low new"]);
+    }
+
+    #[test]
+    fn a_text_dropped_by_a_full_queue_is_no_duplicate() {
+        let t = Instant::now();
+        let mut q = SpeechQueue::new(1, Duration::from_secs(2));
+        q.push("high", 9, "s", t);
+        assert!(matches!(
+            q.push("low", 1, "s", t),
+            Some(Rejected::QueueFull(item)) if item.text == "low"
+        ));
+        q.pop();
+        // "low" was never said: asked again at once, it is queued, not called a duplicate.
+        assert_eq!(q.push("low", 1, "s", t + Duration::from_millis(10)), None);
+        assert_eq!(
+            q.push("low", 1, "s", t + Duration::from_millis(20)),
+            Some(Rejected::Duplicate("low".into()))
+        );
     }
 }

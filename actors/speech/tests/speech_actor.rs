@@ -249,6 +249,40 @@ async fn a_crashing_engine_is_restarted_and_speaks_again() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn texts_queued_behind_a_crash_wait_for_the_restart_and_are_spoken() {
+    // The engine is busy, then crashes on "crash"; "next" waited in the queue meanwhile. Only
+    // the text in hand is lost: "next" reaches the restarted engine, not a "restarting" error.
+    let mut h = harness("queued-crash", 50, 100).await;
+    h.say("busy", 5);
+    assert!(matches!(h.next_event().await, SpeechEvent::Started { .. }));
+    h.say("crash", 5);
+    h.say("next", 5);
+    let events = h.events_until(3).await;
+    let dropped = dropped(&events);
+    assert_eq!(dropped.len(), 1, "{events:?}");
+    assert_eq!(dropped[0].0, "crash");
+    assert!(
+        dropped[0].1.contains("crashed on this text"),
+        "{}",
+        dropped[0].1
+    );
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, SpeechEvent::Finished { text, .. } if text == "next")),
+        "{events:?}"
+    );
+    // The supervisor reports the restart just after the new engine is up.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while h.restarts.load(Ordering::SeqCst) == 0 && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    assert_eq!(h.restarts.load(Ordering::SeqCst), 1);
+    let _ = std::fs::remove_dir_all(&h.spool);
+    h.speech.shutdown().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn elevenlabs_engine_against_a_local_mock() {
     use axum::extract::{Path, Query};
     use axum::http::{HeaderMap, StatusCode};
