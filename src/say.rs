@@ -4,6 +4,8 @@
 //! spool, and the command says where).
 
 use anyhow::{bail, Context, Result};
+use robotd_protocol::speech::SpeakRequest;
+use robotd_protocol::validate::Validate;
 use robotd_runtime::config::Config;
 use robotd_speech::engine::Utterance;
 use std::path::Path;
@@ -13,6 +15,9 @@ pub fn run(config: &Config, text: &str, out: Option<&Path>) -> Result<String> {
     if text.trim().is_empty() {
         bail!("nothing to say: give a non-empty text");
     }
+    SpeakRequest::new(text, "cli")
+        .validate()
+        .map_err(|e| anyhow::anyhow!("cannot say that: {e}"))?;
     let key = std::env::var(robotd_speech::ELEVENLABS_KEY_VAR).ok();
     let (engine, warning) = robotd_speech::choose_engine(&config.tts, key.as_deref())
         .context("choosing the speech engine ([tts] engine)")?;

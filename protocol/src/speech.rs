@@ -12,6 +12,7 @@
 //!
 //! let say = SpeakRequest::new("Picking up the pencil", "mcp");
 //! assert!(say.validate().is_ok());
+//! assert!(SpeakRequest::new("a".repeat(2001), "mcp").validate().is_err());
 //! let overlay = TextOverlay::new("sort the cubes", OverlayKind::UserTask);
 //! assert_eq!(serde_json::to_value(overlay.kind).unwrap(), "user_task");
 //! ```
@@ -45,9 +46,23 @@ impl SpeakRequest {
     }
 }
 
+/// Longest text one [`SpeakRequest`] may carry, in characters (about two minutes of speech).
+pub const MAX_SPEECH_CHARS: usize = 2000;
+
 impl Validate for SpeakRequest {
     fn validate(&self) -> Result<(), ValidationError> {
-        non_empty("text", &self.text)
+        non_empty("text", &self.text)?;
+        let chars = self.text.chars().count();
+        if chars > MAX_SPEECH_CHARS {
+            return Err(ValidationError::Invalid {
+                field: "text".into(),
+                reason: format!(
+                    "at most {MAX_SPEECH_CHARS} characters can be spoken at once, got {chars}; \
+                     split the text"
+                ),
+            });
+        }
+        Ok(())
     }
 }
 
