@@ -110,6 +110,63 @@ pub struct EspeakEngine {
     pub voice: String,
     /// Words per minute.
     pub rate_wpm: u32,
+    /// Longest a synthesis may take before the process is killed.
+    pub timeout: Duration,
+}
+
+/// Default [`EspeakEngine::timeout`].
+pub const ESPEAK_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// Runs `command` to the end, collecting its output, but kills it after `timeout`.
+pub(crate) fn run_with_timeout(
+    command: &mut Command,
+    timeout: Duration,
+) -> std::io::Result<std::process::Output> {
+    let mut child = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()?;
+    let drain = |pipe: Option<Box<dyn Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut bytes = Vec::new();
+            if let Some(mut pipe) = pipe {
+                let _ = pipe.read_to_end(&mut bytes);
+            }
+            bytes
+        })
+    };
+    let stdout = drain(
+        child
+            .stdout
+            .take()
+            .map(|p| Box::new(p) as Box<dyn Read + Send>),
+    );
+    let stderr = drain(
+        child
+            .stderr
+            .take()
+            .map(|p| Box::new(p) as Box<dyn Read + Send>),
+    );
+    let deadline = std::time::Instant::now() + timeout;
+    let status = loop {
+        if let Some(status) = child.try_wait()? {
+            break status;
+        }
+        if std::time::Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                format!("did not finish within {timeout:?} and was killed"),
+            ));
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    Ok(std::process::Output {
+        status,
+        stdout: stdout.join().unwrap_or_default(),
+        stderr: stderr.join().unwrap_or_default(),
+    })
 }
 
 impl EspeakEngine {
@@ -119,6 +176,7 @@ impl EspeakEngine {
             program: PathBuf::from("espeak-ng"),
             voice: voice.to_owned(),
             rate_wpm,
+            timeout: ESPEAK_TIMEOUT,
         };
         let status = Command::new(&engine.program)
             .arg("--version")
@@ -151,7 +209,8 @@ impl SpeechEngine for EspeakEngine {
             engine: "espeak-ng",
             reason,
         };
-        let output = Command::new(&self.program)
+        let mut command = Command::new(&self.program);
+        command
             .args([
                 "--stdout",
                 "-v",
@@ -161,8 +220,8 @@ impl SpeechEngine for EspeakEngine {
                 "--",
             ])
             .arg(text)
-            .stdin(Stdio::null())
-            .output()
+            .stdin(Stdio::null());
+        let output = run_with_timeout(&mut command, self.timeout)
             .map_err(|e| failed(format!("cannot run it: {e}")))?;
         if !output.status.success() {
             return Err(failed(format!(

@@ -115,13 +115,14 @@ impl Output {
                 })?;
                 let file = scratch.join(format!("playing-{}.wav", std::process::id()));
                 audio.write_wav(&file)?;
-                let status = Command::new(player)
-                    .arg(&file)
-                    .stdout(Stdio::null())
-                    .stderr(Stdio::piped())
-                    .status()
-                    .map_err(|e| EngineError::Output(format!("{}: {e}", player.display())))?;
+                // A hung player is killed once the audio should long be over.
+                let timeout = std::time::Duration::from_secs_f64(audio.duration_s() + 10.0);
+                let result =
+                    crate::engine::run_with_timeout(Command::new(player).arg(&file), timeout);
                 let _ = std::fs::remove_file(&file);
+                let status = result
+                    .map_err(|e| EngineError::Output(format!("{}: {e}", player.display())))?
+                    .status;
                 if status.success() {
                     Ok(format!("played with {}", player.display()))
                 } else {

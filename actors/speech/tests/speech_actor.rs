@@ -381,3 +381,23 @@ async fn elevenlabs_speaks_tls_to_https_urls() {
     assert_eq!(bytes[0], 0x16, "not a TLS handshake: {bytes:?}");
     assert_eq!(bytes[1], 3, "not a TLS handshake: {bytes:?}");
 }
+
+#[test]
+fn a_hung_espeak_is_killed_after_its_timeout() {
+    use std::os::unix::fs::PermissionsExt;
+    let script = std::env::temp_dir().join(format!("robotd-hung-espeak-{}", std::process::id()));
+    std::fs::write(&script, "#!/bin/sh\nsleep 30\n").unwrap();
+    std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let engine = EspeakEngine {
+        program: script.clone(),
+        voice: "en".into(),
+        rate_wpm: 160,
+        timeout: Duration::from_millis(300),
+    };
+    let started = Instant::now();
+    let error = engine.synthesize("hello").unwrap_err();
+    let took = started.elapsed();
+    assert!(took < Duration::from_secs(5), "{took:?}");
+    assert!(error.to_string().contains("killed"), "{error}");
+    let _ = std::fs::remove_file(script);
+}
