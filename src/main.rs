@@ -156,6 +156,20 @@ fn load_config(args: &ConfigArgs) -> Result<Config> {
     })?)
 }
 
+/// Prints benchmark figures as one JSON object (`--json`) or as their table.
+fn print_figures(
+    json: bool,
+    figures: &impl serde::Serialize,
+    table: String,
+) -> Result<std::process::ExitCode> {
+    if json {
+        println!("{}", serde_json::to_string(figures)?);
+    } else {
+        print!("{table}");
+    }
+    Ok(std::process::ExitCode::SUCCESS)
+}
+
 fn main() -> std::process::ExitCode {
     match run() {
         Ok(code) => code,
@@ -227,34 +241,19 @@ fn run() -> Result<std::process::ExitCode> {
                     restarts: args.restarts.max(1),
                 },
             )?;
-            if args.json {
-                println!("{}", serde_json::to_string(&figures)?);
-            } else {
-                print!("{}", figures.table());
-            }
-            Ok(std::process::ExitCode::SUCCESS)
+            print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {
             what: BenchCommand::Sim(args),
         } => {
             let figures = bench::sim::run(args.frames.max(1))?;
-            if args.json {
-                println!("{}", serde_json::to_string(&figures)?);
-            } else {
-                print!("{}", figures.table());
-            }
-            Ok(std::process::ExitCode::SUCCESS)
+            print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {
             what: BenchCommand::Perception(args),
         } => {
             let figures = bench::perception::run(args.scenes.max(1), args.bus_frames.max(1))?;
-            if args.json {
-                println!("{}", serde_json::to_string(&figures)?);
-            } else {
-                print!("{}", figures.table());
-            }
-            Ok(std::process::ExitCode::SUCCESS)
+            print_figures(args.json, &figures, figures.table())
         }
         Command::BenchPeer {
             role,

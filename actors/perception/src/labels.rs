@@ -151,12 +151,12 @@ pub struct LabelTable {
 #[derive(Debug, thiserror::Error)]
 pub enum LabelTableError {
     /// The file could not be read.
-    #[error("cannot read the label table {path}: {source}")]
+    #[error("cannot read the label table {path}: {reason}")]
     Read {
         /// The file.
         path: String,
         /// Why.
-        source: std::io::Error,
+        reason: String,
     },
     /// The file is not valid TOML of the expected shape.
     #[error("label table {origin}: {reason}")]
@@ -226,9 +226,9 @@ impl LabelTable {
 
     /// Reads a table file.
     pub fn load(path: &Path) -> Result<LabelTable, LabelTableError> {
-        let text = std::fs::read_to_string(path).map_err(|source| LabelTableError::Read {
+        let text = std::fs::read_to_string(path).map_err(|e| LabelTableError::Read {
             path: path.display().to_string(),
-            source,
+            reason: e.to_string(),
         })?;
         LabelTable::from_toml_str(&text, &path.display().to_string())
     }
