@@ -4,6 +4,7 @@
 //! (`protocol`, `runtime`, `actors/*`, `adapters`).
 
 mod bench;
+mod call;
 mod doctor;
 mod say;
 mod serve;
@@ -54,6 +55,15 @@ enum Command {
     },
     /// Say one text with the configured speech engine: play it, or write it with --out.
     Say(SayArgs),
+    /// Serve the MCP tools on stdin/stdout (for desktop LLM apps that spawn their server).
+    /// Starts the whole runtime; logs go to stderr and the log file, never to stdout.
+    McpStdio,
+    /// Call one tool of a running robotd (or any MCP server) and print its reply.
+    ///
+    /// Example: `robotd call pick_object --arg object_name=pencil --arg
+    /// 'pick_coordinate=[0.22,-0.05]'`. Exits 0 on a ✓ reply, 1 on a ❌ reply, 2 when the
+    /// call could not be made.
+    Call(CallArgs),
     /// The other process of a two-process benchmark (started by `robotd bench`).
     #[command(hide = true)]
     BenchPeer {
@@ -65,6 +75,26 @@ enum Command {
         #[arg(long)]
         cpu: Option<usize>,
     },
+}
+
+#[derive(Debug, Args)]
+struct CallArgs {
+    /// The tool's name, e.g. `get_detected_objects`; `list` lists the tools.
+    tool: String,
+    /// An argument as key=value; the value is read as JSON when it parses (numbers, lists,
+    /// true/false, null), otherwise as a string.
+    #[arg(long = "arg", value_name = "KEY=VALUE")]
+    args: Vec<String>,
+    /// The server's MCP URL (`…/sse` for legacy SSE, `…/mcp` for streamable HTTP). Default:
+    /// the configured `http.bind`, `/mcp`.
+    #[arg(long, value_name = "URL")]
+    url: Option<String>,
+    /// Bearer token (default: `[mcp] token` of the configuration, e.g. ROBOTD_MCP__TOKEN).
+    #[arg(long, env = "ROBOTD_MCP_TOKEN", hide_env_values = true)]
+    token: Option<String>,
+    /// Print `structuredContent` (JSON) instead of the text.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, Args)]
@@ -98,6 +128,21 @@ enum BenchCommand {
     /// Perception: detector speed on one core, accuracy on random simulated scenes, and a
     /// camera frame to objects in the workspace model through the bus.
     Perception(BenchPerceptionArgs),
+    /// MCP latency over SSE and streamable HTTP, calls/s with 8 and 64 clients, the
+    /// service's memory (starts its own `robotd serve`).
+    Mcp(BenchMcpArgs),
+}
+
+#[derive(Debug, Args)]
+struct BenchMcpArgs {
+    #[arg(long)]
+    json: bool,
+    /// Sequential calls per latency measurement.
+    #[arg(long, default_value_t = 1000)]
+    calls: usize,
+    /// Seconds of each throughput run.
+    #[arg(long, default_value_t = 3.0)]
+    seconds: f64,
 }
 
 #[derive(Debug, Args)]
@@ -195,6 +240,36 @@ fn run() -> Result<std::process::ExitCode> {
             runtime.block_on(serve::run(config))?;
             Ok(std::process::ExitCode::SUCCESS)
         }
+        Command::McpStdio => {
+            let config = load_config(&cli.config)?;
+            let _telemetry = telemetry::init(&config.telemetry, Mode::Stdio)?;
+            let runtime = tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()
+                .context("starting the tokio runtime")?;
+            runtime.block_on(serve::run_stdio(config))?;
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Call(args) => {
+            let config = load_config(&cli.config)?;
+            let runtime = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .context("starting the tokio runtime")?;
+            let url = args
+                .url
+                .clone()
+                .unwrap_or_else(|| format!("http://{}/mcp", config.http.bind));
+            let token = args.token.clone().or(config.mcp.token.clone());
+            runtime.block_on(call::run(call::CallOptions {
+                url,
+                token,
+                tool: args.tool,
+                args: args.args,
+                json: args.json,
+            }))
+        }
         Command::Say(args) => {
             let config = load_config(&cli.config)?;
             let said = say::run(&config, &args.text, args.out.as_deref())?;
@@ -253,6 +328,13 @@ fn run() -> Result<std::process::ExitCode> {
             what: BenchCommand::Perception(args),
         } => {
             let figures = bench::perception::run(args.scenes.max(1), args.bus_frames.max(1))?;
+            print_figures(args.json, &figures, figures.table())
+        }
+        Command::Bench {
+            what: BenchCommand::Mcp(args),
+        } => {
+            let exe = std::env::current_exe().context("finding the robotd binary")?;
+            let figures = bench::mcp::run(&exe, args.calls.max(10), args.seconds.max(0.5))?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::BenchPeer {

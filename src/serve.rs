@@ -8,6 +8,9 @@
 use anyhow::{Context, Result};
 use robotd_adapters::http::{HealthSource, HttpEdge};
 use robotd_hardware::Hardware;
+use robotd_mcp::call_log::CallLog;
+use robotd_mcp::http::HttpGuard;
+use robotd_mcp::McpService;
 use robotd_perception::detector::{ColourDetector, ColourDetectorSettings};
 use robotd_perception::labels::LabelTable;
 use robotd_perception::{Perception, Pipeline};
@@ -21,10 +24,12 @@ use robotd_runtime::supervision::{
     observer_fn, SupervisedProcess, SupervisionEvent, SupervisionObserver, Supervisor,
 };
 use robotd_speech::{Speech, SpeechSettings};
+use robotd_tools::{Registry, ToolSettings};
 use robotd_workspace_model::{MemorySettings, WorkspaceModel, WorkspaceModelSettings};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
+use tokio_util::sync::CancellationToken;
 
 /// What /health says about the robot.
 struct RobotInfo {
@@ -141,105 +146,216 @@ fn supervision_observer(
 }
 
 /// Runs the service until a shutdown signal.
-pub async fn run(config: Config) -> Result<()> {
-    let started = Instant::now();
-    if config.redis.url.is_some() {
-        tracing::warn!("[redis] url is set, but this build has no Redis edge yet; it is ignored");
-    }
-    let bus =
-        Bus::open(BusOptions::new(&config.bus.namespace, "robotd")).context("joining the bus")?;
-    tracing::info!(namespace = %config.bus.namespace, "joined the bus");
+/// Everything `robotd serve` runs, started; [`Runtime::shutdown`] stops it in order.
+pub struct Runtime {
+    /// The bus this instance joined.
+    pub bus: Bus,
+    /// The configured workspaces (from the robot's scene).
+    pub workspaces: Vec<WorkspaceInfo>,
+    /// The report behind `/health` and `get_system_status`.
+    pub health_source: HealthSource,
+    system: tokio::task::JoinHandle<()>,
+    hardware: Hardware,
+    workspace_model: WorkspaceModel,
+    perception: Perception,
+    speech: Speech,
+    processes: Vec<SupervisedProcess>,
+}
 
-    // robotd's own service: any process on the bus can check that robotd is alive.
-    let mut ping_server = bus.server(&SYSTEM_PING).context("serving system/ping")?;
-    let pid = std::process::id();
-    let system = tokio::spawn(async move {
-        let served = ping_server
-            .serve(move |ping| async move {
-                Ok(Pong {
-                    seq: ping.seq,
-                    payload: ping.payload,
-                    served_by_pid: pid,
-                })
-            })
-            .await;
-        if let Err(error) = served {
-            tracing::error!(%error, "the system service stopped");
+impl Runtime {
+    /// Joins the bus and starts every actor.
+    pub async fn start(config: &Config) -> Result<Runtime> {
+        let started = Instant::now();
+        if config.redis.url.is_some() {
+            tracing::warn!(
+                "[redis] url is set, but this build has no Redis edge yet; it is ignored"
+            );
         }
-    });
+        let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd"))
+            .context("joining the bus")?;
+        tracing::info!(namespace = %config.bus.namespace, "joined the bus");
 
-    let health = Arc::new(HealthBoard::default());
-    let restarts: Arc<Mutex<Publisher<RestartEvent>>> =
-        Arc::new(Mutex::new(bus.publisher(&HEALTH_RESTARTS)?));
-    let hardware = Hardware::start(&bus, &config, |_actor| {
-        supervision_observer(health.clone(), restarts.clone())
-    })
-    .await
-    .context("starting the robot's hardware actors")?;
-    let robot = RobotInfo {
-        model: hardware
-            .arm_context
-            .kinematics
-            .model()
-            .display_name()
-            .to_owned(),
-        scene: hardware
+        // robotd's own service: any process on the bus can check that robotd is alive.
+        let mut ping_server = bus.server(&SYSTEM_PING).context("serving system/ping")?;
+        let pid = std::process::id();
+        let system = tokio::spawn(async move {
+            let served = ping_server
+                .serve(move |ping| async move {
+                    Ok(Pong {
+                        seq: ping.seq,
+                        payload: ping.payload,
+                        served_by_pid: pid,
+                    })
+                })
+                .await;
+            if let Err(error) = served {
+                tracing::error!(%error, "the system service stopped");
+            }
+        });
+
+        let health = Arc::new(HealthBoard::default());
+        let restarts: Arc<Mutex<Publisher<RestartEvent>>> =
+            Arc::new(Mutex::new(bus.publisher(&HEALTH_RESTARTS)?));
+        let hardware = Hardware::start(&bus, config, |_actor| {
+            supervision_observer(health.clone(), restarts.clone())
+        })
+        .await
+        .context("starting the robot's hardware actors")?;
+        let robot_model = hardware.arm_context.kinematics.model();
+        let robot = RobotInfo {
+            model: robot_model.display_name().to_owned(),
+            scene: hardware
+                .sim
+                .as_ref()
+                .map(|sim| sim.with_world(|world| world.scene_name().to_owned()))
+                .unwrap_or_default(),
+        };
+        tracing::info!(model = %robot.model, scene = %robot.scene, "robot ready");
+        let workspaces = hardware
             .sim
             .as_ref()
-            .map(|sim| sim.with_world(|world| world.scene_name().to_owned()))
-            .unwrap_or_default(),
-    };
-    tracing::info!(model = %robot.model, scene = %robot.scene, "robot ready");
-    let workspaces = hardware
-        .sim
-        .as_ref()
-        .map(|sim| {
-            sim.with_world(|world| {
-                world
-                    .workspaces()
-                    .iter()
-                    .map(|w| w.to_info(world.robot()))
-                    .collect::<Vec<_>>()
+            .map(|sim| {
+                sim.with_world(|world| {
+                    world
+                        .workspaces()
+                        .iter()
+                        .map(|w| w.to_info(world.robot()))
+                        .collect::<Vec<_>>()
+                })
             })
-        })
-        .unwrap_or_default();
-    let labels = load_label_table(&config)?;
-    let workspace_model =
-        start_workspace_model(&bus, workspaces.clone(), &labels, &config.workspace)?;
-    let perception = start_perception(&bus, &hardware, workspaces.clone(), labels.clone())?;
-    let speech = start_speech(
-        &bus,
-        &config,
-        supervision_observer(health.clone(), restarts.clone()),
-    )
-    .await?;
-    let processes = start_process_actors(&config, &bus, &health, &restarts).await?;
+            .unwrap_or_default();
+        let labels = load_label_table(config)?;
+        let workspace_model =
+            start_workspace_model(&bus, workspaces.clone(), &labels, &config.workspace)?;
+        let perception = start_perception(&bus, &hardware, workspaces.clone(), labels.clone())?;
+        let speech = start_speech(
+            &bus,
+            config,
+            supervision_observer(health.clone(), restarts.clone()),
+        )
+        .await?;
+        let _ = robot_model;
+        let processes = start_process_actors(config, &bus, &health, &restarts).await?;
 
-    let report_config = config.clone();
-    let report_health = health.clone();
-    let health_source: HealthSource =
-        Arc::new(move || report_health.report(&report_config, &robot, started));
-    let edge = HttpEdge::bind(config.http.bind, health_source).await?;
+        let report_config = config.clone();
+        let report_health = health.clone();
+        let health_source: HealthSource =
+            Arc::new(move || report_health.report(&report_config, &robot, started));
+        Ok(Runtime {
+            bus,
+            workspaces,
+            health_source,
+            system,
+            hardware,
+            workspace_model,
+            perception,
+            speech,
+            processes,
+        })
+    }
+
+    /// The tool registry over this runtime's bus.
+    pub fn tool_registry(&self, config: &Config) -> Result<Registry> {
+        let mut settings = ToolSettings::new(config.service.name.clone(), self.workspaces.clone());
+        settings.skill_timeout = std::time::Duration::from_secs(config.mcp.skill_timeout_s);
+        let health = self.health_source.clone();
+        let control = self.hardware.arm_context.control.clone();
+        settings.status = Arc::new(move || {
+            let report = health();
+            serde_json::json!({
+                "status": report.get("status"),
+                "actors": report.get("actors"),
+                "estop_engaged": control.estop_engaged(),
+                "uptime_ms": report.get("uptime_ms"),
+            })
+        });
+        Ok(Registry::connect(&self.bus, settings)?)
+    }
+
+    /// Stops everything, actors first, hardware last.
+    pub async fn shutdown(self) {
+        for process in &self.processes {
+            if let Err(error) = process.stop().await {
+                tracing::warn!(%error, "stopping an actor process");
+            }
+        }
+        self.perception.shutdown();
+        self.speech.shutdown().await;
+        self.workspace_model.shutdown().await;
+        self.hardware.shutdown().await;
+        self.system.abort();
+    }
+}
+
+/// The MCP service over `registry`, with the call log in the configured log directory.
+fn mcp_service(config: &Config, registry: Registry) -> McpService {
+    let (log, error) = CallLog::open(&config.telemetry.log_dir);
+    match (error, log.path()) {
+        (Some(error), _) => tracing::warn!(
+            %error,
+            dir = %config.telemetry.log_dir.display(),
+            "the MCP call log cannot be written; calls are only traced"
+        ),
+        (None, Some(path)) => tracing::info!(path = %path.display(), "MCP call log"),
+        (None, None) => {}
+    }
+    McpService::new(registry, config.mcp.strict_errors, Arc::new(log))
+}
+
+/// `robotd serve`: the runtime, with `/health`, `/metrics` and the MCP edge on the HTTP port,
+/// until SIGINT or SIGTERM.
+pub async fn run(config: Config) -> Result<()> {
+    let runtime = Runtime::start(&config).await?;
+    let mut edge = HttpEdge::bind(config.http.bind, runtime.health_source.clone()).await?;
     let address = edge.local_addr()?;
-    tracing::info!("HTTP edge on http://{address} (/health, /metrics)");
+    let stop_sessions = CancellationToken::new();
+    if config.mcp.enabled {
+        let guard = HttpGuard {
+            token: config.mcp.token.clone().filter(|t| !t.trim().is_empty()),
+            max_body_bytes: config.mcp.max_body_bytes,
+            allowed_origins: config.mcp.allowed_origins.clone(),
+        };
+        robotd_mcp::http::check_bind(address, &guard)?;
+        let service = mcp_service(&config, runtime.tool_registry(&config)?);
+        edge = edge.with_routes(robotd_mcp::http::router(
+            service,
+            guard,
+            stop_sessions.clone(),
+        ));
+    }
+    tracing::info!("HTTP edge on http://{address} (/health, /metrics, MCP /sse and /mcp)");
     eprintln!(
-        "robotd: serving on http://{address} (/health, /metrics); bus namespace '{}'",
+        "robotd: serving on http://{address} (/health, /metrics{}); bus namespace '{}'",
+        if config.mcp.enabled {
+            ", MCP: /sse and /mcp"
+        } else {
+            ""
+        },
         config.bus.namespace
     );
-
-    edge.serve(shutdown_signal()).await?;
+    let sessions = stop_sessions.clone();
+    edge.serve(async move {
+        shutdown_signal().await;
+        sessions.cancel();
+    })
+    .await?;
     tracing::info!("shutting down");
-    for process in &processes {
-        if let Err(error) = process.stop().await {
-            tracing::warn!(%error, "stopping an actor process");
-        }
-    }
-    perception.shutdown();
-    speech.shutdown().await;
-    workspace_model.shutdown().await;
-    hardware.shutdown().await;
-    system.abort();
+    runtime.shutdown().await;
     Ok(())
+}
+
+/// `robotd mcp-stdio`: the runtime, serving MCP on stdin/stdout until the client closes it
+/// (or SIGINT/SIGTERM). No HTTP port is opened, so it can run beside nothing else.
+pub async fn run_stdio(config: Config) -> Result<()> {
+    let runtime = Runtime::start(&config).await?;
+    let service = mcp_service(&config, runtime.tool_registry(&config)?);
+    tracing::info!("serving MCP on stdio");
+    let served = tokio::select! {
+        served = robotd_mcp::serve_stdio(service) => served,
+        _ = shutdown_signal() => Ok(()),
+    };
+    runtime.shutdown().await;
+    served
 }
 
 /// The in-process actors of this build (an `[actors.<name>]` table tunes their supervision).

@@ -45,6 +45,12 @@ impl HttpEdge {
         })
     }
 
+    /// Adds `routes` (e.g. the MCP edge's) beside `/health` and `/metrics`.
+    pub fn with_routes(mut self, routes: Router) -> Self {
+        self.router = self.router.merge(routes);
+        self
+    }
+
     /// The address actually bound.
     pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
         self.listener.local_addr()

@@ -61,6 +61,7 @@
 //! | [`validate`] | [`Validate`], [`ValidationError`] |
 //! | [`arm`], [`gripper`], [`camera`] | hardware actors' commands, replies, states, frames |
 //! | [`objects`], [`workspace`] | detected objects and the workspace model's queries |
+//! | [`skills`] | pick, place, push and the other robot-control skills |
 //! | [`speech`], [`agent`], [`health`] | TTS and overlays, the LLM agent, supervision and e-stop |
 //! | [`diagnostics`] | bus probes and benchmarks (`robotd doctor`, `robotd bench`) |
 
@@ -74,6 +75,7 @@ pub mod gripper;
 pub mod health;
 pub mod location;
 pub mod objects;
+pub mod skills;
 pub mod speech;
 pub mod units;
 pub mod validate;
@@ -102,6 +104,10 @@ pub const MESSAGE_TYPES: &[(&str, u16)] = &[
     entry::<workspace::DetectableLabels>(),
     entry::<workspace::WorkspaceQuery>(),
     entry::<workspace::TrackedObjects>(),
+    entry::<skills::SkillRequest>(),
+    entry::<skills::SkillReply>(),
+    entry::<skills::SkillProgress>(),
+    entry::<skills::SkillCancel>(),
     entry::<speech::SpeakRequest>(),
     entry::<speech::SpeechEvent>(),
     entry::<speech::TextOverlay>(),

@@ -88,3 +88,18 @@ pub const SPEECH_EVENTS: crate::bus::Topic<robotd_protocol::speech::SpeechEvent>
 /// Texts to show over the video (robot speech, the user's task, system messages).
 pub const OVERLAY_TEXT: crate::bus::Topic<robotd_protocol::speech::TextOverlay> =
     crate::bus::Topic::new("overlay/text", Overflow::latest_wins(32));
+
+/// Pick, place, push and the other robot-control skills. One skill runs at a time; a request
+/// that arrives while one runs waits its turn.
+pub const SKILLS_RUN: Service<
+    robotd_protocol::skills::SkillRequest,
+    robotd_protocol::skills::SkillReply,
+> = Service::new("skills/run");
+
+/// Progress of the running skill (step n of total). Latest wins.
+pub const SKILLS_PROGRESS: crate::bus::Topic<robotd_protocol::skills::SkillProgress> =
+    crate::bus::Topic::new("skills/progress", Overflow::latest_wins(32));
+
+/// Cancel a running skill: the arm stops at once. Back-pressure: a cancel is never dropped.
+pub const SKILLS_CANCEL: crate::bus::Topic<robotd_protocol::skills::SkillCancel> =
+    crate::bus::Topic::new("skills/cancel", Overflow::back_pressure(16));

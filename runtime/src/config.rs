@@ -116,6 +116,9 @@ pub struct Config {
     /// `[tts]`: text to speech.
     #[serde(default)]
     pub tts: TtsConfig,
+    /// `[mcp]`: the MCP edge (served on the `[http]` port).
+    #[serde(default)]
+    pub mcp: McpConfig,
     /// `[actors.<name>]`: per-actor settings; actors without an entry run in-process with
     /// the `[supervision]` policy.
     #[serde(default)]
@@ -496,6 +499,39 @@ impl WorkspaceConfig {
     }
     fn fresh_wait_ms() -> u64 {
         3000
+    }
+}
+
+/// `[mcp]`: the MCP edge, served on the `[http]` port (`/sse`, `/messages/`, `/mcp`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct McpConfig {
+    /// Serve the MCP routes at all.
+    pub enabled: bool,
+    /// Bearer token every MCP request must carry (`Authorization: Bearer …`). Required when
+    /// `http.bind` is not a loopback address. Prefer the `ROBOTD_MCP__TOKEN` environment
+    /// variable to writing it in a file.
+    pub token: Option<String>,
+    /// Largest request body, bytes (1 KiB … 64 MiB).
+    pub max_body_bytes: usize,
+    /// Browser origins allowed besides local ones, e.g. "https://lab.example.org".
+    pub allowed_origins: Vec<String>,
+    /// Set `isError: true` on failure replies (the Python server never did).
+    pub strict_errors: bool,
+    /// Longest a motion tool (pick, place, push …) may take, seconds.
+    pub skill_timeout_s: u64,
+}
+
+impl Default for McpConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            token: None,
+            max_body_bytes: 1024 * 1024,
+            allowed_origins: Vec::new(),
+            strict_errors: false,
+            skill_timeout_s: 180,
+        }
     }
 }
 
@@ -910,6 +946,51 @@ impl Config {
             }
         }
 
+        let mcp = &self.mcp;
+        if !(1024..=64 * 1024 * 1024).contains(&mcp.max_body_bytes) {
+            out.push((
+                "mcp.max_body_bytes".into(),
+                format!("must be from 1024 to 67108864, got {}", mcp.max_body_bytes),
+            ));
+        }
+        if !(1..=3600).contains(&mcp.skill_timeout_s) {
+            out.push((
+                "mcp.skill_timeout_s".into(),
+                format!("must be from 1 to 3600 s, got {}", mcp.skill_timeout_s),
+            ));
+        }
+        if let Some(token) = &mcp.token {
+            if token.trim().len() < 8 {
+                out.push((
+                    "mcp.token".into(),
+                    "must be at least 8 characters (a random string; leave it out for no token)"
+                        .into(),
+                ));
+            }
+        }
+        for origin in &mcp.allowed_origins {
+            if let Err(reason) = check_url(origin, &["http", "https"]) {
+                out.push((
+                    "mcp.allowed_origins".into(),
+                    format!("{reason}; expected an origin such as \"https://lab.example.org\""),
+                ));
+            }
+        }
+        if mcp.enabled
+            && !self.http.bind.ip().is_loopback()
+            && mcp.token.as_deref().is_none_or(|t| t.trim().is_empty())
+        {
+            out.push((
+                "mcp.token".into(),
+                format!(
+                    "is required because http.bind {} is not a loopback address: without it \
+                     anyone on the network could move the robot (set ROBOTD_MCP__TOKEN, or bind \
+                     127.0.0.1)",
+                    self.http.bind
+                ),
+            ));
+        }
+
         if let Some(url) = &self.redis.url {
             if let Err(reason) = check_url(url, &["redis", "rediss", "redis+unix", "unix"]) {
                 out.push((
@@ -1018,7 +1099,7 @@ fn extract(figment: &Figment) -> Result<Config, ConfigError> {
 }
 
 /// The sections of [`Config`], in file order.
-const SECTIONS: [&str; 11] = [
+const SECTIONS: [&str; 12] = [
     "service",
     "http",
     "bus",
@@ -1029,6 +1110,7 @@ const SECTIONS: [&str; 11] = [
     "perception",
     "workspace",
     "tts",
+    "mcp",
     "actors",
 ];
 
@@ -1086,6 +1168,7 @@ fn deserialization_problems(figment: &Figment, first: figment::Error) -> Vec<Pro
     read::<PerceptionConfig>(figment, &top, "perception", p);
     read::<WorkspaceConfig>(figment, &top, "workspace", p);
     read::<TtsConfig>(figment, &top, "tts", p);
+    read::<McpConfig>(figment, &top, "mcp", p);
     match top.get("actors").map(|actors| actors.as_dict()) {
         Some(Some(actors)) => {
             for name in actors.keys().filter(|name| !name.contains('.')) {
@@ -1641,6 +1724,7 @@ mod tests {
             with_file(&file),
             env(&[
                 ("ROBOTD_HTTP__BIND", "0.0.0.0:8001"),
+                ("ROBOTD_MCP__TOKEN", "a-long-random-token"),
                 ("robotd_supervision__max_restarts", "7"),
                 ("ROBOTD_SERVICE__NAME", "42"),
                 ("ROBOTD_ACTORS__CAMERA__MODE", "process"),
@@ -1651,6 +1735,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(config.http.bind, "0.0.0.0:8001".parse().unwrap());
+        assert_eq!(config.mcp.token.as_deref(), Some("a-long-random-token"));
         assert_eq!(config.bus.namespace, "from-file");
         assert_eq!(config.supervision.max_restarts, 7);
         assert_eq!(config.service.name, "42");

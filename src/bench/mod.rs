@@ -5,6 +5,7 @@
 //! everything crosses a real process boundary.
 
 pub mod bus;
+pub mod mcp;
 pub mod perception;
 pub mod sim;
 

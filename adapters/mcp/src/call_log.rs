@@ -1,0 +1,181 @@
+//! The MCP call log: one JSON line per tool call in `log/mcp_server_YYYYmmdd_HHMMSS.log`.
+//!
+//! The Python server wrote such a file per run, and labs read it to see what an LLM did to
+//! their robot; robotd keeps the file name and writes one JSON object per line: time (UTC),
+//! transport, tool, arguments, result text, status (`ok`, `failed`, `protocol_error`) and
+//! duration. A log that cannot be written is reported once and the calls go on.
+
+use serde_json::{json, Map, Value};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+/// The call log of one robotd run.
+#[derive(Debug)]
+pub struct CallLog {
+    path: Option<PathBuf>,
+    file: Mutex<Option<std::fs::File>>,
+}
+
+/// `(year, month, day, hour, minute, second)` in UTC of a Unix time in seconds.
+fn utc_fields(unix_s: u64) -> (i64, u32, u32, u32, u32, u32) {
+    let days = (unix_s / 86_400) as i64;
+    let secs = (unix_s % 86_400) as u32;
+    // Civil date from days since 1970-01-01 (proleptic Gregorian calendar).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = (doy - (153 * mp + 2) / 5 + 1) as u32;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    (year, month, day, secs / 3600, (secs / 60) % 60, secs % 60)
+}
+
+fn now_s() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0)
+}
+
+/// `YYYYmmdd_HHMMSS` (UTC) of a Unix time.
+pub fn file_stamp(unix_s: u64) -> String {
+    let (y, mo, d, h, mi, s) = utc_fields(unix_s);
+    format!("{y:04}{mo:02}{d:02}_{h:02}{mi:02}{s:02}")
+}
+
+fn iso_time(unix: Duration) -> String {
+    let (y, mo, d, h, mi, s) = utc_fields(unix.as_secs());
+    format!(
+        "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{:03}Z",
+        unix.subsec_millis()
+    )
+}
+
+impl CallLog {
+    /// Opens `<dir>/mcp_server_<YYYYmmdd_HHMMSS>.log`, creating `dir`. On failure the log is
+    /// off and the error is returned alongside, for the caller to report.
+    pub fn open(dir: &Path) -> (Self, Option<std::io::Error>) {
+        let path = dir.join(format!("mcp_server_{}.log", file_stamp(now_s())));
+        let opened = std::fs::create_dir_all(dir).and_then(|_| {
+            std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&path)
+        });
+        match opened {
+            Ok(file) => (
+                Self {
+                    path: Some(path),
+                    file: Mutex::new(Some(file)),
+                },
+                None,
+            ),
+            Err(error) => (Self::disabled(), Some(error)),
+        }
+    }
+
+    /// A log that writes nothing.
+    pub fn disabled() -> Self {
+        Self {
+            path: None,
+            file: Mutex::new(None),
+        }
+    }
+
+    /// Where the log is written, if anywhere.
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+
+    /// Records one call.
+    pub fn record(
+        &self,
+        transport: &str,
+        tool: &str,
+        arguments: Option<&Map<String, Value>>,
+        result: &str,
+        status: &str,
+        duration: Duration,
+    ) {
+        tracing::info!(
+            target: "robotd::mcp::calls",
+            transport,
+            tool,
+            status,
+            duration_ms = duration.as_secs_f64() * 1000.0,
+            "tool call"
+        );
+        let mut guard = self.file.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(file) = guard.as_mut() else {
+            return;
+        };
+        let now = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .unwrap_or_default();
+        let line = json!({
+            "time": iso_time(now),
+            "transport": transport,
+            "tool": tool,
+            "arguments": arguments,
+            "result": result,
+            "status": status,
+            "duration_ms": (duration.as_secs_f64() * 1e6).round() / 1e3,
+        });
+        if let Err(error) = writeln!(file, "{line}") {
+            tracing::warn!(%error, "the MCP call log cannot be written; it is off from now on");
+            *guard = None;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dates_are_utc_civil_dates() {
+        assert_eq!(file_stamp(0), "19700101_000000");
+        // 2026-11-23 04:10:05 UTC
+        assert_eq!(file_stamp(1_795_407_005), "20261123_041005");
+        // A leap day.
+        assert_eq!(file_stamp(1_709_164_800), "20240229_000000");
+    }
+
+    #[test]
+    fn calls_are_json_lines() {
+        let dir = std::env::temp_dir().join(format!("robotd-calllog-{}", std::process::id()));
+        let (log, error) = CallLog::open(&dir);
+        assert!(error.is_none());
+        let args = serde_json::json!({"text": "hi"});
+        log.record(
+            "sse",
+            "speak",
+            args.as_object(),
+            "✓ Speaking: 'hi'",
+            "ok",
+            Duration::from_micros(1500),
+        );
+        let text = std::fs::read_to_string(log.path().unwrap()).unwrap();
+        let line: Value = serde_json::from_str(text.trim()).unwrap();
+        assert_eq!(line["tool"], "speak");
+        assert_eq!(line["arguments"]["text"], "hi");
+        assert_eq!(line["duration_ms"], 1.5);
+        let name = log
+            .path()
+            .unwrap()
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .to_string();
+        assert!(
+            name.starts_with("mcp_server_") && name.ends_with(".log"),
+            "{name}"
+        );
+        std::fs::remove_dir_all(dir).ok();
+    }
+}

@@ -1,0 +1,276 @@
+//! MCP clients of any MCP server: legacy HTTP+SSE (hand-written, as rmcp 3 has no SSE client)
+//! and streamable HTTP (rmcp's), behind one [`connect`].
+//!
+//! Used by `robotd call`, `robotd bench mcp`, the tests, and `robotd chat --mcp` — so robotd
+//! can drive its own edge and any other MCP robot server. A URL whose path ends in `/sse` is
+//! spoken to with the legacy transport, anything else with streamable HTTP.
+//!
+//! The SSE transport: `GET <url>` opens the event stream; its `endpoint` event names the URL
+//! to POST JSON-RPC messages to; replies arrive as `message` events. Both halves run as
+//! tasks joined to rmcp by a pair of channels.
+
+use futures::channel::mpsc;
+use futures::{SinkExt, StreamExt};
+use rmcp::model::{ClientJsonRpcMessage, ServerJsonRpcMessage};
+use rmcp::service::RunningService;
+use rmcp::transport::streamable_http_client::StreamableHttpClientTransportConfig;
+use rmcp::transport::StreamableHttpClientTransport;
+use rmcp::{RoleClient, ServiceExt};
+use std::time::Duration;
+
+/// A connected MCP client session.
+pub type McpClient = RunningService<RoleClient, ()>;
+
+/// Why a client could not connect.
+#[derive(Debug, thiserror::Error)]
+pub enum ConnectError {
+    /// The URL is not an `http://` or `https://` URL.
+    #[error("'{url}' is not an MCP URL: expected http(s)://host:port/sse or …/mcp")]
+    BadUrl {
+        /// The URL given.
+        url: String,
+    },
+    /// The HTTP exchange failed.
+    #[error("{url}: {reason}")]
+    Http {
+        /// The URL.
+        url: String,
+        /// What went wrong.
+        reason: String,
+    },
+    /// The MCP handshake failed.
+    #[error("{url}: MCP initialisation failed: {reason}")]
+    Handshake {
+        /// The URL.
+        url: String,
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+fn http_error(url: &str, reason: impl std::fmt::Display) -> ConnectError {
+    ConnectError::Http {
+        url: url.to_owned(),
+        reason: reason.to_string(),
+    }
+}
+
+/// Connects to the MCP server at `url` (`…/sse` = legacy SSE, otherwise streamable HTTP),
+/// sending `token` as a bearer token when given, and completes the MCP handshake.
+pub async fn connect(url: &str, token: Option<&str>) -> Result<McpClient, ConnectError> {
+    robotd_runtime::telemetry::install_tls_provider();
+    if !(url.starts_with("http://") || url.starts_with("https://")) {
+        return Err(ConnectError::BadUrl {
+            url: url.to_owned(),
+        });
+    }
+    let path = url.split('?').next().unwrap_or(url).trim_end_matches('/');
+    let handshake = |e: &dyn std::fmt::Display| ConnectError::Handshake {
+        url: url.to_owned(),
+        reason: e.to_string(),
+    };
+    if path.ends_with("/sse") {
+        let (sink, stream) = sse_transport(url, token).await?;
+        ().serve((sink, stream)).await.map_err(|e| handshake(&e))
+    } else {
+        let mut config = StreamableHttpClientTransportConfig::with_uri(url.to_owned());
+        if let Some(token) = token {
+            config = config.auth_header(token.to_owned());
+        }
+        let transport = StreamableHttpClientTransport::from_config(config);
+        ().serve(transport).await.map_err(|e| handshake(&e))
+    }
+}
+
+/// One parsed server-sent event.
+#[derive(Debug, Default, PartialEq)]
+struct SseEvent {
+    event: String,
+    data: String,
+}
+
+/// Incremental parser of a `text/event-stream`.
+#[derive(Default)]
+struct SseParser {
+    buffer: String,
+    current: SseEvent,
+}
+
+impl SseParser {
+    /// Feeds bytes; returns the events they complete.
+    fn feed(&mut self, chunk: &[u8]) -> Vec<SseEvent> {
+        self.buffer.push_str(&String::from_utf8_lossy(chunk));
+        let mut events = Vec::new();
+        while let Some(end) = self.buffer.find('\n') {
+            let line: String = self.buffer.drain(..=end).collect();
+            let line = line.trim_end_matches(['\n', '\r']);
+            if line.is_empty() {
+                let event = std::mem::take(&mut self.current);
+                if !event.data.is_empty() || !event.event.is_empty() {
+                    events.push(event);
+                }
+            } else if let Some(value) = line.strip_prefix("event:") {
+                self.current.event = value.trim_start().to_owned();
+            } else if let Some(value) = line.strip_prefix("data:") {
+                if !self.current.data.is_empty() {
+                    self.current.data.push('\n');
+                }
+                self.current
+                    .data
+                    .push_str(value.strip_prefix(' ').unwrap_or(value));
+            }
+            // Comments (":…"), ids and retry fields are not needed here.
+        }
+        events
+    }
+}
+
+/// Resolves the `endpoint` event's (usually relative) URL against the SSE URL.
+fn resolve(base: &str, endpoint: &str) -> String {
+    if endpoint.starts_with("http://") || endpoint.starts_with("https://") {
+        return endpoint.to_owned();
+    }
+    let scheme_end = base.find("://").map(|i| i + 3).unwrap_or(0);
+    let origin_end = base[scheme_end..]
+        .find('/')
+        .map(|i| scheme_end + i)
+        .unwrap_or(base.len());
+    let origin = &base[..origin_end];
+    if endpoint.starts_with('/') {
+        format!("{origin}{endpoint}")
+    } else {
+        format!("{origin}/{endpoint}")
+    }
+}
+
+async fn sse_transport(
+    url: &str,
+    token: Option<&str>,
+) -> Result<
+    (
+        mpsc::Sender<ClientJsonRpcMessage>,
+        mpsc::Receiver<ServerJsonRpcMessage>,
+    ),
+    ConnectError,
+> {
+    let http = reqwest::Client::builder()
+        .connect_timeout(Duration::from_secs(10))
+        .build()
+        .map_err(|e| http_error(url, e))?;
+    let mut request = http.get(url).header("Accept", "text/event-stream");
+    if let Some(token) = token {
+        request = request.bearer_auth(token);
+    }
+    let mut response = request.send().await.map_err(|e| http_error(url, e))?;
+    if !response.status().is_success() {
+        let status = response.status();
+        let body = response.text().await.unwrap_or_default();
+        return Err(http_error(url, format!("{status}: {body}")));
+    }
+    let mut parser = SseParser::default();
+    let mut pending = Vec::new();
+    let endpoint = loop {
+        let chunk = tokio::time::timeout(Duration::from_secs(10), response.chunk())
+            .await
+            .map_err(|_| http_error(url, "no endpoint event within 10 s"))?
+            .map_err(|e| http_error(url, e))?
+            .ok_or_else(|| http_error(url, "the event stream ended before the endpoint event"))?;
+        let mut events = parser.feed(&chunk).into_iter();
+        if let Some(found) = events.by_ref().find(|e| e.event == "endpoint") {
+            pending.extend(events);
+            break resolve(url, found.data.trim());
+        }
+    };
+    let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);
+    let (to_server, mut outgoing) = mpsc::channel::<ClientJsonRpcMessage>(64);
+    // Reader: events → rmcp.
+    let mut inbound = to_client;
+    tokio::spawn(async move {
+        let deliver = |event: SseEvent| -> Option<ServerJsonRpcMessage> {
+            if event.event != "message" && !event.event.is_empty() {
+                return None;
+            }
+            match serde_json::from_str(&event.data) {
+                Ok(message) => Some(message),
+                Err(error) => {
+                    tracing::warn!(%error, "unreadable SSE message from the server skipped");
+                    None
+                }
+            }
+        };
+        for event in pending {
+            if let Some(m) = deliver(event) {
+                if inbound.send(m).await.is_err() {
+                    return;
+                }
+            }
+        }
+        while let Ok(Some(chunk)) = response.chunk().await {
+            for event in parser.feed(&chunk) {
+                if let Some(m) = deliver(event) {
+                    if inbound.send(m).await.is_err() {
+                        return;
+                    }
+                }
+            }
+        }
+    });
+    // Writer: rmcp → POSTs.
+    let token = token.map(str::to_owned);
+    tokio::spawn(async move {
+        while let Some(message) = outgoing.next().await {
+            let mut post = http.post(&endpoint).json(&message);
+            if let Some(token) = &token {
+                post = post.bearer_auth(token);
+            }
+            match post.send().await {
+                Ok(r) if r.status().is_success() => {}
+                Ok(r) => {
+                    tracing::warn!(status = %r.status(), "the MCP server refused a message");
+                }
+                Err(error) => {
+                    tracing::warn!(%error, "posting an MCP message failed");
+                    return;
+                }
+            }
+        }
+    });
+    Ok((to_server, from_server))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn events_are_parsed_across_chunks() {
+        let mut p = SseParser::default();
+        assert!(p.feed(b"event: endpoint\r\nda").is_empty());
+        let events = p.feed(b"ta: /messages/?session_id=ab\r\n\r\n: ping\n\nevent: message\ndata: {\"a\":\ndata: 1}\n\n");
+        assert_eq!(
+            events,
+            vec![
+                SseEvent {
+                    event: "endpoint".into(),
+                    data: "/messages/?session_id=ab".into()
+                },
+                SseEvent {
+                    event: "message".into(),
+                    data: "{\"a\":\n1}".into()
+                },
+            ]
+        );
+    }
+
+    #[test]
+    fn endpoints_resolve_against_the_server() {
+        assert_eq!(
+            resolve("http://127.0.0.1:8000/sse", "/messages/?session_id=1"),
+            "http://127.0.0.1:8000/messages/?session_id=1"
+        );
+        assert_eq!(
+            resolve("http://h:1/a/sse", "http://other/x"),
+            "http://other/x"
+        );
+    }
+}

@@ -1,0 +1,173 @@
+//! The MCP server handler: the tool registry as MCP `tools/list` and `tools/call`.
+//!
+//! One [`McpService`] value serves every transport (each session gets a clone). A call
+//! becomes one [`Registry::call`]: its text is the single text content item, and
+//! `structuredContent` is `{"result": text, "data": …}` matching each tool's `outputSchema`.
+//! A client's progress token turns the skills' steps into `notifications/progress`; a
+//! `notifications/cancelled` (or a client that goes away) cancels the call, which stops the
+//! arm. Failures are ordinary results unless `strict_errors` sets `isError` on them.
+
+use crate::call_log::CallLog;
+use rmcp::model::{
+    CallToolRequestParams, CallToolResponse, CallToolResult, ContentBlock, Implementation,
+    ListToolsResult, PaginatedRequestParams, ProgressNotificationParam, ServerCapabilities,
+    ServerConfig, Tool,
+};
+use rmcp::service::RequestContext;
+use rmcp::{ErrorData as McpError, RoleServer, ServerHandler};
+use robotd_tools::{CallError, CallHooks, Progress, Registry};
+use std::sync::Arc;
+use std::time::Instant;
+use tracing::Instrument;
+
+/// What the MCP edge serves and how.
+#[derive(Clone)]
+pub struct McpService {
+    registry: Registry,
+    tools: Arc<Vec<Tool>>,
+    strict_errors: bool,
+    log: Arc<CallLog>,
+    transport: &'static str,
+}
+
+impl std::fmt::Debug for McpService {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McpService")
+            .field("tools", &self.tools.len())
+            .field("strict_errors", &self.strict_errors)
+            .field("transport", &self.transport)
+            .finish()
+    }
+}
+
+impl McpService {
+    /// A service over `registry`, logging every call to `log`.
+    pub fn new(registry: Registry, strict_errors: bool, log: Arc<CallLog>) -> Self {
+        let tools = registry
+            .tools()
+            .iter()
+            .map(|t| {
+                Tool::new(t.name, t.description, Arc::new(t.input_schema.clone()))
+                    .with_raw_output_schema(Arc::new(t.output_schema.clone()))
+            })
+            .collect();
+        Self {
+            registry,
+            tools: Arc::new(tools),
+            strict_errors,
+            log,
+            transport: "unknown",
+        }
+    }
+
+    /// The same service, naming `transport` (`sse`, `streamable_http`, `stdio`) in spans and
+    /// the call log.
+    pub fn for_transport(&self, transport: &'static str) -> Self {
+        Self {
+            transport,
+            ..self.clone()
+        }
+    }
+}
+
+impl ServerHandler for McpService {
+    fn get_info(&self) -> ServerConfig {
+        ServerConfig::new(ServerCapabilities::builder().enable_tools().build())
+            .with_server_info(Implementation::new("robotd", env!("CARGO_PKG_VERSION")))
+            .with_instructions(
+                "Tools of a tabletop robot arm with a wrist camera. Coordinates are [x, y] in \
+                 metres in the robot base frame: x forward (away from the robot), y left. Look \
+                 at the scene with get_detected_objects before picking; push_object distances \
+                 are millimetres, move2by distances metres.",
+            )
+    }
+
+    async fn list_tools(
+        &self,
+        _request: Option<PaginatedRequestParams>,
+        _context: RequestContext<RoleServer>,
+    ) -> Result<ListToolsResult, McpError> {
+        Ok(ListToolsResult::with_all_items(self.tools.as_ref().clone()))
+    }
+
+    async fn call_tool(
+        &self,
+        request: CallToolRequestParams,
+        context: RequestContext<RoleServer>,
+    ) -> Result<CallToolResponse, McpError> {
+        let name = request.name.to_string();
+        let span = tracing::info_span!(
+            "mcp.tool_call",
+            tool = %name,
+            transport = self.transport,
+            status = tracing::field::Empty
+        );
+        let token = context.meta.get_progress_token().or_else(|| {
+            request
+                .meta
+                .as_ref()
+                .and_then(|meta| meta.get_progress_token())
+        });
+        let progress: Option<Box<dyn Fn(Progress) + Send + Sync>> = token.map(|token| {
+            let peer = context.peer.clone();
+            let report = move |p: Progress| {
+                let peer = peer.clone();
+                let mut param = ProgressNotificationParam::new(token.clone(), f64::from(p.step));
+                param.total = Some(f64::from(p.total));
+                param.message = Some(p.message);
+                tokio::spawn(async move {
+                    if let Err(error) = peer.notify_progress(param).await {
+                        tracing::debug!(%error, "progress notification not delivered");
+                    }
+                });
+            };
+            Box::new(report) as Box<dyn Fn(Progress) + Send + Sync>
+        });
+        let hooks = CallHooks {
+            progress,
+            cancel: context.ct.clone(),
+        };
+        let arguments = request.arguments.clone();
+        let started = Instant::now();
+        let outcome = self
+            .registry
+            .call(&name, arguments.clone(), hooks)
+            .instrument(span.clone())
+            .await;
+        let elapsed = started.elapsed();
+        match outcome {
+            Ok(output) => {
+                let status = if output.is_failure { "failed" } else { "ok" };
+                span.record("status", status);
+                self.log.record(
+                    self.transport,
+                    &name,
+                    arguments.as_ref(),
+                    &output.text,
+                    status,
+                    elapsed,
+                );
+                let mut result =
+                    CallToolResult::success(vec![ContentBlock::text(output.text.clone())]);
+                result.structured_content = Some(output.structured());
+                result.is_error = Some(self.strict_errors && output.is_failure);
+                Ok(result.into())
+            }
+            Err(CallError::UnknownTool { name }) => {
+                span.record("status", "unknown_tool");
+                self.log.record(
+                    self.transport,
+                    &name,
+                    arguments.as_ref(),
+                    "unknown tool",
+                    "protocol_error",
+                    elapsed,
+                );
+                Err(McpError::invalid_params(
+                    format!("unknown tool '{name}'"),
+                    None,
+                ))
+            }
+        }
+    }
+}

@@ -1,0 +1,337 @@
+//! `robotd bench mcp`: what MCP clients get from a served robotd.
+//!
+//! Starts `robotd serve` (this binary, simulated Ned2) as its own process on a free port,
+//! moves the arm to the observation pose, then measures from this process:
+//!
+//! 1. latency of `get_workspace_coordinate_from_point` (no motion, one bus round trip) and of
+//!    `get_detected_objects` (arm already at the observation pose: answered from the workspace
+//!    model at once) over legacy SSE and streamable HTTP, one call at a time;
+//! 2. the same two tools called directly on the tool registry over the bus (no MCP, no HTTP):
+//!    the baseline the MCP edge adds to;
+//! 3. calls per second with 8 and 64 concurrent streamable-HTTP clients;
+//! 4. the service's resident memory (VmRSS) after the load.
+
+use super::Latency;
+use anyhow::{bail, Context, Result};
+use rmcp::model::CallToolRequestParams;
+use robotd_mcp::client::{connect, McpClient};
+use robotd_protocol::workspace::WorkspaceInfo;
+use robotd_runtime::bus::{Bus, BusOptions};
+use robotd_tools::{CallHooks, Registry, ToolSettings};
+use serde::Serialize;
+use serde_json::{json, Map, Value};
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Everything `robotd bench mcp` measures.
+#[derive(Debug, Clone, Serialize)]
+pub struct McpFigures {
+    /// `get_workspace_coordinate_from_point` over SSE, µs.
+    pub coordinate_sse_us_p50: f64,
+    /// 99th percentile of the same, µs.
+    pub coordinate_sse_us_p99: f64,
+    /// `get_workspace_coordinate_from_point` over streamable HTTP, µs.
+    pub coordinate_http_us_p50: f64,
+    /// 99th percentile of the same, µs.
+    pub coordinate_http_us_p99: f64,
+    /// `get_detected_objects` at the observation pose over SSE, µs.
+    pub objects_sse_us_p50: f64,
+    /// 99th percentile of the same, µs.
+    pub objects_sse_us_p99: f64,
+    /// `get_detected_objects` at the observation pose over streamable HTTP, µs.
+    pub objects_http_us_p50: f64,
+    /// 99th percentile of the same, µs.
+    pub objects_http_us_p99: f64,
+    /// Baseline: `get_workspace_coordinate_from_point` on the registry directly, µs.
+    pub coordinate_direct_us_p50: f64,
+    /// Baseline: `get_detected_objects` on the registry directly, µs.
+    pub objects_direct_us_p50: f64,
+    /// Calls per second, 8 concurrent streamable-HTTP clients.
+    pub calls_per_s_8_clients: f64,
+    /// Calls per second, 64 concurrent streamable-HTTP clients.
+    pub calls_per_s_64_clients: f64,
+    /// Resident memory of the robotd service after the load, MB.
+    pub service_rss_mb: f64,
+    /// Sequential calls per latency measurement.
+    pub calls: usize,
+    /// Seconds of each throughput run.
+    pub throughput_s: f64,
+}
+
+impl McpFigures {
+    /// The figures as a table with the issue's targets.
+    pub fn table(&self) -> String {
+        format!(
+            "measure                                             p50 / p99 µs        target\n\
+             get_workspace_coordinate_from_point, SSE           {:>7.0} / {:>7.0}   p50 ≤ 500\n\
+             get_workspace_coordinate_from_point, HTTP          {:>7.0} / {:>7.0}   p50 ≤ 500\n\
+             get_workspace_coordinate_from_point, direct        {:>7.0}\n\
+             get_detected_objects at obs. pose, SSE             {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
+             get_detected_objects at obs. pose, HTTP            {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
+             get_detected_objects at obs. pose, direct          {:>7.0}\n\
+             calls/s, 8 clients (HTTP)                          {:>9.0}\n\
+             calls/s, 64 clients (HTTP)                         {:>9.0}           ≥ 5,000\n\
+             service RSS after load                             {:>9.1} MB        ≤ 60 MB\n",
+            self.coordinate_sse_us_p50,
+            self.coordinate_sse_us_p99,
+            self.coordinate_http_us_p50,
+            self.coordinate_http_us_p99,
+            self.coordinate_direct_us_p50,
+            self.objects_sse_us_p50,
+            self.objects_sse_us_p99,
+            self.objects_http_us_p50,
+            self.objects_http_us_p99,
+            self.objects_direct_us_p50,
+            self.calls_per_s_8_clients,
+            self.calls_per_s_64_clients,
+            self.service_rss_mb,
+        )
+    }
+}
+
+/// The served robotd, stopped when dropped.
+struct Served(Child);
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.0.id().to_string()])
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = self.0.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port())
+}
+
+fn start_service(exe: &Path, namespace: &str, port: u16) -> Result<Served> {
+    let log_dir = std::env::temp_dir().join(format!("robotd-bench-mcp-{}", std::process::id()));
+    let mut child = Command::new(exe)
+        .args(["serve", "--namespace", namespace, "--http"])
+        .arg(format!("127.0.0.1:{port}"))
+        .args(["--set", "robot.time_scale=0.05"])
+        .arg("--set")
+        .arg(format!("telemetry.log_dir={}", log_dir.display()))
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .context("starting robotd serve")?;
+    let stderr = child.stderr.take().context("robotd's stderr")?;
+    let served = Served(child);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut ready = Some(tx);
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if line.contains("robotd: serving on") {
+                if let Some(tx) = ready.take() {
+                    let _ = tx.send(());
+                }
+            }
+        }
+    });
+    rx.recv_timeout(Duration::from_secs(60))
+        .context("robotd serve did not start within 60 s")?;
+    Ok(served)
+}
+
+fn args(v: Value) -> Map<String, Value> {
+    v.as_object().cloned().unwrap_or_default()
+}
+
+fn coordinate_args() -> Map<String, Value> {
+    args(json!({"workspace_id": "niryo_ws", "point": "center point"}))
+}
+
+async fn mcp_call(client: &McpClient, tool: &str, arguments: Map<String, Value>) -> Result<()> {
+    let result = client
+        .call_tool(CallToolRequestParams::new(tool.to_owned()).with_arguments(arguments))
+        .await?;
+    let text = result
+        .content
+        .first()
+        .and_then(|c| c.as_text())
+        .map(|t| t.text.as_str())
+        .unwrap_or("");
+    if !text.starts_with('✓') {
+        bail!("{tool} answered {text:?}");
+    }
+    Ok(())
+}
+
+async fn mcp_latency(
+    client: &McpClient,
+    tool: &str,
+    arguments: &Map<String, Value>,
+    calls: usize,
+) -> Result<Latency> {
+    let mut samples = Vec::with_capacity(calls);
+    for _ in 0..calls {
+        let started = Instant::now();
+        mcp_call(client, tool, arguments.clone()).await?;
+        samples.push(started.elapsed());
+    }
+    Ok(Latency::of(&mut samples))
+}
+
+async fn direct_latency(
+    registry: &Registry,
+    tool: &str,
+    arguments: &Map<String, Value>,
+    calls: usize,
+) -> Result<Latency> {
+    let mut samples = Vec::with_capacity(calls);
+    for _ in 0..calls {
+        let started = Instant::now();
+        let out = registry
+            .call(tool, Some(arguments.clone()), CallHooks::default())
+            .await?;
+        if out.is_failure {
+            bail!("{tool} answered {:?}", out.text);
+        }
+        samples.push(started.elapsed());
+    }
+    Ok(Latency::of(&mut samples))
+}
+
+async fn throughput(url: &str, clients: usize, run_for: Duration) -> Result<f64> {
+    let mut sessions = Vec::with_capacity(clients);
+    for _ in 0..clients {
+        sessions.push(Arc::new(connect(url, None).await?));
+    }
+    let started = Instant::now();
+    let deadline = started + run_for;
+    let mut tasks = Vec::with_capacity(clients);
+    for client in &sessions {
+        let client = client.clone();
+        tasks.push(tokio::spawn(async move {
+            let mut calls = 0u64;
+            while Instant::now() < deadline {
+                mcp_call(
+                    &client,
+                    "get_workspace_coordinate_from_point",
+                    coordinate_args(),
+                )
+                .await?;
+                calls += 1;
+            }
+            Ok::<u64, anyhow::Error>(calls)
+        }));
+    }
+    let mut total = 0;
+    for task in tasks {
+        total += task.await??;
+    }
+    let elapsed = started.elapsed().as_secs_f64();
+    Ok(total as f64 / elapsed)
+}
+
+fn rss_mb(pid: u32) -> Result<f64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status"))?;
+    let kb: f64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .context("VmRSS in /proc/<pid>/status")?;
+    Ok(kb / 1024.0)
+}
+
+/// Runs the benchmark against a robotd this function starts.
+pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
+    let namespace = format!("bench-mcp-{}", std::process::id());
+    let port = free_port()?;
+    let served = start_service(exe, &namespace, port)?;
+    let pid = served.0.id();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    let figures = runtime.block_on(async {
+        let sse = connect(&format!("http://127.0.0.1:{port}/sse"), None).await?;
+        let http_url = format!("http://127.0.0.1:{port}/mcp");
+        let http = connect(&http_url, None).await?;
+        // The first detection call moves the arm to the observation pose.
+        mcp_call(&http, "get_detected_objects", Map::new()).await?;
+        let objects = Map::new();
+        let coordinate = coordinate_args();
+        let coordinate_sse = mcp_latency(
+            &sse,
+            "get_workspace_coordinate_from_point",
+            &coordinate,
+            calls,
+        )
+        .await?;
+        let coordinate_http = mcp_latency(
+            &http,
+            "get_workspace_coordinate_from_point",
+            &coordinate,
+            calls,
+        )
+        .await?;
+        let objects_sse = mcp_latency(&sse, "get_detected_objects", &objects, calls).await?;
+        let objects_http = mcp_latency(&http, "get_detected_objects", &objects, calls).await?;
+
+        let bus = Bus::open(BusOptions::new(&namespace, "bench-mcp"))?;
+        let workspaces = vec![WorkspaceInfo {
+            id: "niryo_ws".into(),
+            robot: robotd_protocol::RobotModel::Ned2,
+            upper_left: robotd_protocol::Point2::new(0.337, 0.087),
+            lower_right: robotd_protocol::Point2::new(0.163, -0.087),
+            observation_pose: robotd_protocol::Pose::new(
+                0.173, -0.002, 0.277, -3.042, 1.327, -3.027,
+            ),
+        }];
+        let registry = Registry::connect(&bus, ToolSettings::new("bench", workspaces))?;
+        // Let the registry see the arm's state before timing.
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        let coordinate_direct = direct_latency(
+            &registry,
+            "get_workspace_coordinate_from_point",
+            &coordinate,
+            calls,
+        )
+        .await?;
+        let objects_direct =
+            direct_latency(&registry, "get_detected_objects", &objects, calls).await?;
+
+        let run_for = Duration::from_secs_f64(throughput_s);
+        let calls_8 = throughput(&http_url, 8, run_for).await?;
+        let calls_64 = throughput(&http_url, 64, run_for).await?;
+        let service_rss_mb = rss_mb(pid)?;
+        let _ = sse.cancel().await;
+        let _ = http.cancel().await;
+        Ok::<_, anyhow::Error>(McpFigures {
+            coordinate_sse_us_p50: coordinate_sse.p50_us,
+            coordinate_sse_us_p99: coordinate_sse.p99_us,
+            coordinate_http_us_p50: coordinate_http.p50_us,
+            coordinate_http_us_p99: coordinate_http.p99_us,
+            objects_sse_us_p50: objects_sse.p50_us,
+            objects_sse_us_p99: objects_sse.p99_us,
+            objects_http_us_p50: objects_http.p50_us,
+            objects_http_us_p99: objects_http.p99_us,
+            coordinate_direct_us_p50: coordinate_direct.p50_us,
+            objects_direct_us_p50: objects_direct.p50_us,
+            calls_per_s_8_clients: calls_8,
+            calls_per_s_64_clients: calls_64,
+            service_rss_mb,
+            calls,
+            throughput_s,
+        })
+    })?;
+    drop(served);
+    Ok(figures)
+}

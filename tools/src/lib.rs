@@ -1,0 +1,318 @@
+//! # robotd-tools: the one tool registry
+//!
+//! robotd's 20 robot tools (`spec/mcp-tools.md`) are defined here once — name, description,
+//! typed parameters with their JSON Schema, validation, reply texts, and a handler that sends
+//! bus requests to the actors (skills, workspace model, arm, speech). The MCP edge serves this
+//! registry over SSE, streamable HTTP and stdio; the LLM agent calls it in process. Nothing
+//! here knows about MCP or HTTP.
+//!
+//! A call returns a [`ToolOutput`]: the contract's text (`✓ …` or `❌ …`), whether it is a
+//! failure, and the typed `data` behind `structuredContent`. Failures are ordinary outputs;
+//! only an unknown tool is an `Err`.
+//!
+//! ```no_run
+//! # async fn demo(bus: robotd_runtime::bus::Bus, settings: robotd_tools::ToolSettings)
+//! # -> Result<(), Box<dyn std::error::Error>> {
+//! use robotd_tools::{CallHooks, Registry};
+//! let registry = Registry::connect(&bus, settings)?;
+//! let args = serde_json::json!({"workspace_id": "niryo_ws", "point": "center point"});
+//! let out = registry
+//!     .call("get_workspace_coordinate_from_point", args.as_object().cloned(), CallHooks::default())
+//!     .await?;
+//! assert_eq!(out.text, "✓ Coordinate of 'center point' in workspace 'niryo_ws': [0.250, 0.000]");
+//! # Ok(()) }
+//! ```
+//!
+//! ## Modules
+//!
+//! - [`definitions`]: the tools as clients see them (schemas).
+//! - [`args`]: robotd's own argument validation and the validation error text.
+//! - `handlers`: what each tool does and says.
+
+pub mod args;
+pub mod definitions;
+mod handlers;
+
+pub use definitions::ToolInfo;
+
+use robotd_protocol::arm::{ArmCommand, ArmReply, ArmState};
+use robotd_protocol::skills::{SkillCancel, SkillProgress, SkillReply, SkillRequest};
+use robotd_protocol::speech::{SpeakRequest, TextOverlay};
+use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply};
+use robotd_protocol::Pose;
+use robotd_runtime::bus::{Bus, BusError, Client, Publisher};
+use robotd_runtime::catalog;
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tokio::sync::{mpsc, watch};
+use tokio_util::sync::CancellationToken;
+
+/// Extra status for `get_system_status` (actor health, restarts, e-stop), as JSON.
+pub type StatusSource = Arc<dyn Fn() -> serde_json::Value + Send + Sync>;
+
+/// What the registry needs to know about this robotd.
+#[derive(Clone)]
+pub struct ToolSettings {
+    /// The robot's id (`robot_id` of `get_system_status`).
+    pub robot_id: String,
+    /// The configured workspaces; the first is the robot's current one.
+    pub workspaces: Vec<WorkspaceInfo>,
+    /// Actor health, restarts and e-stop for `get_system_status`.
+    pub status: StatusSource,
+    /// Longest a skill (pick, place, push, …) may take.
+    pub skill_timeout: Duration,
+    /// Longest a workspace-model query may take (including waiting for a fresh view).
+    pub query_timeout: Duration,
+    /// Parallel bus clients of the workspace model (concurrent detection calls).
+    pub query_clients: usize,
+}
+
+impl std::fmt::Debug for ToolSettings {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ToolSettings")
+            .field("robot_id", &self.robot_id)
+            .field("workspaces", &self.workspaces.len())
+            .finish()
+    }
+}
+
+impl ToolSettings {
+    /// Settings with the usual timeouts and no extra status.
+    pub fn new(robot_id: impl Into<String>, workspaces: Vec<WorkspaceInfo>) -> Self {
+        Self {
+            robot_id: robot_id.into(),
+            workspaces,
+            status: Arc::new(|| serde_json::json!({})),
+            skill_timeout: Duration::from_secs(180),
+            query_timeout: Duration::from_secs(20),
+            query_clients: 8,
+        }
+    }
+}
+
+/// One step of a running tool, for MCP progress notifications.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Progress {
+    /// Steps done.
+    pub step: u32,
+    /// Steps in all.
+    pub total: u32,
+    /// What is being done.
+    pub message: String,
+}
+
+/// How a caller follows and stops a call.
+#[derive(Default)]
+pub struct CallHooks {
+    /// Called for each step of a motion tool.
+    pub progress: Option<Box<dyn Fn(Progress) + Send + Sync>>,
+    /// Cancelling it stops a running motion (the arm stops and holds) and ends the call.
+    pub cancel: CancellationToken,
+}
+
+/// The result of one tool call.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolOutput {
+    /// The contract's reply text.
+    pub text: String,
+    /// True for `❌` replies (validation errors and failures).
+    pub is_failure: bool,
+    /// The typed payload (`structuredContent.data`), `null` on failure.
+    pub data: serde_json::Value,
+}
+
+impl ToolOutput {
+    fn ok(text: String, data: serde_json::Value) -> Self {
+        Self {
+            text,
+            is_failure: false,
+            data,
+        }
+    }
+
+    fn failed(text: String) -> Self {
+        Self {
+            text,
+            is_failure: true,
+            data: serde_json::Value::Null,
+        }
+    }
+
+    /// `structuredContent`: `{"result": text, "data": data}`.
+    pub fn structured(&self) -> serde_json::Value {
+        serde_json::json!({"result": self.text, "data": self.data})
+    }
+}
+
+/// Why a call could not be made at all (a protocol error, not a tool failure).
+#[derive(Debug, thiserror::Error)]
+pub enum CallError {
+    /// No tool has this name.
+    #[error("unknown tool '{name}'")]
+    UnknownTool {
+        /// The name asked for.
+        name: String,
+    },
+}
+
+/// Why the registry could not connect to the bus.
+#[derive(Debug, thiserror::Error)]
+pub enum ConnectError {
+    /// A bus port could not be created.
+    #[error("tool registry: {0}")]
+    Bus(#[from] BusError),
+    /// No workspace is configured.
+    #[error("tool registry: no workspace is configured; the robot's scene must define one")]
+    NoWorkspace,
+}
+
+/// Where the arm is and when it last came to rest, from `arm/state`.
+#[derive(Debug, Clone, Copy)]
+struct ArmRest {
+    pose: Pose,
+    moving: bool,
+    /// Wall-clock time the arm was last seen coming to rest (0 = never seen moving).
+    rested_since_unix_ns: u64,
+}
+
+struct Inner {
+    settings: ToolSettings,
+    tools: Vec<ToolInfo>,
+    queries: Vec<Client<WorkspaceQuery, WorkspaceReply>>,
+    next_query: AtomicUsize,
+    skills: Client<SkillRequest, SkillReply>,
+    arm: Client<ArmCommand, ArmReply>,
+    cancel: Mutex<Publisher<SkillCancel>>,
+    speak: Mutex<Publisher<SpeakRequest>>,
+    overlay: Mutex<Publisher<TextOverlay>>,
+    arm_rest: watch::Receiver<Option<ArmRest>>,
+    progress_routes: Arc<Mutex<HashMap<u64, mpsc::UnboundedSender<SkillProgress>>>>,
+    next_run: AtomicU64,
+    background: Vec<tokio::task::JoinHandle<()>>,
+}
+
+impl Drop for Inner {
+    fn drop(&mut self) {
+        for task in &self.background {
+            task.abort();
+        }
+    }
+}
+
+/// The tool registry, connected to the bus. Cheap to clone; share one per process.
+#[derive(Clone)]
+pub struct Registry {
+    inner: Arc<Inner>,
+}
+
+impl std::fmt::Debug for Registry {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Registry")
+            .field("tools", &self.inner.tools.len())
+            .finish()
+    }
+}
+
+impl Registry {
+    /// Connects the registry's bus clients. Must be called inside a tokio runtime.
+    pub fn connect(bus: &Bus, settings: ToolSettings) -> Result<Self, ConnectError> {
+        if settings.workspaces.is_empty() {
+            return Err(ConnectError::NoWorkspace);
+        }
+        let queries = (0..settings.query_clients.max(1))
+            .map(|_| bus.client(&catalog::WORKSPACE_QUERY))
+            .collect::<Result<Vec<_>, _>>()?;
+        let (rest_tx, rest_rx) = watch::channel(None);
+        let mut arm_states = bus.subscriber(&catalog::ARM_STATE)?;
+        let watcher = tokio::spawn(async move {
+            let mut last: Option<ArmRest> = None;
+            while let Ok(envelope) = arm_states.recv().await {
+                let state: ArmState = envelope.body;
+                let rested_since_unix_ns = match last {
+                    Some(prev) if prev.moving && !state.moving => {
+                        robotd_protocol::envelope::unix_now_ns()
+                    }
+                    Some(prev) => prev.rested_since_unix_ns,
+                    None => 0,
+                };
+                let now = ArmRest {
+                    pose: state.tool_pose,
+                    moving: state.moving,
+                    rested_since_unix_ns,
+                };
+                last = Some(now);
+                if rest_tx.send(Some(now)).is_err() {
+                    break;
+                }
+            }
+        });
+        let routes: Arc<Mutex<HashMap<u64, mpsc::UnboundedSender<SkillProgress>>>> = Arc::default();
+        let mut progress = bus.subscriber(&catalog::SKILLS_PROGRESS)?;
+        let progress_routes = routes.clone();
+        let router = tokio::spawn(async move {
+            while let Ok(envelope) = progress.recv().await {
+                let p = envelope.body;
+                let routes = progress_routes.lock().unwrap_or_else(|e| e.into_inner());
+                if let Some(tx) = routes.get(&p.run_id) {
+                    let _ = tx.send(p);
+                }
+            }
+        });
+        // Run ids unique across processes sharing the skills actor.
+        let run_base = (u64::from(std::process::id()) << 40)
+            ^ (robotd_protocol::envelope::unix_now_ns() & 0xFF_FFFF_0000);
+        Ok(Self {
+            inner: Arc::new(Inner {
+                tools: definitions::all(),
+                queries,
+                next_query: AtomicUsize::new(0),
+                skills: bus.client(&catalog::SKILLS_RUN)?,
+                arm: bus.client(&catalog::ARM_COMMAND)?,
+                cancel: Mutex::new(bus.publisher(&catalog::SKILLS_CANCEL)?),
+                speak: Mutex::new(bus.publisher(&catalog::SPEECH_SPEAK)?),
+                overlay: Mutex::new(bus.publisher(&catalog::OVERLAY_TEXT)?),
+                arm_rest: rest_rx,
+                progress_routes: routes,
+                next_run: AtomicU64::new(run_base),
+                background: vec![watcher, router],
+                settings,
+            }),
+        })
+    }
+
+    /// Every tool, in the contract's order.
+    pub fn tools(&self) -> &[ToolInfo] {
+        &self.inner.tools
+    }
+
+    /// The tool called `name`, if there is one.
+    pub fn tool(&self, name: &str) -> Option<&ToolInfo> {
+        self.inner.tools.iter().find(|t| t.name == name)
+    }
+
+    /// Calls tool `name` with `arguments` (a JSON object; `None` = no arguments).
+    pub async fn call(
+        &self,
+        name: &str,
+        arguments: Option<serde_json::Map<String, serde_json::Value>>,
+        hooks: CallHooks,
+    ) -> Result<ToolOutput, CallError> {
+        let tool = self.tool(name).ok_or_else(|| CallError::UnknownTool {
+            name: name.to_owned(),
+        })?;
+        let args = arguments.unwrap_or_default();
+        Ok(handlers::call(self, tool.name, &args, hooks).await)
+    }
+
+    fn query_client(&self) -> &Client<WorkspaceQuery, WorkspaceReply> {
+        let queries = &self.inner.queries;
+        let i = self.inner.next_query.fetch_add(1, Ordering::Relaxed) % queries.len();
+        &queries[i]
+    }
+
+    fn settings(&self) -> &ToolSettings {
+        &self.inner.settings
+    }
+}
