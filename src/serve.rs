@@ -15,6 +15,7 @@ use robotd_perception::detector::{ColourDetector, ColourDetectorSettings};
 use robotd_perception::labels::LabelTable;
 use robotd_perception::{Perception, Pipeline};
 use robotd_protocol::diagnostics::Pong;
+use robotd_protocol::geometry::RobotModel;
 use robotd_protocol::health::{ActorHealth, ActorState, RestartEvent};
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
@@ -23,6 +24,7 @@ use robotd_runtime::config::{ActorMode, Config, WorkspaceConfig};
 use robotd_runtime::supervision::{
     observer_fn, SupervisedProcess, SupervisionEvent, SupervisionObserver, Supervisor,
 };
+use robotd_skills::{Skills, SkillsSettings};
 use robotd_speech::{Speech, SpeechSettings};
 use robotd_tools::{Registry, ToolSettings};
 use robotd_workspace_model::{MemorySettings, WorkspaceModel, WorkspaceModelSettings};
@@ -159,6 +161,7 @@ pub struct Runtime {
     workspace_model: WorkspaceModel,
     perception: Perception,
     speech: Speech,
+    skills: Skills,
     processes: Vec<SupervisedProcess>,
 }
 
@@ -234,7 +237,7 @@ impl Runtime {
             supervision_observer(health.clone(), restarts.clone()),
         )
         .await?;
-        let _ = robot_model;
+        let skills = start_skills(&bus, robot_model, workspaces.clone())?;
         let processes = start_process_actors(config, &bus, &health, &restarts).await?;
 
         let report_config = config.clone();
@@ -250,6 +253,7 @@ impl Runtime {
             workspace_model,
             perception,
             speech,
+            skills,
             processes,
         })
     }
@@ -279,6 +283,7 @@ impl Runtime {
                 tracing::warn!(%error, "stopping an actor process");
             }
         }
+        self.skills.shutdown().await;
         self.perception.shutdown();
         self.speech.shutdown().await;
         self.workspace_model.shutdown().await;
@@ -475,6 +480,12 @@ pub fn start_workspace_model(
             default_fresh_wait: std::time::Duration::from_millis(config.fresh_wait_ms),
         },
     )?)
+}
+
+/// Starts the skills actor (pick, place, push …) for the robot's workspaces.
+fn start_skills(bus: &Bus, robot: RobotModel, workspaces: Vec<WorkspaceInfo>) -> Result<Skills> {
+    let settings = SkillsSettings::new(robot, workspaces);
+    Ok(Skills::start(bus, settings)?)
 }
 
 /// Starts the perception actor on the camera's frames.

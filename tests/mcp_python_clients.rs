@@ -43,8 +43,8 @@ fn fastmcp_drives_robotd_over_sse_and_streamable_http() {
     let port = common::free_port();
     let _robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=0.05"]);
     for (path, transport, place) in [
-        ("/sse", "SSETransport", [0.30, 0.03]),
-        ("/mcp", "StreamableHttpTransport", [0.30, 0.03]),
+        ("/sse", "SSETransport", [0.27, -0.01]),
+        ("/mcp", "StreamableHttpTransport", [0.27, -0.01]),
     ] {
         let report = run_client(&format!("http://127.0.0.1:{port}{path}"));
         assert_eq!(report["transport"], transport);

@@ -67,3 +67,46 @@ pub struct TestPatternReply {
 impl Message for TestPatternReply {
     const TYPE: &'static str = "diagnostics.test_pattern_reply";
 }
+
+/// Asks the simulator for its ground truth (what the world really holds, not what the camera
+/// sees). Served as `sim/world` only when the robot is simulated.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SimWorldRequest {}
+
+impl Message for SimWorldRequest {
+    const TYPE: &'static str = "diagnostics.sim_world_request";
+}
+
+/// One object of the simulated world.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SimObjectState {
+    /// The scene's label, e.g. `"red cube"`.
+    pub label: String,
+    /// Centre of the object's bounding box, base frame, metres.
+    pub x_m: f64,
+    /// Centre y, metres.
+    pub y_m: f64,
+    /// Centre z, metres.
+    pub z_m: f64,
+    /// Rotation about the vertical, radians.
+    pub yaw_rad: f64,
+    /// Height of the object's base above the table, metres.
+    pub bottom_z_m: f64,
+    /// Height of its top, metres.
+    pub top_z_m: f64,
+    /// Whether the gripper holds it.
+    pub held: bool,
+}
+
+/// The simulator's ground truth.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SimWorldReply {
+    /// The scene's name.
+    pub scene: String,
+    /// Every object.
+    pub objects: Vec<SimObjectState>,
+}
+
+impl Message for SimWorldReply {
+    const TYPE: &'static str = "diagnostics.sim_world_reply";
+}

@@ -122,6 +122,8 @@ pub const MESSAGE_TYPES: &[(&str, u16)] = &[
     entry::<diagnostics::Pong>(),
     entry::<diagnostics::TestPatternRequest>(),
     entry::<diagnostics::TestPatternReply>(),
+    entry::<diagnostics::SimWorldRequest>(),
+    entry::<diagnostics::SimWorldReply>(),
 ];
 
 const fn entry<T: Message>() -> (&'static str, u16) {

@@ -253,6 +253,13 @@ pub enum SkillError {
         /// Why.
         reason: String,
     },
+    /// The motion ran but the camera shows it did not do what was asked (a push that was
+    /// blocked, an object that slipped).
+    #[error("{reason}")]
+    NotAsExpected {
+        /// What the camera shows.
+        reason: String,
+    },
     /// The workspace id is not configured.
     #[error("unknown workspace '{workspace_id}'; known: {}", known.join(", "))]
     UnknownWorkspace {
@@ -262,14 +269,23 @@ pub enum SkillError {
         known: Vec<String>,
     },
     /// The arm reported an error (collision, e-stop, driver).
-    #[error("{0}")]
-    Arm(String),
+    #[error("{message}")]
+    Arm {
+        /// What went wrong.
+        message: String,
+    },
     /// The gripper reported an error.
-    #[error("{0}")]
-    Gripper(String),
+    #[error("{message}")]
+    Gripper {
+        /// What went wrong.
+        message: String,
+    },
     /// The workspace model could not answer.
-    #[error("{0}")]
-    Perception(String),
+    #[error("{message}")]
+    Perception {
+        /// What went wrong.
+        message: String,
+    },
     /// A cancel request (or a client that went away) stopped the skill; the arm is held where
     /// it stopped.
     #[error("cancelled; the arm was stopped")]
@@ -280,6 +296,29 @@ pub enum SkillError {
         /// What is wrong.
         reason: String,
     },
+}
+
+impl SkillError {
+    /// An arm failure with `message`.
+    pub fn arm(message: impl Into<String>) -> Self {
+        Self::Arm {
+            message: message.into(),
+        }
+    }
+
+    /// A gripper failure with `message`.
+    pub fn gripper(message: impl Into<String>) -> Self {
+        Self::Gripper {
+            message: message.into(),
+        }
+    }
+
+    /// A workspace-model failure with `message`.
+    pub fn perception(message: impl Into<String>) -> Self {
+        Self::Perception {
+            message: message.into(),
+        }
+    }
 }
 
 fn nearby_text(nearby: &[String]) -> String {
@@ -377,6 +416,15 @@ mod tests {
             e.to_string(),
             "place coordinate [99.900, 99.900] is outside workspace 'niryo_ws'"
         );
+        // Every error travels on the bus (MessagePack, internally tagged).
+        let reply = SkillReply::Failed {
+            error: SkillError::arm("collision detected"),
+        };
+        let mut bytes = Vec::new();
+        crate::envelope::encode(&crate::envelope::Envelope::new(reply.clone()), &mut bytes)
+            .unwrap();
+        let back: crate::envelope::Envelope<SkillReply> = crate::envelope::decode(&bytes).unwrap();
+        assert_eq!(back.body, reply);
     }
 
     #[test]

@@ -5,10 +5,16 @@
 //! refused by iceoryx2 when the port is created.
 
 use crate::bus::{FrameTopic, Overflow, Service};
-use robotd_protocol::diagnostics::{Ping, Pong, TestPatternReply, TestPatternRequest};
+use robotd_protocol::diagnostics::{
+    Ping, Pong, SimWorldReply, SimWorldRequest, TestPatternReply, TestPatternRequest,
+};
 
 /// robotd's own liveness probe: any process can ping the running service.
 pub const SYSTEM_PING: Service<Ping, Pong> = Service::new("system/ping");
+
+/// The simulator's ground truth (served only with a simulated robot): for end-to-end tests
+/// and dashboards that compare what the camera sees with what is really there.
+pub const SIM_WORLD: Service<SimWorldRequest, SimWorldReply> = Service::new("sim/world");
 
 /// The example external actor's command: publish one test-pattern frame.
 pub const TEST_PATTERN: Service<TestPatternRequest, TestPatternReply> =

@@ -18,6 +18,10 @@ from fastmcp import Client  # noqa: E402
 from fastmcp.client.transports import SSETransport, StreamableHttpTransport  # noqa: E402
 
 
+# A free spot of the default scene for the pencil (120 × 12 mm along x).
+PLACE = [0.27, -0.01]
+
+
 def text_of(result):
     return "\n".join(c.text for c in result.content if getattr(c, "type", "") == "text")
 
@@ -56,7 +60,7 @@ async def main(url: str) -> None:
             {
                 "object_name": "pencil",
                 "pick_coordinate": [com["x"], com["y"]],
-                "place_coordinate": [0.30, 0.03],
+                "place_coordinate": PLACE,
             },
             progress_handler=on_progress,
         )

@@ -121,6 +121,44 @@ impl std::fmt::Debug for Hardware {
     }
 }
 
+/// Serves `sim/world`: the simulator's ground truth, for tests and dashboards.
+fn serve_ground_truth(
+    bus: &Bus,
+    robot: SimRobot,
+) -> Result<tokio::task::JoinHandle<()>, StartError> {
+    use robotd_protocol::diagnostics::{SimObjectState, SimWorldReply};
+    let mut server = bus
+        .server(&robotd_runtime::catalog::SIM_WORLD)
+        .map_err(StartError::Bus)?;
+    Ok(tokio::spawn(async move {
+        let served = server
+            .serve(move |_request| {
+                let reply = robot.with_world(|world| SimWorldReply {
+                    scene: world.scene_name().to_owned(),
+                    objects: world
+                        .objects()
+                        .iter()
+                        .map(|o| SimObjectState {
+                            label: o.spec.label.clone(),
+                            x_m: o.pose.translation.x,
+                            y_m: o.pose.translation.y,
+                            z_m: o.pose.translation.z,
+                            yaw_rad: o.yaw_rad(),
+                            bottom_z_m: o.bottom_z(),
+                            top_z_m: o.top_z(),
+                            held: o.held,
+                        })
+                        .collect(),
+                });
+                async move { Ok(reply) }
+            })
+            .await;
+        if let Err(error) = served {
+            tracing::warn!(%error, "the sim/world service stopped");
+        }
+    }))
+}
+
 /// Loads the scene the configuration asks for (the built-in one by default) and checks it
 /// against the robot's reach.
 pub fn load_scene(config: &Config) -> Result<Scene, StartError> {
@@ -226,6 +264,7 @@ impl Hardware {
             observer,
         )
         .await?;
+        hardware.tasks.push(serve_ground_truth(bus, robot.clone())?);
         hardware.sim = Some(robot);
         Ok(hardware)
     }

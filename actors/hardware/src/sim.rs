@@ -213,6 +213,7 @@ impl SimRobot {
             opening_m: opening,
         });
         if let Some(what) = outcome.collision {
+            tracing::warn!(with = %what, tcp = ?tcp.translation.vector, "simulated collision: the arm stopped");
             state.collision = Some(what.clone());
             state.moving = false;
             return Err(DriverError::Collision { what });

@@ -15,7 +15,7 @@ use crate::pipeline::{Pipeline, SheetStatus};
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::objects::Detections;
 use robotd_runtime::bus::{Bus, BusError};
-use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
+use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES, GRIPPER_STATE, PERCEPTION_DETECTIONS};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -125,6 +125,25 @@ struct ArmView {
     last_moving_ns: u64,
     /// Whether any arm state was received (without an arm, frames count as steady).
     heard: bool,
+    /// Whether the gripper holds something (it then hangs in the wrist camera's view).
+    holding: bool,
+}
+
+/// How far around the tool a held object's image may reach on the table plane, metres.
+const HELD_OBJECT_MARGIN_M: f64 = 0.01;
+
+impl ArmView {
+    /// Whether `object` is what the gripper holds, seen from the wrist camera: while holding,
+    /// a detection whose footprint (grown by a centimetre) covers the tool's position is the
+    /// held object, not something on the table.
+    fn is_held_object(&self, object: &robotd_protocol::objects::DetectedObject) -> bool {
+        let (true, Some(tool)) = (self.holding, self.tool_pose.as_ref()) else {
+            return false;
+        };
+        let c = object.xy();
+        (tool.x_m - c.x_m).abs() <= object.dimensions.height_m / 2.0 + HELD_OBJECT_MARGIN_M
+            && (tool.y_m - c.y_m).abs() <= object.dimensions.width_m / 2.0 + HELD_OBJECT_MARGIN_M
+    }
 }
 
 impl ArmView {
@@ -159,9 +178,10 @@ fn run(
                 bus.frame_subscriber(&CAMERA_FRAMES)?,
                 bus.subscriber(&ARM_STATE)?,
                 bus.publisher(&PERCEPTION_DETECTIONS)?,
+                bus.subscriber(&GRIPPER_STATE)?,
             ))
         })();
-        let (mut frames, mut arm_states, publisher) = match ports {
+        let (mut frames, mut arm_states, publisher, mut gripper_states) = match ports {
             Ok(p) => {
                 let _ = ready.send(Ok(()));
                 p
@@ -202,6 +222,9 @@ fn run(
                     arm.last_moving_ns = state.sent_at_unix_ns;
                 }
             }
+            while let Ok(Some(state)) = gripper_states.try_recv() {
+                arm.holding = state.body.holding;
+            }
             let header = *sample.header();
             let width = header.width as usize;
             let height = header.height as usize;
@@ -237,7 +260,8 @@ fn run(
                 .last_processing_us
                 .store(elapsed.as_micros() as u64, Ordering::Relaxed);
             let detections: Detections = match outcome {
-                Ok(Ok((detections, status))) => {
+                Ok(Ok((mut detections, status))) => {
+                    detections.objects.retain(|o| !arm.is_held_object(o));
                     if status == SheetStatus::Found {
                         stats.frames_with_sheet.fetch_add(1, Ordering::Relaxed);
                         missing_sheet_streak = 0;

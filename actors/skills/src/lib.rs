@@ -1,0 +1,207 @@
+//! # robotd-skills: pick, place, push — the robot-control tools as actor requests
+//!
+//! The skills actor serves `skills/run`: one [`Skill`](robotd_protocol::skills::Skill) at a
+//! time, composed from the arm (`arm/command`), the gripper (`gripper/command`) and the
+//! workspace model (`workspace/query`), with the semantics of `spec/mcp-tools.md`:
+//!
+//! - **Look before acting**: a pick, push or relative placement first moves to the
+//!   workspace's observation pose and works from the first steady camera view taken there.
+//! - **Check before moving**: every target must lie inside a workspace (plus a margin) and
+//!   every pose of the plan must be reachable (inverse kinematics) — otherwise the skill is
+//!   refused before anything moves, saying which coordinate or pose and why.
+//! - **Real outcomes**: a pick succeeds only if the gripper reports it holds the object after
+//!   the lift; a place only if it let go. The workspace model is told of picks and places.
+//! - **Safe ends**: every motion skill ends at the first workspace's observation pose, so a
+//!   following detection query is answered at once.
+//! - **Progress and cancel**: `skills/progress` before each step; a `skills/cancel` with the
+//!   run id stops the arm at once (`Stop`) and ends the skill with `Cancelled`.
+//!
+//! ```no_run
+//! # async fn demo(bus: robotd_runtime::bus::Bus,
+//! #     workspaces: Vec<robotd_protocol::workspace::WorkspaceInfo>) -> Result<(), Box<dyn std::error::Error>> {
+//! use robotd_protocol::skills::{Skill, SkillRequest};
+//! use robotd_protocol::{Point2, RobotModel};
+//! use robotd_skills::{Skills, SkillsSettings};
+//! let skills = Skills::start(&bus, SkillsSettings::new(RobotModel::Ned2, workspaces))?;
+//! let client = bus.client(&robotd_runtime::catalog::SKILLS_RUN)?;
+//! let reply = client
+//!     .request(
+//!         &SkillRequest {
+//!             run_id: 1,
+//!             skill: Skill::Pick { object_name: "pencil".into(), pick_at: Point2::new(0.22, -0.05), z_offset_m: 0.001 },
+//!         },
+//!         std::time::Duration::from_secs(60),
+//!     )
+//!     .await?;
+//! println!("{reply:?}");
+//! skills.shutdown().await;
+//! # Ok(()) }
+//! ```
+
+pub mod geometry;
+mod runner;
+
+use robotd_protocol::arm::ArmCommand;
+use robotd_protocol::workspace::WorkspaceInfo;
+use robotd_protocol::RobotModel;
+use robotd_runtime::bus::{Bus, BusError};
+use robotd_runtime::catalog;
+use runner::{CancelFlag, Runner};
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// How the skills work; [`SkillsSettings::new`] has the defaults.
+#[derive(Debug, Clone)]
+pub struct SkillsSettings {
+    /// The arm model (for the reach checks).
+    pub robot: RobotModel,
+    /// The workspaces targets must lie in; the first is where motion skills end.
+    pub workspaces: Vec<WorkspaceInfo>,
+    /// How far outside a workspace rectangle a target may lie, metres.
+    pub workspace_margin_m: f64,
+    /// Objects further than this from the given coordinate are not picked, metres.
+    pub pick_radius_m: f64,
+    /// Widest object the gripper closes around, metres.
+    pub gripper_max_width_m: f64,
+    /// Height above an object's top for approaches, metres.
+    pub approach_height_m: f64,
+    /// Lowest tool-centre-point height ever commanded, metres.
+    pub min_tcp_z_m: f64,
+    /// Extra height above the surface when releasing, metres.
+    pub release_gap_m: f64,
+    /// Height of a container's floor for `inside` placements, metres.
+    pub container_floor_m: f64,
+    /// How far a finger reaches from the tool centre across the closing axis (the side that
+    /// pushes), metres.
+    pub finger_reach_m: f64,
+    /// Finger length above the tool centre point, metres (taller objects meet the palm too).
+    pub finger_length_m: f64,
+    /// How far the palm reaches from the tool centre across the closing axis, metres.
+    pub palm_reach_m: f64,
+    /// Gap between the gripper and the object when a push starts, metres.
+    pub push_gap_m: f64,
+    /// Tool height while pushing (at most half the object's height), metres.
+    pub push_z_m: f64,
+    /// Longest one arm or gripper command may take.
+    pub command_timeout: Duration,
+}
+
+impl SkillsSettings {
+    /// The defaults for `robot` on `workspaces`.
+    pub fn new(robot: RobotModel, workspaces: Vec<WorkspaceInfo>) -> Self {
+        Self {
+            robot,
+            workspaces,
+            workspace_margin_m: 0.02,
+            pick_radius_m: 0.05,
+            gripper_max_width_m: match robot {
+                RobotModel::Ned2 => 0.040,
+                RobotModel::WidowX250 => 0.044,
+            },
+            approach_height_m: 0.06,
+            min_tcp_z_m: 0.003,
+            release_gap_m: 0.002,
+            container_floor_m: 0.004,
+            finger_reach_m: match robot {
+                RobotModel::Ned2 => 0.009,
+                RobotModel::WidowX250 => 0.010,
+            },
+            finger_length_m: match robot {
+                RobotModel::Ned2 => 0.035,
+                RobotModel::WidowX250 => 0.040,
+            },
+            palm_reach_m: match robot {
+                RobotModel::Ned2 => 0.015,
+                RobotModel::WidowX250 => 0.0175,
+            },
+            push_gap_m: 0.010,
+            push_z_m: 0.012,
+            command_timeout: Duration::from_secs(60),
+        }
+    }
+}
+
+/// Why the skills actor could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum SkillsError {
+    /// A bus port could not be created.
+    #[error("skills actor: {0}")]
+    Bus(#[from] BusError),
+    /// No workspace is configured.
+    #[error("skills actor: no workspace is configured")]
+    NoWorkspace,
+}
+
+/// The running skills actor.
+#[derive(Debug)]
+pub struct Skills {
+    server: tokio::task::JoinHandle<()>,
+    canceller: tokio::task::JoinHandle<()>,
+}
+
+impl Skills {
+    /// Starts serving `skills/run` on `bus`. Must be called inside a tokio runtime.
+    pub fn start(bus: &Bus, settings: SkillsSettings) -> Result<Skills, SkillsError> {
+        if settings.workspaces.is_empty() {
+            return Err(SkillsError::NoWorkspace);
+        }
+        let cancel = Arc::new(CancelFlag::default());
+        let runner = Runner::new(
+            settings,
+            bus.client(&catalog::ARM_COMMAND)?,
+            bus.client(&catalog::GRIPPER_COMMAND)?,
+            bus.client(&catalog::WORKSPACE_QUERY)?,
+            bus.publisher(&catalog::SKILLS_PROGRESS)?,
+            cancel.clone(),
+        );
+        let runner = Arc::new(tokio::sync::Mutex::new(runner));
+        let mut server = bus.server(&catalog::SKILLS_RUN)?;
+        let serve = tokio::spawn(async move {
+            let served = server
+                .serve(move |request| {
+                    let runner = runner.clone();
+                    async move {
+                        let mut runner = runner.lock().await;
+                        Ok(runner.run(request.run_id, request.skill).await)
+                    }
+                })
+                .await;
+            if let Err(error) = served {
+                tracing::error!(%error, "the skills actor stopped serving");
+            }
+        });
+        let mut cancels = bus.subscriber(&catalog::SKILLS_CANCEL)?;
+        let stopper = bus.client(&catalog::ARM_COMMAND)?;
+        let canceller = tokio::spawn(async move {
+            while let Ok(envelope) = cancels.recv().await {
+                let run_id = envelope.body.run_id;
+                if run_id == 0 || cancel.run_id.load(Ordering::SeqCst) != run_id {
+                    tracing::debug!(run_id, "cancel for a skill that is not running");
+                    continue;
+                }
+                cancel.cancelled.store(true, Ordering::SeqCst);
+                tracing::info!(run_id, "skill cancelled: stopping the arm");
+                match stopper
+                    .request(&ArmCommand::Stop, Duration::from_secs(2))
+                    .await
+                {
+                    Ok(reply) => tracing::debug!(?reply, "arm stopped"),
+                    Err(error) => tracing::error!(%error, "could not stop the arm"),
+                }
+            }
+        });
+        Ok(Skills {
+            server: serve,
+            canceller,
+        })
+    }
+
+    /// Stops serving (a running skill is abandoned; the arm actor keeps the arm safe).
+    pub async fn shutdown(self) {
+        self.server.abort();
+        self.canceller.abort();
+        let _ = self.server.await;
+        let _ = self.canceller.await;
+    }
+}

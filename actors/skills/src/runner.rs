@@ -1,0 +1,727 @@
+//! Runs one skill: look (a fresh view from the observation pose), plan every pose, check every
+//! pose against the workspaces and the arm's reach, and only then move — step by step, with a
+//! progress message before each step and a cancel check between steps.
+
+use crate::geometry::{self, extents, top_z};
+use crate::SkillsSettings;
+use robotd_kinematics::{pose_to_isometry, Kinematics};
+use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, PathKind};
+use robotd_protocol::envelope::unix_now_ns;
+use robotd_protocol::gripper::{GripperCommand, GripperReply};
+use robotd_protocol::objects::DetectedObject;
+use robotd_protocol::skills::{Skill, SkillError, SkillProgress, SkillReply};
+use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
+use robotd_protocol::{Direction, Location, Point2, Pose};
+use robotd_runtime::bus::{Client, Publisher};
+use std::f64::consts::FRAC_PI_2;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+
+/// Which run may be cancelled, and whether it was.
+#[derive(Debug, Default)]
+pub(crate) struct CancelFlag {
+    pub(crate) run_id: AtomicU64,
+    pub(crate) cancelled: AtomicBool,
+}
+
+/// The object in the gripper.
+#[derive(Debug, Clone)]
+struct Held {
+    object: DetectedObject,
+    /// Height of the TCP above the object's base while held, metres.
+    tcp_above_base_m: f64,
+    /// Gripper yaw it was picked with.
+    yaw_rad: f64,
+}
+
+/// The bus ports and state of the skills actor.
+pub(crate) struct Runner {
+    pub(crate) settings: SkillsSettings,
+    pub(crate) kinematics: Kinematics,
+    pub(crate) arm: Client<ArmCommand, ArmReply>,
+    pub(crate) gripper: Client<GripperCommand, GripperReply>,
+    pub(crate) workspace: Client<WorkspaceQuery, WorkspaceReply>,
+    pub(crate) progress: Publisher<SkillProgress>,
+    pub(crate) cancel: Arc<CancelFlag>,
+    held: Option<Held>,
+}
+
+/// One running skill: its id and step counter.
+struct Run {
+    run_id: u64,
+    step: u32,
+    total: u32,
+}
+
+/// A planned tool pose: pointing down at (x, y, z), turned by yaw.
+fn down(p: Point2, z: f64, yaw: f64) -> Pose {
+    Pose::new(p.x_m, p.y_m, z, 0.0, FRAC_PI_2, yaw)
+}
+
+impl Runner {
+    pub(crate) fn new(
+        settings: SkillsSettings,
+        arm: Client<ArmCommand, ArmReply>,
+        gripper: Client<GripperCommand, GripperReply>,
+        workspace: Client<WorkspaceQuery, WorkspaceReply>,
+        progress: Publisher<SkillProgress>,
+        cancel: Arc<CancelFlag>,
+    ) -> Self {
+        Self {
+            kinematics: Kinematics::new(settings.robot),
+            settings,
+            arm,
+            gripper,
+            workspace,
+            progress,
+            cancel,
+            held: None,
+        }
+    }
+
+    /// Runs `skill`; always answers.
+    pub(crate) async fn run(&mut self, run_id: u64, skill: Skill) -> SkillReply {
+        self.cancel.cancelled.store(false, Ordering::SeqCst);
+        self.cancel.run_id.store(run_id, Ordering::SeqCst);
+        let mut run = Run {
+            run_id,
+            step: 0,
+            total: 1,
+        };
+        let name = skill.name();
+        let outcome = self.dispatch(&mut run, skill).await;
+        self.cancel.run_id.store(0, Ordering::SeqCst);
+        match outcome {
+            Ok(reply) => {
+                tracing::info!(skill = name, run_id, "skill done");
+                reply
+            }
+            Err(error) => {
+                tracing::warn!(skill = name, run_id, %error, "skill failed");
+                SkillReply::Failed { error }
+            }
+        }
+    }
+
+    async fn dispatch(&mut self, run: &mut Run, skill: Skill) -> Result<SkillReply, SkillError> {
+        use robotd_protocol::Validate;
+        skill.validate()?;
+        match skill {
+            Skill::Pick {
+                object_name,
+                pick_at,
+                z_offset_m,
+            } => {
+                run.total = 8;
+                let object = self
+                    .pick(run, &object_name, pick_at, z_offset_m, None)
+                    .await?;
+                self.finish(run).await?;
+                Ok(done(Some(object), Some(pick_at), None))
+            }
+            Skill::Place { place_at, location } => {
+                run.total = 8;
+                let (object, at) = self.place(run, place_at, location).await?;
+                self.finish(run).await?;
+                Ok(done(Some(object), None, Some(at)))
+            }
+            Skill::PickPlace {
+                object_name,
+                pick_at,
+                place_at,
+                location,
+                z_offset_m,
+            } => {
+                run.total = 14;
+                let object = self
+                    .pick(run, &object_name, pick_at, z_offset_m, Some(place_at))
+                    .await?;
+                let (_, at) = self.place(run, place_at, location).await?;
+                self.finish(run).await?;
+                let from = object_xy(&object);
+                Ok(done(Some(object), Some(from), Some(at)))
+            }
+            Skill::MoveBy {
+                object_name,
+                pick_at,
+                direction,
+                distance_m,
+                z_offset_m,
+            } => {
+                run.total = 14;
+                let object = self
+                    .pick(
+                        run,
+                        &object_name,
+                        pick_at,
+                        z_offset_m,
+                        Some(direction.offset(pick_at, distance_m)),
+                    )
+                    .await?;
+                let target = direction.offset(object_xy(&object), distance_m);
+                let (_, at) = self.place(run, target, Location::None).await?;
+                self.finish(run).await?;
+                let from = object_xy(&object);
+                Ok(done(Some(object), Some(from), Some(at)))
+            }
+            Skill::Push {
+                object_name,
+                push_at,
+                direction,
+                distance_m,
+            } => {
+                run.total = 8;
+                let (object, to) = self
+                    .push(run, &object_name, push_at, direction, distance_m)
+                    .await?;
+                self.finish(run).await?;
+                self.verify_push(&object, direction, distance_m).await?;
+                let from = object_xy(&object);
+                Ok(done(Some(object), Some(from), Some(to)))
+            }
+            Skill::GoToObservationPose { workspace_id } => {
+                run.total = 1;
+                self.step(
+                    run,
+                    format!("moving to the observation pose of '{workspace_id}'"),
+                )?;
+                self.arm_command(ArmCommand::GoToObservationPose { workspace_id })
+                    .await?;
+                Ok(done(None, None, None))
+            }
+            Skill::Calibrate => {
+                run.total = 1;
+                self.step(run, "calibrating the arm".into())?;
+                self.arm_command(ArmCommand::Calibrate).await?;
+                Ok(done(None, None, None))
+            }
+            Skill::ClearCollision => {
+                run.total = 1;
+                self.step(run, "clearing the collision flag".into())?;
+                self.arm_command(ArmCommand::ClearCollision).await?;
+                Ok(done(None, None, None))
+            }
+        }
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Steps
+
+    /// Publishes progress for the next step; refuses to go on once cancelled.
+    fn step(&self, run: &mut Run, message: String) -> Result<(), SkillError> {
+        self.check_cancel()?;
+        run.step += 1;
+        run.total = run.total.max(run.step);
+        tracing::debug!(run_id = run.run_id, step = run.step, %message, "skill step");
+        if let Err(error) = self.progress.publish(&SkillProgress {
+            run_id: run.run_id,
+            step: run.step,
+            total: run.total,
+            message,
+        }) {
+            tracing::debug!(%error, "skill progress not published");
+        }
+        Ok(())
+    }
+
+    fn check_cancel(&self) -> Result<(), SkillError> {
+        if self.cancel.cancelled.load(Ordering::SeqCst) {
+            Err(SkillError::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+
+    async fn arm_command(&self, command: ArmCommand) -> Result<Pose, SkillError> {
+        let reply = self
+            .arm
+            .request(&command, self.settings.command_timeout)
+            .await
+            .map_err(|e| SkillError::arm(format!("the arm did not answer: {e}")))?;
+        match reply {
+            ArmReply::Ok { pose } => Ok(pose),
+            ArmReply::Error {
+                error: ArmError::Stopped,
+            } if self.cancel.cancelled.load(Ordering::SeqCst) => Err(SkillError::Cancelled),
+            ArmReply::Error {
+                error:
+                    ArmError::UnknownWorkspace {
+                        workspace_id,
+                        known,
+                    },
+            } => Err(SkillError::UnknownWorkspace {
+                workspace_id,
+                known,
+            }),
+            ArmReply::Error { error } => Err(SkillError::arm(error.to_string())),
+            other => Err(SkillError::arm(format!("unexpected arm reply {other:?}"))),
+        }
+    }
+
+    async fn move_to(&self, pose: Pose, path: PathKind) -> Result<(), SkillError> {
+        self.arm_command(ArmCommand::MoveToPose { target: pose, path })
+            .await
+            .map(|_| ())
+    }
+
+    async fn grip(&self, command: GripperCommand) -> Result<bool, SkillError> {
+        let reply = self
+            .gripper
+            .request(&command, self.settings.command_timeout)
+            .await
+            .map_err(|e| SkillError::gripper(format!("the gripper did not answer: {e}")))?;
+        match reply {
+            GripperReply::State { holding, .. } => Ok(holding),
+            GripperReply::Error { error } => Err(SkillError::gripper(error.to_string())),
+        }
+    }
+
+    async fn ask(
+        &self,
+        request: WorkspaceRequest,
+        fresh_after: Option<u64>,
+    ) -> Result<WorkspaceReply, SkillError> {
+        let query = WorkspaceQuery {
+            request,
+            fresh_after_unix_ns: fresh_after,
+            max_wait_ms: 0,
+        };
+        self.workspace
+            .request(&query, self.settings.command_timeout)
+            .await
+            .map_err(|e| {
+                SkillError::perception(format!("the workspace model did not answer: {e}"))
+            })?
+            .into_result()
+            .map_err(|e| SkillError::perception(e.to_string()))
+    }
+
+    /// Moves to `ws`'s observation pose and returns the objects of the first steady view
+    /// taken there.
+    async fn look(
+        &self,
+        run: &mut Run,
+        ws: &WorkspaceInfo,
+    ) -> Result<Vec<DetectedObject>, SkillError> {
+        self.step(run, format!("looking at workspace '{}'", ws.id))?;
+        self.arm_command(ArmCommand::GoToObservationPose {
+            workspace_id: ws.id.clone(),
+        })
+        .await?;
+        let arrived = unix_now_ns();
+        let reply = self
+            .ask(
+                WorkspaceRequest::GetObjects {
+                    location: Location::None,
+                    coordinate: None,
+                    label: None,
+                },
+                Some(arrived),
+            )
+            .await?;
+        match reply {
+            WorkspaceReply::Objects { objects } => Ok(objects),
+            other => Err(SkillError::perception(format!(
+                "unexpected answer {other:?}"
+            ))),
+        }
+    }
+
+    fn workspace(&self, what: &str, p: Point2) -> Result<WorkspaceInfo, SkillError> {
+        geometry::workspace_of(
+            &self.settings.workspaces,
+            p,
+            self.settings.workspace_margin_m,
+        )
+        .cloned()
+        .ok_or_else(|| SkillError::OutsideWorkspace {
+            what: what.to_owned(),
+            at: p,
+            workspace_id: self
+                .settings
+                .workspaces
+                .iter()
+                .min_by(|a, b| {
+                    a.center()
+                        .distance_to(&p)
+                        .total_cmp(&b.center().distance_to(&p))
+                })
+                .map(|w| w.id.clone())
+                .unwrap_or_default(),
+        })
+    }
+
+    /// Checks that the arm reaches every pose of a plan, before anything moves.
+    fn reachable(&self, plan: &[(&str, Pose)]) -> Result<(), SkillError> {
+        for (what, pose) in plan {
+            if let Err(e) = self.kinematics.inverse(&pose_to_isometry(pose), None) {
+                return Err(SkillError::Unreachable {
+                    what: (*what).to_owned(),
+                    reason: e.to_string(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Ends a motion skill at the safe pose: the observation pose of the first workspace.
+    async fn finish(&self, run: &mut Run) -> Result<(), SkillError> {
+        let ws = self.settings.workspaces[0].id.clone();
+        self.step(run, "returning to the observation pose".into())?;
+        self.arm_command(ArmCommand::GoToObservationPose { workspace_id: ws })
+            .await?;
+        Ok(())
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Pick
+
+    async fn pick(
+        &mut self,
+        run: &mut Run,
+        name: &str,
+        at: Point2,
+        z_offset_m: f64,
+        then_place_at: Option<Point2>,
+    ) -> Result<DetectedObject, SkillError> {
+        let ws = self.workspace("pick", at)?;
+        if let Some(place) = then_place_at {
+            self.workspace("place", place)?;
+        }
+        if let Some(held) = &self.held {
+            return Err(SkillError::BadPlacement {
+                reason: format!(
+                    "the gripper already holds '{}'; place it first",
+                    held.object.label
+                ),
+            });
+        }
+        let objects = self.look(run, &ws).await?;
+        let radius = self.settings.pick_radius_m;
+        let object = objects
+            .iter()
+            .filter(|o| o.label_is(name) && o.xy().distance_to(&at) <= radius)
+            .min_by(|a, b| a.xy().distance_to(&at).total_cmp(&b.xy().distance_to(&at)))
+            .cloned()
+            .ok_or_else(|| SkillError::ObjectNotFound {
+                object_name: name.to_owned(),
+                at,
+                nearby: objects
+                    .iter()
+                    .filter(|o| o.xy().distance_to(&at) <= radius)
+                    .map(|o| o.label.clone())
+                    .collect(),
+            })?;
+        let width = geometry::grasp_width(&object);
+        let max = self.settings.gripper_max_width_m;
+        if width > max - 0.002 {
+            return Err(SkillError::TooWide {
+                object_name: object.label.clone(),
+                width_mm: width * 1000.0,
+                max_mm: max * 1000.0,
+            });
+        }
+        let xy = object_xy(&object);
+        let yaw = object.gripper_rotation_rad;
+        let grasp_z =
+            (object.position.center_of_mass.z_m + z_offset_m).max(self.settings.min_tcp_z_m);
+        let above_z = top_z(&object) + self.settings.approach_height_m;
+        let above = down(xy, above_z, yaw);
+        let grasp = down(xy, grasp_z, yaw);
+        self.reachable(&[("the pick approach", above), ("the grasp pose", grasp)])?;
+
+        self.step(run, "opening the gripper".into())?;
+        self.grip(GripperCommand::Open).await?;
+        self.step(run, format!("moving above '{}'", object.label))?;
+        self.move_to(above, PathKind::Joint).await?;
+        self.step(run, "lowering to the grasp".into())?;
+        self.move_to(grasp, PathKind::Linear).await?;
+        self.step(run, "closing the gripper".into())?;
+        let holding = self.grip(GripperCommand::Close).await?;
+        self.step(run, "lifting".into())?;
+        self.move_to(above, PathKind::Linear).await?;
+        if !holding {
+            return Err(SkillError::GraspMissed { at: xy });
+        }
+        // Still holding after the lift?
+        if !self.grip(GripperCommand::GetState).await? {
+            return Err(SkillError::GraspMissed { at: xy });
+        }
+        let base_z = (object.position.center_of_mass.z_m * 2.0 - top_z(&object)).max(0.0);
+        self.held = Some(Held {
+            object: object.clone(),
+            tcp_above_base_m: grasp_z - base_z,
+            yaw_rad: yaw,
+        });
+        if let Err(error) = self
+            .ask(
+                WorkspaceRequest::ObjectPicked {
+                    object_id: object.id.clone(),
+                },
+                None,
+            )
+            .await
+        {
+            tracing::warn!(%error, id = %object.id, "the workspace model was not told of a pick");
+        }
+        Ok(object)
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Place
+
+    async fn place(
+        &mut self,
+        run: &mut Run,
+        at: Point2,
+        location: Location,
+    ) -> Result<(DetectedObject, Point2), SkillError> {
+        let ws = self.workspace("place", at)?;
+        let Some(held) = self.held.clone() else {
+            // The gripper may hold something robotd did not pick (a restart, a hand).
+            return Err(SkillError::NothingHeld);
+        };
+        let held_extents = extents(&held.object);
+        let objects = self.look(run, &ws).await?;
+        let others: Vec<DetectedObject> = objects
+            .into_iter()
+            .filter(|o| o.id != held.object.id)
+            .collect();
+        let (target, surface_z) = if location == Location::None {
+            (at, 0.0)
+        } else {
+            let reference = others
+                .iter()
+                .min_by(|a, b| a.xy().distance_to(&at).total_cmp(&b.xy().distance_to(&at)))
+                .cloned()
+                .ok_or_else(|| SkillError::BadPlacement {
+                    reason: format!(
+                        "no object near [{:.3}, {:.3}] to place {location}",
+                        at.x_m, at.y_m
+                    ),
+                })?;
+            match location {
+                Location::OnTopOf => (object_xy(&reference), top_z(&reference)),
+                Location::Inside => (object_xy(&reference), self.settings.container_floor_m),
+                Location::CloseTo => {
+                    let margin = self.settings.workspace_margin_m;
+                    let workspaces = self.settings.workspaces.clone();
+                    let p = geometry::close_to(&reference, held_extents, at, &others, |p| {
+                        geometry::workspace_of(&workspaces, p, margin).is_some()
+                    })
+                    .ok_or_else(|| SkillError::BadPlacement {
+                        reason: format!(
+                            "no free side next to '{}' at [{:.3}, {:.3}]",
+                            reference.label,
+                            reference.xy().x_m,
+                            reference.xy().y_m
+                        ),
+                    })?;
+                    (p, 0.0)
+                }
+                side => (
+                    geometry::beside(&reference, side, held_extents).unwrap_or(at),
+                    0.0,
+                ),
+            }
+        };
+        self.workspace("place", target)?;
+        if surface_z == 0.0 {
+            if let Some(taken) = others
+                .iter()
+                .find(|o| geometry::overlaps(target, held_extents, std::slice::from_ref(o), 0.0))
+            {
+                return Err(SkillError::BadPlacement {
+                    reason: format!(
+                        "'{}' would not fit at [{:.3}, {:.3}]: '{}' is in the way",
+                        held.object.label, target.x_m, target.y_m, taken.label
+                    ),
+                });
+            }
+        }
+        let release_z = (surface_z + held.tcp_above_base_m + self.settings.release_gap_m)
+            .max(self.settings.min_tcp_z_m);
+        let above_z = surface_z
+            + top_z(&held.object)
+            + held.tcp_above_base_m.max(0.0)
+            + self.settings.approach_height_m;
+        let above = down(target, above_z, held.yaw_rad);
+        let release = down(target, release_z, held.yaw_rad);
+        self.reachable(&[("the place approach", above), ("the release pose", release)])?;
+
+        self.step(
+            run,
+            format!("moving above [{:.3}, {:.3}]", target.x_m, target.y_m),
+        )?;
+        self.move_to(above, PathKind::Joint).await?;
+        self.step(run, "lowering".into())?;
+        self.move_to(release, PathKind::Linear).await?;
+        self.step(run, "opening the gripper".into())?;
+        let still_holding = self.grip(GripperCommand::Open).await?;
+        if still_holding {
+            return Err(SkillError::gripper(
+                "the gripper still holds the object after opening",
+            ));
+        }
+        self.held = None;
+        self.step(run, "lifting".into())?;
+        self.move_to(above, PathKind::Linear).await?;
+        if let Err(error) = self
+            .ask(
+                WorkspaceRequest::ObjectPlaced {
+                    object_id: held.object.id.clone(),
+                    at: target,
+                },
+                None,
+            )
+            .await
+        {
+            tracing::warn!(%error, "the workspace model was not told of a place");
+        }
+        Ok((held.object, target))
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Push
+
+    async fn push(
+        &mut self,
+        run: &mut Run,
+        name: &str,
+        at: Point2,
+        direction: Direction,
+        distance_m: f64,
+    ) -> Result<(DetectedObject, Point2), SkillError> {
+        let ws = self.workspace("push", at)?;
+        if let Some(held) = &self.held {
+            return Err(SkillError::BadPlacement {
+                reason: format!(
+                    "the gripper holds '{}'; place it before pushing",
+                    held.object.label
+                ),
+            });
+        }
+        let objects = self.look(run, &ws).await?;
+        let radius = self.settings.pick_radius_m;
+        let object = objects
+            .iter()
+            .filter(|o| o.label_is(name) && o.xy().distance_to(&at) <= radius)
+            .min_by(|a, b| a.xy().distance_to(&at).total_cmp(&b.xy().distance_to(&at)))
+            .cloned()
+            .ok_or_else(|| SkillError::ObjectNotFound {
+                object_name: name.to_owned(),
+                at,
+                nearby: objects
+                    .iter()
+                    .filter(|o| o.xy().distance_to(&at) <= radius)
+                    .map(|o| o.label.clone())
+                    .collect(),
+            })?;
+        let end_of_object = direction.offset(object_xy(&object), distance_m);
+        self.workspace("push", end_of_object)?;
+        let low_z = self
+            .settings
+            .push_z_m
+            .min(top_z(&object) / 2.0)
+            .max(self.settings.min_tcp_z_m);
+        // What meets the object first: the fingers, or the palm above them for tall objects.
+        let reach = if top_z(&object) > low_z + self.settings.finger_length_m {
+            self.settings.palm_reach_m
+        } else {
+            self.settings.finger_reach_m
+        };
+        let clearance = reach + self.settings.push_gap_m;
+        let start = geometry::push_start(&object, direction, clearance);
+        // The tool also crosses the gap before it touches, so the object moves `distance_m`.
+        let end = direction.offset(start, distance_m + self.settings.push_gap_m);
+        let yaw = match direction {
+            Direction::Left | Direction::Right => FRAC_PI_2,
+            Direction::Up | Direction::Down => 0.0,
+        };
+        let travel_z = top_z(&object) + self.settings.approach_height_m;
+        let plan = [
+            ("the push approach", down(start, travel_z, yaw)),
+            ("the push start", down(start, low_z, yaw)),
+            ("the push end", down(end, low_z, yaw)),
+            ("the push retreat", down(end, travel_z, yaw)),
+        ];
+        self.reachable(&plan)?;
+        self.step(run, "closing the gripper".into())?;
+        self.grip(GripperCommand::Close).await?;
+        self.step(run, format!("moving behind '{}'", object.label))?;
+        self.move_to(plan[0].1, PathKind::Joint).await?;
+        self.step(run, "lowering".into())?;
+        self.move_to(plan[1].1, PathKind::Linear).await?;
+        self.step(
+            run,
+            format!("pushing {:.1} mm {direction}", distance_m * 1000.0),
+        )?;
+        self.move_to(plan[2].1, PathKind::Linear).await?;
+        self.step(run, "lifting".into())?;
+        self.move_to(plan[3].1, PathKind::Linear).await?;
+        self.step(run, "opening the gripper".into())?;
+        self.grip(GripperCommand::Open).await?;
+        Ok((object, end_of_object))
+    }
+}
+
+impl Runner {
+    /// Checks with a fresh view that a pushed object moved about as far as asked.
+    async fn verify_push(
+        &self,
+        object: &DetectedObject,
+        direction: Direction,
+        distance_m: f64,
+    ) -> Result<(), SkillError> {
+        let reply = self
+            .ask(
+                WorkspaceRequest::GetObjects {
+                    location: Location::None,
+                    coordinate: None,
+                    label: None,
+                },
+                Some(unix_now_ns()),
+            )
+            .await?;
+        let WorkspaceReply::Objects { objects } = reply else {
+            return Err(SkillError::perception("unexpected answer to a view query"));
+        };
+        let Some(now) = objects.iter().find(|o| o.id == object.id) else {
+            return Err(SkillError::NotAsExpected {
+                reason: format!(
+                    "'{}' is no longer seen after the push (pushed off the workspace?)",
+                    object.label
+                ),
+            });
+        };
+        let (ux, uy) = direction.unit_xy();
+        let moved = (now.xy().x_m - object.xy().x_m) * ux + (now.xy().y_m - object.xy().y_m) * uy;
+        let tolerance = (0.2 * distance_m).max(0.005);
+        if (moved - distance_m).abs() > tolerance {
+            return Err(SkillError::NotAsExpected {
+                reason: format!(
+                    "'{}' moved {:.1} mm {direction} instead of {:.1} mm (something blocks it?); \
+                     it is now at [{:.3}, {:.3}]",
+                    object.label,
+                    moved * 1000.0,
+                    distance_m * 1000.0,
+                    now.xy().x_m,
+                    now.xy().y_m
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+fn object_xy(o: &DetectedObject) -> Point2 {
+    o.xy()
+}
+
+fn done(object: Option<DetectedObject>, from: Option<Point2>, to: Option<Point2>) -> SkillReply {
+    SkillReply::Done {
+        object: object.map(Box::new),
+        from,
+        to,
+    }
+}

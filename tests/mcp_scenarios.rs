@@ -1,0 +1,328 @@
+//! Scenarios on the simulator, as an LLM would script them: tool calls over MCP against a served
+//! robotd, using only what the tools say (positions from `get_detected_objects`), and then
+//! the world checked against the simulator's ground truth (`sim/world` on the bus).
+
+mod common;
+
+use rmcp::model::CallToolRequestParams;
+use robotd_mcp::client::{connect, McpClient};
+use robotd_protocol::diagnostics::{SimObjectState, SimWorldRequest};
+use robotd_runtime::bus::{Bus, BusOptions};
+use robotd_runtime::catalog::SIM_WORLD;
+use serde_json::{json, Value};
+use std::time::Duration;
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+fn scene(name: &str) -> String {
+    format!(
+        "robot.scene={}/tests/scenes/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+/// A served robotd, an MCP client of it and a bus client of its ground truth.
+struct Lab {
+    _robotd: common::Running,
+    client: McpClient,
+    bus: Bus,
+}
+
+async fn lab(scene_setting: Option<String>) -> Lab {
+    let namespace = common::fresh_namespace("scn");
+    let port = common::free_port();
+    let mut extra = vec![
+        "--set".to_owned(),
+        "robot.time_scale=0.05".to_owned(),
+        "--set".to_owned(),
+        "robot.camera.fps=15".to_owned(),
+    ];
+    if let Some(s) = scene_setting {
+        extra.push("--set".into());
+        extra.push(s);
+    }
+    let extra: Vec<&str> = extra.iter().map(String::as_str).collect();
+    let robotd = common::start_robotd(&namespace, port, &extra);
+    let client = connect(&format!("http://127.0.0.1:{port}/sse"), None)
+        .await
+        .unwrap();
+    let bus = Bus::open(BusOptions::new(&namespace, "scenario-test")).unwrap();
+    Lab {
+        _robotd: robotd,
+        client,
+        bus,
+    }
+}
+
+impl Lab {
+    async fn call(&self, tool: &str, args: Value) -> (String, Value) {
+        let mut params = CallToolRequestParams::new(tool.to_owned());
+        if let Value::Object(map) = args {
+            params = params.with_arguments(map);
+        }
+        let result = self.client.call_tool(params).await.unwrap();
+        let text = result.content[0].as_text().unwrap().text.clone();
+        let data = result.structured_content.unwrap()["data"].clone();
+        eprintln!("{tool}: {}", text.lines().next().unwrap_or(""));
+        (text, data)
+    }
+
+    async fn ok(&self, tool: &str, args: Value) -> Value {
+        let (text, data) = self.call(tool, args).await;
+        assert!(text.starts_with('✓'), "{tool}: {text}");
+        data
+    }
+
+    /// What the camera sees: label → [x, y] of each object (centre of mass).
+    async fn seen(&self) -> Vec<(String, [f64; 2], f64)> {
+        let data = self.ok("get_detected_objects", json!({})).await;
+        data.as_array()
+            .unwrap()
+            .iter()
+            .map(|o| {
+                let c = &o["position"]["center_of_mass"];
+                (
+                    o["label"].as_str().unwrap().to_owned(),
+                    [c["x"].as_f64().unwrap(), c["y"].as_f64().unwrap()],
+                    o["dimensions"]["size_m2"].as_f64().unwrap(),
+                )
+            })
+            .collect()
+    }
+
+    async fn truth(&self) -> Vec<SimObjectState> {
+        let client = self.bus.client(&SIM_WORLD).unwrap();
+        client
+            .request(&SimWorldRequest {}, Duration::from_secs(5))
+            .await
+            .unwrap()
+            .objects
+    }
+
+    async fn truth_of(&self, label: &str) -> SimObjectState {
+        self.truth()
+            .await
+            .into_iter()
+            .find(|o| o.label == label)
+            .unwrap_or_else(|| panic!("no {label} in the world"))
+    }
+
+    async fn move_object(&self, label: &str, from: [f64; 2], to: [f64; 2]) {
+        self.ok(
+            "pick_place_object",
+            json!({"object_name": label, "pick_coordinate": from, "place_coordinate": to}),
+        )
+        .await;
+    }
+}
+
+fn assert_near(o: &SimObjectState, at: [f64; 2], tol: f64) {
+    let d = ((o.x_m - at[0]).powi(2) + (o.y_m - at[1]).powi(2)).sqrt();
+    assert!(
+        d <= tol && !o.held,
+        "{} at ({:.4}, {:.4}), wanted {at:?} (off by {:.1} mm, held {})",
+        o.label,
+        o.x_m,
+        o.y_m,
+        d * 1000.0,
+        o.held
+    );
+}
+
+#[test]
+fn sort_by_size_in_a_line_then_a_triangle() {
+    runtime().block_on(async {
+        let lab = lab(Some(scene("sort.toml"))).await;
+        let mut seen = lab.seen().await;
+        assert_eq!(seen.len(), 3, "{seen:?}");
+        // Sort all objects by size in a line starting at [0.15, −0.05], 8 cm apart.
+        seen.sort_by(|a, b| a.2.total_cmp(&b.2));
+        let line: Vec<[f64; 2]> = (0..3).map(|i| [0.15 + 0.08 * i as f64, -0.05]).collect();
+        for ((label, at, _), to) in seen.iter().zip(&line) {
+            lab.move_object(label, *at, *to).await;
+        }
+        for ((label, _, _), to) in seen.iter().zip(&line) {
+            assert_near(&lab.truth_of(label).await, *to, 0.005);
+        }
+        assert_eq!(
+            seen.iter().map(|s| s.0.as_str()).collect::<Vec<_>>(),
+            ["red cube", "green cylinder", "pencil"]
+        );
+
+        // Then a triangle at [0.15, 0.0], [0.25, −0.08], [0.25, 0.08].
+        let corners = [[0.25, 0.08], [0.15, 0.0], [0.25, -0.08]];
+        let seen = lab.seen().await;
+        assert_eq!(seen.len(), 3, "{seen:?}");
+        for ((label, at, _), to) in seen.iter().zip(&corners) {
+            lab.move_object(label, *at, *to).await;
+        }
+        for ((label, _, _), to) in seen.iter().zip(&corners) {
+            assert_near(&lab.truth_of(label).await, *to, 0.005);
+        }
+    });
+}
+
+#[test]
+fn swap_the_two_largest_through_the_largest_free_space() {
+    runtime().block_on(async {
+        let lab = lab(Some(scene("sort.toml"))).await;
+        let (_, data) = lab
+            .call("get_detected_objects_sorted", json!({"ascending": false}))
+            .await;
+        let objects = data.as_array().unwrap();
+        let pos = |o: &Value| {
+            let c = &o["position"]["center_of_mass"];
+            [c["x"].as_f64().unwrap(), c["y"].as_f64().unwrap()]
+        };
+        let (a, a_at) = (
+            objects[0]["label"].as_str().unwrap().to_owned(),
+            pos(&objects[0]),
+        );
+        let (b, b_at) = (
+            objects[1]["label"].as_str().unwrap().to_owned(),
+            pos(&objects[1]),
+        );
+        assert_eq!((a.as_str(), b.as_str()), ("pencil", "green cylinder"));
+        let free = lab
+            .ok("get_largest_free_space_with_center", json!({}))
+            .await;
+        let park = [
+            free["center"][0].as_f64().unwrap(),
+            free["center"][1].as_f64().unwrap(),
+        ];
+        lab.move_object(&a, a_at, park).await;
+        lab.move_object(&b, b_at, a_at).await;
+        // Pick the first one up where the camera now sees it.
+        let parked = lab
+            .seen()
+            .await
+            .into_iter()
+            .find(|s| s.0 == a)
+            .expect("the parked object is seen");
+        lab.move_object(&a, parked.1, b_at).await;
+        assert_near(&lab.truth_of(&a).await, b_at, 0.006);
+        assert_near(&lab.truth_of(&b).await, a_at, 0.006);
+    });
+}
+
+#[test]
+fn push_the_too_wide_box_50_mm_right() {
+    runtime().block_on(async {
+        let lab = lab(Some(scene_file("push.toml"))).await;
+        let before = lab.truth_of("large box").await;
+        let seen = lab.seen().await;
+        let (_, at, _) = seen.iter().find(|s| s.0 == "large box").expect("box seen");
+        // Too wide to pick: the tool says so and nothing moves.
+        let (text, _) = lab
+            .call(
+                "pick_object",
+                json!({"object_name": "large box", "pick_coordinate": at}),
+            )
+            .await;
+        assert!(
+            text.starts_with("❌ Failed to pick 'large box': "),
+            "{text}"
+        );
+        assert!(text.contains("push it instead"), "{text}");
+        let (text, _) = lab
+            .call(
+                "push_object",
+                json!({"object_name": "large box", "push_coordinate": at,
+                       "direction": "right", "distance": 50.0}),
+            )
+            .await;
+        assert_eq!(
+            text,
+            format!(
+                "✓ Successfully pushed 'large box' from [{:.3}, {:.3}] right by 50.0mm",
+                at[0], at[1]
+            )
+        );
+        let after = lab.truth_of("large box").await;
+        let moved_y = after.y_m - before.y_m;
+        assert!(
+            (moved_y + 0.050).abs() <= 0.005 && (after.x_m - before.x_m).abs() <= 0.005,
+            "box moved ({:.1}, {:.1}) mm",
+            (after.x_m - before.x_m) * 1000.0,
+            moved_y * 1000.0
+        );
+    });
+}
+
+fn scene_file(name: &str) -> String {
+    format!(
+        "robot.scene={}/config/scenes/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+#[test]
+fn stack_the_small_cube_on_the_large_one_and_recover_from_errors() {
+    runtime().block_on(async {
+        let lab = lab(Some(scene("stack.toml"))).await;
+        let mut cubes = lab.seen().await;
+        assert_eq!(cubes.len(), 2, "{cubes:?}");
+        cubes.sort_by(|a, b| a.2.total_cmp(&b.2));
+        let (small_at, large_at) = (cubes[0].1, cubes[1].1);
+
+        // Error recovery: an unknown object, a target far outside; nothing moves.
+        let (text, _) = lab
+            .call(
+                "pick_object",
+                json!({"object_name": "unicorn", "pick_coordinate": small_at}),
+            )
+            .await;
+        assert_eq!(
+            text,
+            format!(
+                "❌ Failed to pick 'unicorn': no 'unicorn' within 5 cm of [{:.3}, {:.3}]; seen there: red cube",
+                small_at[0], small_at[1]
+            )
+        );
+        let (text, _) = lab
+            .call(
+                "pick_place_object",
+                json!({"object_name": "red cube", "pick_coordinate": small_at,
+                       "place_coordinate": [99.9, 99.9]}),
+            )
+            .await;
+        assert_eq!(
+            text,
+            "❌ Failed to pick and place 'red cube': place coordinate [99.900, 99.900] is outside workspace 'niryo_ws'"
+        );
+        let small = lab.truth_of("small cube").await;
+        assert!(!small.held && small.bottom_z_m < 0.002, "{small:?}");
+
+        // Stack.
+        let (text, _) = lab
+            .call(
+                "pick_place_object",
+                json!({"object_name": "red cube", "pick_coordinate": small_at,
+                       "place_coordinate": large_at, "location": "on top of"}),
+            )
+            .await;
+        assert_eq!(
+            text,
+            format!(
+                "✓ Successfully picked 'red cube' from [{:.3}, {:.3}] and placed it on top of coordinate [{:.3}, {:.3}]",
+                small_at[0], small_at[1], large_at[0], large_at[1]
+            )
+        );
+        let small = lab.truth_of("small cube").await;
+        let large = lab.truth_of("large cube").await;
+        assert!(!small.held, "{small:?}");
+        assert!(
+            (small.bottom_z_m - large.top_z_m).abs() < 0.003,
+            "small cube's bottom at {:.4} m, large cube's top at {:.4} m",
+            small.bottom_z_m,
+            large.top_z_m
+        );
+        assert_near(&small, [large.x_m, large.y_m], 0.006);
+    });
+}
