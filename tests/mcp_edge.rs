@@ -392,19 +392,20 @@ fn the_contract_holds_over_sse_and_streamable_http() {
 fn the_contract_holds_over_stdio() {
     let namespace = common::fresh_namespace("stdio");
     let log_dir = std::env::temp_dir().join(format!("robotd-stdio-logs-{}", std::process::id()));
-    let mut child = tokio::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
-        .args(["mcp-stdio", "--namespace", &namespace])
-        .args(["--set", "robot.time_scale=0.05"])
-        .arg("--set")
-        .arg(format!("telemetry.log_dir={}", log_dir.display()))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .kill_on_drop(true)
-        .spawn()
-        .expect("start robotd mcp-stdio");
     runtime().block_on(async {
         use rmcp::ServiceExt;
+        let mut child = tokio::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
+            .args(["mcp-stdio", "--namespace", &namespace])
+            .args(["--set", "robot.time_scale=0.05"])
+            .arg("--set")
+            .arg(format!("telemetry.log_dir={}", log_dir.display()))
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .kill_on_drop(true)
+            .spawn()
+            .expect("start robotd mcp-stdio");
+
         let stdout = child.stdout.take().unwrap();
         let stdin = child.stdin.take().unwrap();
         let client = ().serve((stdout, stdin)).await.expect("MCP over stdio");

@@ -686,7 +686,18 @@ impl Runner {
         let WorkspaceReply::Objects { objects } = reply else {
             return Err(SkillError::perception("unexpected answer to a view query"));
         };
-        let Some(now) = objects.iter().find(|o| o.id == object.id) else {
+        // The tracker may give an object that moved far a new id (the old one lingers until it
+        // expires): take the same-label object nearest to where the push should have put it.
+        let expected = direction.offset(object.xy(), distance_m);
+        let Some(now) = objects
+            .iter()
+            .filter(|o| o.label == object.label)
+            .min_by(|a, b| {
+                a.xy()
+                    .distance_to(&expected)
+                    .total_cmp(&b.xy().distance_to(&expected))
+            })
+        else {
             return Err(SkillError::NotAsExpected {
                 reason: format!(
                     "'{}' is no longer seen after the push (pushed off the workspace?)",
