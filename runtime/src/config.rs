@@ -30,10 +30,14 @@
 //! ```
 //! use robotd_runtime::config::{Config, LoadOptions, RobotDriver};
 //!
-//! // What the binary does: `robotd --config lab.toml http.bind=0.0.0.0:8000`.
+//! // What the binary does: `robotd --config lab.toml http.bind=0.0.0.0:8000` (serving the
+//! // network needs the MCP bearer token, usually from ROBOTD_MCP__TOKEN).
 //! let options = LoadOptions {
 //!     file: None,
-//!     overrides: vec![("http.bind".into(), "0.0.0.0:8000".into())],
+//!     overrides: vec![
+//!         ("http.bind".into(), "0.0.0.0:8000".into()),
+//!         ("mcp.token".into(), "a-long-random-token".into()),
+//!     ],
 //! };
 //! // `load` reads the process environment; `load_with_env` takes it explicitly (tests).
 //! let config = Config::load_with_env(options, Vec::<(String, String)>::new()).unwrap();

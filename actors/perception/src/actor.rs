@@ -5,7 +5,11 @@
 //! newest one waiting (latest wins: under load it skips frames, it never falls behind), reads
 //! the frame in place in shared memory, and publishes [`Detections`] on
 //! `perception/detections` with the frame's id and capture time. A frame taken while the arm
-//! moved is published with `steady = false`, so the workspace model ignores it.
+//! moved is published with `steady = false`, so the workspace model ignores it. While the
+//! gripper holds something (`gripper/state`), the held object hangs in the wrist camera's view
+//! and would look like an object on the table under the tool: detections whose footprint
+//! covers the tool's position are dropped then (a real object right under the tool is missed
+//! while holding).
 //!
 //! A detector that fails or panics on a frame costs that frame only: the failure is logged and
 //! counted, and the next frame is processed as usual.
