@@ -397,21 +397,7 @@ impl Runner {
             });
         }
         let objects = self.look(run, &ws).await?;
-        let radius = self.settings.pick_radius_m;
-        let object = objects
-            .iter()
-            .filter(|o| o.label_is(name) && o.xy().distance_to(&at) <= radius)
-            .min_by(|a, b| a.xy().distance_to(&at).total_cmp(&b.xy().distance_to(&at)))
-            .cloned()
-            .ok_or_else(|| SkillError::ObjectNotFound {
-                object_name: name.to_owned(),
-                at,
-                nearby: objects
-                    .iter()
-                    .filter(|o| o.xy().distance_to(&at) <= radius)
-                    .map(|o| o.label.clone())
-                    .collect(),
-            })?;
+        let object = find_object(&objects, name, at, self.settings.pick_radius_m)?;
         let width = geometry::grasp_width(&object);
         let max = self.settings.gripper_max_width_m;
         if width > max - 0.002 {
@@ -602,21 +588,7 @@ impl Runner {
             });
         }
         let objects = self.look(run, &ws).await?;
-        let radius = self.settings.pick_radius_m;
-        let object = objects
-            .iter()
-            .filter(|o| o.label_is(name) && o.xy().distance_to(&at) <= radius)
-            .min_by(|a, b| a.xy().distance_to(&at).total_cmp(&b.xy().distance_to(&at)))
-            .cloned()
-            .ok_or_else(|| SkillError::ObjectNotFound {
-                object_name: name.to_owned(),
-                at,
-                nearby: objects
-                    .iter()
-                    .filter(|o| o.xy().distance_to(&at) <= radius)
-                    .map(|o| o.label.clone())
-                    .collect(),
-            })?;
+        let object = find_object(&objects, name, at, self.settings.pick_radius_m)?;
         let end_of_object = direction.offset(object_xy(&object), distance_m);
         self.workspace("push", end_of_object)?;
         let low_z = self
@@ -723,6 +695,32 @@ impl Runner {
         }
         Ok(())
     }
+}
+
+/// The object labelled `name` nearest `at`, within `radius_m`; otherwise the error names the
+/// labels seen there.
+fn find_object(
+    objects: &[DetectedObject],
+    name: &str,
+    at: Point2,
+    radius_m: f64,
+) -> Result<DetectedObject, SkillError> {
+    let near = |o: &&DetectedObject| o.xy().distance_to(&at) <= radius_m;
+    objects
+        .iter()
+        .filter(near)
+        .filter(|o| o.label_is(name))
+        .min_by(|a, b| a.xy().distance_to(&at).total_cmp(&b.xy().distance_to(&at)))
+        .cloned()
+        .ok_or_else(|| SkillError::ObjectNotFound {
+            object_name: name.to_owned(),
+            at,
+            nearby: objects
+                .iter()
+                .filter(near)
+                .map(|o| o.label.clone())
+                .collect(),
+        })
 }
 
 fn object_xy(o: &DetectedObject) -> Point2 {
