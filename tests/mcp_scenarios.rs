@@ -258,6 +258,17 @@ fn push_the_too_wide_box_50_mm_right() {
                 at[0], at[1]
             )
         );
+        // The camera sees one box where it went, not a new one beside a stale one.
+        let boxes: Vec<_> = lab
+            .seen()
+            .await
+            .into_iter()
+            .filter(|s| s.0 == "large box")
+            .collect();
+        assert_eq!(boxes.len(), 1, "{boxes:?}");
+        // (The box now reaches 2 cm past the sheet, which is all the camera looks at, so its
+        // seen centre lies inward of the true one.)
+        assert!((boxes[0].1[1] - (at[1] - 0.05)).abs() < 0.015, "{boxes:?}");
         let after = lab.truth_of("large box").await;
         let moved_y = after.y_m - before.y_m;
         assert!(

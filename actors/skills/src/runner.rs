@@ -633,6 +633,20 @@ impl Runner {
         self.move_to(plan[3].1, PathKind::Linear).await?;
         self.step(run, "opening the gripper".into())?;
         self.grip(GripperCommand::Open).await?;
+        // Memory moves the object where the push should have put it, so the next view keeps
+        // its id instead of seeing a new object beside a stale one.
+        if let Err(error) = self
+            .ask(
+                WorkspaceRequest::ObjectPlaced {
+                    object_id: object.id.clone(),
+                    at: end_of_object,
+                },
+                None,
+            )
+            .await
+        {
+            tracing::warn!(%error, "the workspace model was not told of a push");
+        }
         Ok((object, end_of_object))
     }
 }
