@@ -2,8 +2,9 @@
 //!
 //! The Python server wrote such a file per run, and labs read it to see what an LLM did to
 //! their robot; robotd keeps the file name and writes one JSON object per line: time (UTC),
-//! transport, tool, arguments, result text, status (`ok`, `failed`, `protocol_error`) and
-//! duration. A log that cannot be written is reported once and the calls go on.
+//! transport, tool, arguments, result text, status (`ok`, `failed`, `protocol_error`),
+//! duration and the call's trace id (the actors' spans of the call carry the same trace, so a
+//! log line leads to its trace on a dashboard). A log that cannot be written is reported once and the calls go on.
 
 use serde_json::{json, Map, Value};
 use std::io::Write;
@@ -101,6 +102,7 @@ impl CallLog {
         result: &str,
         status: &str,
         duration: Duration,
+        trace_id: Option<&str>,
     ) {
         tracing::info!(
             target: "robotd::mcp::calls",
@@ -125,6 +127,7 @@ impl CallLog {
             "result": result,
             "status": status,
             "duration_ms": (duration.as_secs_f64() * 1e6).round() / 1e3,
+            "trace_id": trace_id,
         });
         if let Err(error) = writeln!(file, "{line}") {
             tracing::warn!(%error, "the MCP call log cannot be written; it is off from now on");
@@ -159,12 +162,14 @@ mod tests {
             "✓ Speaking: 'hi'",
             "ok",
             Duration::from_micros(1500),
+            Some("4bf92f3577b34da6a3ce929d0e0e4736"),
         );
         let text = std::fs::read_to_string(log.path().unwrap()).unwrap();
         let line: Value = serde_json::from_str(text.trim()).unwrap();
         assert_eq!(line["tool"], "speak");
         assert_eq!(line["arguments"]["text"], "hi");
         assert_eq!(line["duration_ms"], 1.5);
+        assert_eq!(line["trace_id"], "4bf92f3577b34da6a3ce929d0e0e4736");
         let name = log
             .path()
             .unwrap()

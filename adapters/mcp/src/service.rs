@@ -128,6 +128,11 @@ impl ServerHandler for McpService {
             cancel: context.ct.clone(),
         };
         let arguments = request.arguments.clone();
+        // The call's trace id, for the call log: the actors' spans of this call share it.
+        let trace_id = span
+            .in_scope(robotd_runtime::telemetry::current_trace_context)
+            .traceparent
+            .and_then(|tp| tp.split('-').nth(1).map(str::to_owned));
         let started = Instant::now();
         let outcome = self
             .registry
@@ -146,6 +151,7 @@ impl ServerHandler for McpService {
                     &output.text,
                     status,
                     elapsed,
+                    trace_id.as_deref(),
                 );
                 let mut result =
                     CallToolResult::success(vec![ContentBlock::text(output.text.clone())]);
@@ -162,6 +168,7 @@ impl ServerHandler for McpService {
                     "unknown tool",
                     "protocol_error",
                     elapsed,
+                    trace_id.as_deref(),
                 );
                 Err(McpError::invalid_params(
                     format!("unknown tool '{name}'"),
