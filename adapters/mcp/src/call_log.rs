@@ -12,6 +12,25 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
+/// One tool call, as the call log writes it.
+#[derive(Debug, Clone, Copy)]
+pub struct CallRecord<'a> {
+    /// `sse`, `streamable_http` or `stdio`.
+    pub transport: &'a str,
+    /// The tool's name.
+    pub tool: &'a str,
+    /// The arguments as sent.
+    pub arguments: Option<&'a Map<String, Value>>,
+    /// The reply text.
+    pub result: &'a str,
+    /// `ok`, `failed` or `protocol_error`.
+    pub status: &'a str,
+    /// How long the call took.
+    pub duration: Duration,
+    /// The call's trace id (32 hex digits), when tracing is on.
+    pub trace_id: Option<&'a str>,
+}
+
 /// The call log of one robotd run.
 #[derive(Debug)]
 pub struct CallLog {
@@ -94,16 +113,16 @@ impl CallLog {
     }
 
     /// Records one call.
-    pub fn record(
-        &self,
-        transport: &str,
-        tool: &str,
-        arguments: Option<&Map<String, Value>>,
-        result: &str,
-        status: &str,
-        duration: Duration,
-        trace_id: Option<&str>,
-    ) {
+    pub fn record(&self, call: &CallRecord<'_>) {
+        let CallRecord {
+            transport,
+            tool,
+            arguments,
+            result,
+            status,
+            duration,
+            trace_id,
+        } = *call;
         tracing::info!(
             target: "robotd::mcp::calls",
             transport,
@@ -155,15 +174,15 @@ mod tests {
         let (log, error) = CallLog::open(&dir);
         assert!(error.is_none());
         let args = serde_json::json!({"text": "hi"});
-        log.record(
-            "sse",
-            "speak",
-            args.as_object(),
-            "✓ Speaking: 'hi'",
-            "ok",
-            Duration::from_micros(1500),
-            Some("4bf92f3577b34da6a3ce929d0e0e4736"),
-        );
+        log.record(&CallRecord {
+            transport: "sse",
+            tool: "speak",
+            arguments: args.as_object(),
+            result: "✓ Speaking: 'hi'",
+            status: "ok",
+            duration: Duration::from_micros(1500),
+            trace_id: Some("4bf92f3577b34da6a3ce929d0e0e4736"),
+        });
         let text = std::fs::read_to_string(log.path().unwrap()).unwrap();
         let line: Value = serde_json::from_str(text.trim()).unwrap();
         assert_eq!(line["tool"], "speak");

@@ -7,7 +7,7 @@
 //! `notifications/cancelled` (or a client that goes away) cancels the call, which stops the
 //! arm. Failures are ordinary results unless `strict_errors` sets `isError` on them.
 
-use crate::call_log::CallLog;
+use crate::call_log::{CallLog, CallRecord};
 use rmcp::model::{
     CallToolRequestParams, CallToolResponse, CallToolResult, ContentBlock, Implementation,
     ListToolsResult, PaginatedRequestParams, ProgressNotificationParam, ServerCapabilities,
@@ -144,15 +144,15 @@ impl ServerHandler for McpService {
             Ok(output) => {
                 let status = if output.is_failure { "failed" } else { "ok" };
                 span.record("status", status);
-                self.log.record(
-                    self.transport,
-                    &name,
-                    arguments.as_ref(),
-                    &output.text,
+                self.log.record(&CallRecord {
+                    transport: self.transport,
+                    tool: &name,
+                    arguments: arguments.as_ref(),
+                    result: &output.text,
                     status,
-                    elapsed,
-                    trace_id.as_deref(),
-                );
+                    duration: elapsed,
+                    trace_id: trace_id.as_deref(),
+                });
                 let mut result =
                     CallToolResult::success(vec![ContentBlock::text(output.text.clone())]);
                 result.structured_content = Some(output.structured());
@@ -161,15 +161,15 @@ impl ServerHandler for McpService {
             }
             Err(CallError::UnknownTool { name }) => {
                 span.record("status", "unknown_tool");
-                self.log.record(
-                    self.transport,
-                    &name,
-                    arguments.as_ref(),
-                    "unknown tool",
-                    "protocol_error",
-                    elapsed,
-                    trace_id.as_deref(),
-                );
+                self.log.record(&CallRecord {
+                    transport: self.transport,
+                    tool: &name,
+                    arguments: arguments.as_ref(),
+                    result: "unknown tool",
+                    status: "protocol_error",
+                    duration: elapsed,
+                    trace_id: trace_id.as_deref(),
+                });
                 Err(McpError::invalid_params(
                     format!("unknown tool '{name}'"),
                     None,
