@@ -110,6 +110,8 @@ struct Inner {
     restarts: Family<ActorLabels, Counter>,
     up: Family<ActorLabels, Gauge>,
     budget_exhausted: Family<ActorLabels, Counter>,
+    redis_up: Gauge,
+    redis_entries: Family<TopicReasonLabels, Counter>,
     topics: RwLock<HashMap<Arc<str>, Arc<TopicHandles>>>,
 }
 
@@ -146,6 +148,8 @@ impl Metrics {
         let restarts = Family::<ActorLabels, Counter>::default();
         let up = Family::<ActorLabels, Gauge>::default();
         let budget_exhausted = Family::<ActorLabels, Counter>::default();
+        let redis_up = Gauge::default();
+        let redis_entries = Family::<TopicReasonLabels, Counter>::default();
         registry.register(
             "bus_messages",
             "Messages sent to or received from the bus, by topic and direction",
@@ -177,6 +181,16 @@ impl Metrics {
             "Times an actor used up its restart budget and was left stopped",
             budget_exhausted.clone(),
         );
+        registry.register(
+            "redis_up",
+            "Whether the Redis edge is connected (1) or not (0; also 0 when the edge is off)",
+            redis_up.clone(),
+        );
+        registry.register(
+            "redis_entries",
+            "Redis stream entries by stream and outcome (published, dropped_*, consumed, skipped_*)",
+            redis_entries.clone(),
+        );
         Self {
             inner: Arc::new(Inner {
                 registry,
@@ -186,6 +200,8 @@ impl Metrics {
                 restarts,
                 up,
                 budget_exhausted,
+                redis_up,
+                redis_entries,
                 topics: RwLock::new(HashMap::new()),
             }),
         }
@@ -311,6 +327,23 @@ impl Metrics {
         self.inner
             .budget_exhausted
             .get_or_create(&actor_labels(actor))
+            .inc();
+    }
+
+    /// Sets whether the Redis edge is connected.
+    pub fn redis_up(&self, up: bool) {
+        self.inner.redis_up.set(i64::from(up));
+    }
+
+    /// Counts one entry of Redis stream `stream` with `outcome` (`published`,
+    /// `dropped_queue_full`, `consumed`, `skipped_bad_json`, …).
+    pub fn redis_entry(&self, stream: &str, outcome: &str) {
+        self.inner
+            .redis_entries
+            .get_or_create(&[
+                ("stream", Arc::from(stream)),
+                ("outcome", Arc::from(outcome)),
+            ])
             .inc();
     }
 

@@ -43,6 +43,7 @@ pub mod components;
 pub mod detector;
 #[cfg(feature = "eval")]
 pub mod eval;
+pub mod external;
 pub mod footprint;
 pub mod labels;
 pub mod markers;

@@ -44,7 +44,7 @@ pub enum SheetStatus {
 
 /// Markers, plane and detector, for one camera.
 pub struct Pipeline {
-    camera: Camera,
+    pub(crate) camera: Camera,
     workspaces: Vec<WorkspaceInfo>,
     markers: MarkerFinder,
     detector: Box<dyn Detector>,

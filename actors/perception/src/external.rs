@@ -1,0 +1,176 @@
+//! Objects an external detector found in a frame robotd published: pixels in, world objects out.
+//!
+//! A GPU detector in Python (OWLv2, YOLO-World, YOLOE) reads robotd's camera frames from Redis
+//! and answers with labels, pixel boxes and, usually, masks. This module turns such a
+//! [`PixelObject`] into the same [`DetectedObject`] the built-in detector makes, through the same
+//! chain: the frame's workspace markers give the table plane, and [`crate::footprint::measure`]
+//! maps the object's pixels onto it. So external and built-in perception are interchangeable;
+//! only who found the pixels differs.
+//!
+//! An object's pixels are its mask when it has one, else every pixel of its box. They are mapped
+//! at the height of the object's top face when its label is in the [`LabelTable`] (a fixed
+//! height, or a cube's side), else on the table (a mask of a whole object, sides included, lies
+//! mostly there).
+
+use crate::detector::FrameView;
+use crate::footprint::{measure, Footprint};
+use crate::labels::{HeightRule, LabelTable};
+use crate::pipeline::{Pipeline, SheetStatus};
+use crate::rect::normalise_half_turn;
+use robotd_protocol::geometry::{Point2, Point3, Pose};
+use robotd_protocol::objects::{
+    DetectedObject, Detections, Dimensions, ImageCoordinates, ObjectPosition, RelBox, RelPoint,
+};
+
+/// An object's centre may lie this far outside its workspace and still count, metres.
+const OUTSIDE_TOLERANCE_M: f64 = 0.01;
+
+/// One object as an external detector reports it, in pixels of the frame it looked at.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PixelObject {
+    /// Its label (any case; stored lower-case).
+    pub label: String,
+    /// The detector's confidence, 0..=1.
+    pub confidence: f64,
+    /// The detector's class index (−1 when it has none).
+    pub class_id: i64,
+    /// Bounding box `[x_min, y_min, x_max, y_max]` in pixels (max exclusive).
+    pub bbox_px: [u32; 4],
+    /// The object's pixels (indices `v × width + u` of the frame), from its mask; `None` uses
+    /// the whole box.
+    pub mask_pixels: Option<Vec<u32>>,
+}
+
+/// Why an external object gave no world object.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Skipped {
+    /// Its box lies outside the frame or is empty.
+    BadBox,
+    /// Fewer than three pixels (or a degenerate footprint).
+    TooSmall,
+    /// Its footprint lies outside the workspace.
+    OutsideWorkspace,
+}
+
+impl Pipeline {
+    /// Turns `objects` found by detector `source` in `frame` into world detections, as
+    /// [`Pipeline::process`] does with its own detector's. `tool_pose` (the arm's pose when
+    /// the frame was taken) picks the workspace; `heights` names the heights of known labels.
+    /// Objects that cannot be placed are left out and counted in the returned list of skips.
+    pub fn locate_pixel_objects(
+        &mut self,
+        frame: &FrameView<'_>,
+        tool_pose: Option<&Pose>,
+        steady: bool,
+        source: &str,
+        objects: &[PixelObject],
+        heights: &LabelTable,
+    ) -> (Detections, SheetStatus, Vec<Skipped>) {
+        let mut detections = Detections {
+            frame_id: frame.frame_id,
+            workspace_id: String::new(),
+            timestamp_unix_ns: frame.timestamp_unix_ns,
+            source: source.to_owned(),
+            steady,
+            objects: Vec::new(),
+        };
+        let workspace = self.workspace_for(tool_pose).clone();
+        let plane = match self.locate_sheet(frame, &workspace) {
+            Ok(plane) => plane,
+            Err(status) => return (detections, status, Vec::new()),
+        };
+        let (w, h) = (frame.width, frame.height);
+        let mut skipped = Vec::new();
+        for object in objects {
+            let [x0, y0, x1, y1] = object.bbox_px;
+            let (x1, y1) = (x1.min(w as u32), y1.min(h as u32));
+            if x0 >= x1 || y0 >= y1 {
+                skipped.push(Skipped::BadBox);
+                continue;
+            }
+            let box_pixels;
+            let pixels: &[u32] = match &object.mask_pixels {
+                Some(mask) => mask,
+                None => {
+                    box_pixels = (y0..y1)
+                        .flat_map(|v| (x0..x1).map(move |u| v * w as u32 + u))
+                        .collect::<Vec<u32>>();
+                    &box_pixels
+                }
+            };
+            let label = object.label.trim().to_lowercase();
+            let rule = heights.rules.iter().find(|r| r.label == label);
+            let camera = &self.camera;
+            let mut height_m = 0.0;
+            let mut footprint: Option<Footprint> = None;
+            for _ in 0..3 {
+                let Some(fp) = measure(pixels, w, camera, &plane, height_m) else {
+                    break;
+                };
+                footprint = Some(fp);
+                let next = match rule.map(|r| r.height) {
+                    Some(HeightRule::Fixed(h)) => h,
+                    Some(HeightRule::Side) => fp.rect.short,
+                    None => 0.0,
+                };
+                if (next - height_m).abs() < 0.0003 {
+                    break;
+                }
+                height_m = next;
+            }
+            let Some(fp) = footprint else {
+                skipped.push(Skipped::TooSmall);
+                continue;
+            };
+            let centre = fp.rect.centre;
+            if !workspace.contains(Point2::new(centre[0], centre[1]), OUTSIDE_TOLERANCE_M) {
+                skipped.push(Skipped::OutsideWorkspace);
+                continue;
+            }
+            let (width_m, height_along_x) = fp.rect.width_height();
+            let z = fp.height_m / 2.0;
+            let (wf, hf) = (w as f64, h as f64);
+            let n = pixels.len().max(1) as f64;
+            let (su, sv) = pixels.iter().fold((0.0, 0.0), |(su, sv), &i| {
+                (su + (i as usize % w) as f64, sv + (i as usize / w) as f64)
+            });
+            let bbox = RelBox {
+                u_min: f64::from(x0) / wf,
+                v_min: f64::from(y0) / hf,
+                u_max: f64::from(x1) / wf,
+                v_max: f64::from(y1) / hf,
+            };
+            detections.objects.push(DetectedObject {
+                id: String::new(),
+                label,
+                workspace_id: workspace.id.clone(),
+                timestamp_unix_s: frame.timestamp_unix_ns as f64 / 1e9,
+                position: ObjectPosition {
+                    center_of_mass: Point3::new(fp.centre_of_mass[0], fp.centre_of_mass[1], z),
+                    center: Point3::new(centre[0], centre[1], z),
+                },
+                image_coordinates: ImageCoordinates {
+                    center_rel: RelPoint {
+                        u: (bbox.u_min + bbox.u_max) / 2.0,
+                        v: (bbox.v_min + bbox.v_max) / 2.0,
+                    },
+                    center_of_mass_rel: RelPoint {
+                        u: (su / n + 0.5) / wf,
+                        v: (sv / n + 0.5) / hf,
+                    },
+                    bounding_box_rel: bbox,
+                },
+                dimensions: Dimensions {
+                    width_m,
+                    height_m: height_along_x,
+                    size_m2: width_m * height_along_x,
+                },
+                gripper_rotation_rad: normalise_half_turn(fp.rect.angle),
+                confidence: object.confidence.clamp(0.0, 1.0),
+                class_id: object.class_id,
+            });
+        }
+        detections.workspace_id = workspace.id.clone();
+        (detections, SheetStatus::Found, skipped)
+    }
+}
