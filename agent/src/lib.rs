@@ -1,0 +1,49 @@
+//! # robotd-agent: natural language to robot actions
+//!
+//! A person types "pick up the pencil and place it right next to the red cube"; an LLM plans
+//! and calls robotd's tools; the robot does it. This crate is that agent, for any provider
+//! (OpenAI, Groq, Gemini, Ollama, any OpenAI-compatible server) and any tool source (robotd's
+//! registry in process, or an MCP server), used by `robotd chat` and served on the bus.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), Box<dyn std::error::Error>> {
+//! use robotd_agent::{Agent, AgentConfig, McpTools};
+//! use robotd_agent::providers::{resolve, Env};
+//! use std::sync::Arc;
+//!
+//! let settings = resolve("auto", None, &Env::from_process(None)?)?;
+//! let tools = McpTools::connect("http://127.0.0.1:8000/sse", None).await?;
+//! let mut agent = Agent::new(settings, Arc::new(tools), &[], AgentConfig::default())?;
+//! let cancel = tokio_util::sync::CancellationToken::new();
+//! agent
+//!     .run("Pick up the pencil and place it right next to the red cube", cancel, |event| {
+//!         println!("{event:?}")
+//!     })
+//!     .await;
+//! # Ok(()) }
+//! ```
+//!
+//! ## Modules
+//!
+//! - [`providers`]: which LLM — names, keys (environment, `API_KEY` prefixes, `secrets.env`),
+//!   base URLs, default models, `auto`.
+//! - [`llm`]: the conversation's messages and the two wire formats (OpenAI chat completions,
+//!   Ollama `/api/chat`), with retries, timeouts and a `llm.call` span per call.
+//! - [`memory`]: the bounded conversation history.
+//! - [`tools`]: the [`ToolBackend`] trait; the registry and MCP implementations.
+//! - [`agent`]: the system prompt and the tool-calling loop.
+//! - [`actor`]: the agent on the bus (`agent/request` → `agent/events`, `agent/cancel`).
+//! - [`mock`]: a scripted LLM server speaking the real wire formats, for tests.
+//! - [`chat_log`]: the `log/mcp_client_YYYYmmdd_HHMMSS.log` file of a chat session.
+
+pub mod actor;
+pub mod agent;
+pub mod chat_log;
+pub mod llm;
+pub mod memory;
+pub mod mock;
+pub mod providers;
+pub mod tools;
+
+pub use agent::{Agent, AgentConfig, WorkspaceHint};
+pub use tools::{McpTools, RegistryTools, ToolBackend, ToolResultText};
