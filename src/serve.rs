@@ -159,7 +159,8 @@ pub struct Runtime {
     system: tokio::task::JoinHandle<()>,
     hardware: Hardware,
     workspace_model: WorkspaceModel,
-    perception: Perception,
+    perception: Option<Perception>,
+    redis: Option<robotd_redis::RedisEdge>,
     speech: Speech,
     skills: Skills,
     processes: Vec<SupervisedProcess>,
@@ -169,11 +170,20 @@ impl Runtime {
     /// Joins the bus and starts every actor.
     pub async fn start(config: &Config) -> Result<Runtime> {
         let started = Instant::now();
-        if config.redis.url.is_some() {
-            tracing::warn!(
-                "[redis] url is set, but this build has no Redis edge yet; it is ignored"
-            );
-        }
+        let redis_target = robotd_redis::resolve_target(None, config.redis.url.as_deref(), &|k| {
+            std::env::var(k).ok()
+        })
+        .map_err(anyhow::Error::msg)
+        .context("the Redis settings")?;
+        let trust = robotd_redis::Trust::parse(&config.redis.trust)
+            .map_err(anyhow::Error::msg)
+            .context("[redis] trust")?;
+        // Without a Redis edge there is no external detector to trust.
+        let trust = if redis_target.is_some() {
+            trust
+        } else {
+            robotd_redis::Trust::Builtin
+        };
         let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd"))
             .context("joining the bus")?;
         tracing::info!(namespace = %config.bus.namespace, "joined the bus");
@@ -230,7 +240,38 @@ impl Runtime {
         let labels = load_label_table(config)?;
         let workspace_model =
             start_workspace_model(&bus, workspaces.clone(), &labels, &config.workspace)?;
-        let perception = start_perception(&bus, &hardware, workspaces.clone(), labels.clone())?;
+        let perception = if trust.runs_builtin() {
+            Some(start_perception(
+                &bus,
+                &hardware,
+                workspaces.clone(),
+                labels.clone(),
+            )?)
+        } else {
+            tracing::info!("[redis] trust = \"external\": the built-in detector does not run");
+            None
+        };
+        let redis = match redis_target {
+            Some(target) => Some(
+                robotd_redis::RedisEdge::start(
+                    &bus,
+                    robotd_redis::RedisEdgeSettings {
+                        target,
+                        instance: instance_id(&config.service.name),
+                        camera_fps: config.redis.camera_fps,
+                        annotated_fps: config.redis.annotated_fps,
+                        trust,
+                        max_entry_bytes: config.redis.max_entry_bytes as usize,
+                        intrinsics: hardware.camera_intrinsics.clone(),
+                        workspaces: workspaces.clone(),
+                        label_table: labels.clone(),
+                    },
+                )
+                .context("starting the Redis edge")?,
+            ),
+            None => None,
+        };
+        let redis_status = redis.as_ref().map(|edge| edge.status());
         let speech = start_speech(
             &bus,
             config,
@@ -242,8 +283,14 @@ impl Runtime {
 
         let report_config = config.clone();
         let report_health = health.clone();
-        let health_source: HealthSource =
-            Arc::new(move || report_health.report(&report_config, &robot, started));
+        let health_source: HealthSource = Arc::new(move || {
+            let mut report = report_health.report(&report_config, &robot, started);
+            report["redis"] = match &redis_status {
+                Some(status) => status.to_json(),
+                None => serde_json::json!({"state": "off"}),
+            };
+            report
+        });
         Ok(Runtime {
             bus,
             workspaces,
@@ -252,6 +299,7 @@ impl Runtime {
             hardware,
             workspace_model,
             perception,
+            redis,
             speech,
             skills,
             processes,
@@ -270,6 +318,7 @@ impl Runtime {
                 "status": report.get("status"),
                 "actors": report.get("actors"),
                 "estop_engaged": control.estop_engaged(),
+                "redis": report.get("redis"),
                 "uptime_ms": report.get("uptime_ms"),
             })
         });
@@ -284,7 +333,12 @@ impl Runtime {
             }
         }
         self.skills.shutdown().await;
-        self.perception.shutdown();
+        if let Some(redis) = self.redis {
+            redis.shutdown().await;
+        }
+        if let Some(perception) = self.perception {
+            perception.shutdown();
+        }
         self.speech.shutdown().await;
         self.workspace_model.shutdown().await;
         self.hardware.shutdown().await;
@@ -447,6 +501,14 @@ async fn shutdown_signal() {
     {
         let _ = interrupt.await;
     }
+}
+
+/// Names this robotd in the Redis entries it writes: `<service>@<host>#<pid>`.
+fn instance_id(service: &str) -> String {
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_owned())
+        .unwrap_or_else(|_| "host".into());
+    format!("{service}@{host}#{}", std::process::id())
 }
 
 /// The label table of the built-in detector: `[perception] labels` when set, else the

@@ -431,6 +431,18 @@ impl FaultConfig {
 }
 
 mod defaults {
+    pub fn redis_camera_fps() -> f64 {
+        10.0
+    }
+    pub fn redis_annotated_fps() -> f64 {
+        2.0
+    }
+    pub fn redis_trust() -> String {
+        "both".into()
+    }
+    pub fn redis_max_entry_bytes() -> u64 {
+        16 * 1024 * 1024
+    }
     pub fn time_scale() -> f64 {
         1.0
     }
@@ -446,16 +458,42 @@ mod defaults {
 }
 
 /// `[redis]`
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RedisConfig {
-    /// `redis://host:port/db` of the Python tools' Redis; `None` turns the Redis edge off.
+    /// `redis://[:password@]host:port/db` (or `rediss://` for TLS) of the Python tools' Redis.
+    /// `None`: `REDIS_HOST`/`REDIS_PORT` decide, and without them the Redis edge is off.
     #[serde(
         default,
         deserialize_with = "lenient::opt_string",
         skip_serializing_if = "Option::is_none"
     )]
     pub url: Option<String>,
+    /// Camera frames per second to `robot_camera` (0 = none; at most 60).
+    #[serde(default = "defaults::redis_camera_fps")]
+    pub camera_fps: f64,
+    /// Annotated frames per second to `annotated_camera` (0 = none; at most 60).
+    #[serde(default = "defaults::redis_annotated_fps")]
+    pub annotated_fps: f64,
+    /// Which detector the workspace model believes: `builtin`, `external` (over Redis; the
+    /// built-in detector then does not run) or `both`.
+    #[serde(default = "defaults::redis_trust", deserialize_with = "lenient::string")]
+    pub trust: String,
+    /// Largest entry read from Redis, bytes of its values (bigger ones are skipped).
+    #[serde(default = "defaults::redis_max_entry_bytes")]
+    pub max_entry_bytes: u64,
+}
+
+impl Default for RedisConfig {
+    fn default() -> Self {
+        Self {
+            url: None,
+            camera_fps: defaults::redis_camera_fps(),
+            annotated_fps: defaults::redis_annotated_fps(),
+            trust: defaults::redis_trust(),
+            max_entry_bytes: defaults::redis_max_entry_bytes(),
+        }
+    }
 }
 
 /// `[perception]`
@@ -1002,6 +1040,35 @@ impl Config {
                     format!("{reason}; expected a URL such as \"redis://localhost:6379/0\""),
                 ));
             }
+        }
+        for (key, fps) in [
+            ("redis.camera_fps", self.redis.camera_fps),
+            ("redis.annotated_fps", self.redis.annotated_fps),
+        ] {
+            if !(0.0..=60.0).contains(&fps) {
+                out.push((
+                    key.into(),
+                    format!("{fps} is not a frame rate from 0 (off) to 60"),
+                ));
+            }
+        }
+        if !["builtin", "external", "both"].contains(&self.redis.trust.trim().to_ascii_lowercase().as_str()) {
+            out.push((
+                "redis.trust".into(),
+                format!(
+                    "'{}' is not a detector to trust; use builtin, external or both",
+                    self.redis.trust
+                ),
+            ));
+        }
+        if !(1024..=512 * 1024 * 1024).contains(&self.redis.max_entry_bytes) {
+            out.push((
+                "redis.max_entry_bytes".into(),
+                format!(
+                    "{} is not a size from 1024 to 536870912 bytes",
+                    self.redis.max_entry_bytes
+                ),
+            ));
         }
 
         for (name, actor) in &self.actors {
