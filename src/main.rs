@@ -5,6 +5,7 @@
 
 mod bench;
 mod call;
+mod chat;
 mod doctor;
 mod say;
 mod serve;
@@ -64,6 +65,8 @@ enum Command {
     /// 'pick_coordinate=[0.22,-0.05]'`. Exits 0 on a ✓ reply, 1 on a ❌ reply, 2 when the
     /// call could not be made.
     Call(CallArgs),
+    /// Talk to the robot in plain words through an LLM (in process, or `--mcp URL`).
+    Chat(chat::ChatArgs),
     /// The other process of a two-process benchmark (started by `robotd bench`).
     #[command(hide = true)]
     BenchPeer {
@@ -269,6 +272,10 @@ fn run() -> Result<std::process::ExitCode> {
                 args: args.args,
                 json: args.json,
             }))
+        }
+        Command::Chat(args) => {
+            let config = load_config(&cli.config)?;
+            chat::run(config, cli.config.config.as_deref(), args)
         }
         Command::Say(args) => {
             let config = load_config(&cli.config)?;
