@@ -63,12 +63,6 @@ pub fn run(config: Config, config_file: Option<&Path>, args: ChatArgs) -> Result
     Ok(code)
 }
 
-/// Where the tools come from, and what to stop at the end.
-enum Robot {
-    InProcess(crate::serve::Runtime),
-    Remote,
-}
-
 async fn session(
     config: Config,
     env: Env,
@@ -79,7 +73,8 @@ async fn session(
     let (tools, workspaces, robot, source): (
         Arc<dyn ToolBackend>,
         Vec<WorkspaceHint>,
-        Robot,
+        // The in-process runtime, stopped at the end (None with --mcp).
+        Option<crate::serve::Runtime>,
         String,
     ) = match &args.mcp {
         Some(url) => {
@@ -89,7 +84,7 @@ async fn session(
                 .with_context(|| format!("connecting to the MCP server at {url}"))?;
             let tools: Arc<dyn ToolBackend> = Arc::new(tools);
             let workspaces = probe_workspaces(tools.as_ref()).await;
-            (tools, workspaces, Robot::Remote, url.clone())
+            (tools, workspaces, None, url.clone())
         }
         None => {
             let runtime = crate::serve::Runtime::start(&config).await?;
@@ -98,7 +93,7 @@ async fn session(
             (
                 Arc::new(RegistryTools::new(registry)),
                 workspaces,
-                Robot::InProcess(runtime),
+                Some(runtime),
                 "the robot in this process".to_owned(),
             )
         }
@@ -121,7 +116,7 @@ async fn session(
         }
     };
     drop(agent);
-    if let Robot::InProcess(runtime) = robot {
+    if let Some(runtime) = robot {
         runtime.shutdown().await;
     }
     Ok(code)

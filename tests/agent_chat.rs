@@ -402,3 +402,92 @@ fn a_missing_key_names_the_variable_to_set() {
     });
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn interactive_chat_lists_tools_switches_provider_and_keeps_the_conversation() {
+    let namespace = common::fresh_namespace("chat-tty");
+    let dir = temp_dir("tty");
+    runtime().block_on(async {
+        // One mock serves both wire formats: OpenAI first, then Ollama after `switch`.
+        let mock = MockLlm::start(vec![
+            MockReply::text("I can see a pencil and a red cube."),
+            MockReply::text("You asked which objects I can see."),
+            MockReply::text("Fresh start."),
+        ])
+        .await
+        .unwrap();
+        let mut command = tokio::process::Command::new(env!("CARGO_BIN_EXE_robotd"));
+        command
+            .args(["chat", "--namespace", &namespace, "--set"])
+            .arg(format!("telemetry.log_dir={}", dir.join("log").display()))
+            .current_dir(&dir)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .kill_on_drop(true);
+        for v in KEY_VARIABLES {
+            command.env_remove(v);
+        }
+        command
+            .env("OPENAI_API_KEY", "sk-test-key")
+            .env("OPENAI_BASE_URL", mock.openai_base_url())
+            .env("OLLAMA_HOST", mock.base_url());
+        let mut child = command.spawn().unwrap();
+        let mut stdin = child.stdin.take().unwrap();
+        use tokio::io::AsyncWriteExt;
+        stdin
+            .write_all(
+                b"tools\nWhich objects can you see?\nswitch ollama llama3.1:8b\n\
+                  What did I ask you before?\nclear\nhello again\nswitch nonsense\nquit\n",
+            )
+            .await
+            .unwrap();
+        drop(stdin);
+        let output = tokio::time::timeout(Duration::from_secs(120), child.wait_with_output())
+            .await
+            .expect("the chat ended")
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        eprintln!("--- stdout ---\n{stdout}--- stderr ---\n{stderr}");
+        assert!(output.status.success());
+        assert!(
+            stdout.contains("pick_place_object"),
+            "the tools are listed: {stdout}"
+        );
+        assert!(
+            stdout.contains("Answer: I can see a pencil and a red cube."),
+            "{stdout}"
+        );
+        assert!(stdout.contains("Now using ollama llama3.1:8b"), "{stdout}");
+        assert!(
+            stdout.contains("Answer: You asked which objects I can see."),
+            "{stdout}"
+        );
+        assert!(stdout.contains("Conversation cleared."), "{stdout}");
+        assert!(
+            stderr.contains("unknown LLM provider 'nonsense'"),
+            "{stderr}"
+        );
+        let requests = mock.requests();
+        assert_eq!(requests.len(), 3);
+        assert_eq!(requests[0].path, "/v1/chat/completions");
+        // After the switch: Ollama's wire format, the new model, and the earlier turn kept.
+        assert_eq!(requests[1].path, "/api/chat");
+        assert_eq!(requests[1].body["model"], "llama3.1:8b");
+        let said = |i: usize| -> Vec<String> {
+            requests[i].body["messages"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter_map(|m| m["content"].as_str().map(str::to_owned))
+                .collect()
+        };
+        assert!(said(1).contains(&"Which objects can you see?".to_owned()));
+        assert!(said(1).contains(&"I can see a pencil and a red cube.".to_owned()));
+        // After `clear`: only the system prompt and the new request.
+        assert_eq!(said(2).len(), 2, "{:?}", said(2));
+        assert_eq!(said(2)[1], "hello again");
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}

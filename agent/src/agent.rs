@@ -408,7 +408,7 @@ impl Agent {
         names: &[String],
         cancel: CancellationToken,
     ) -> ToolResultText {
-        if !names.iter().any(|n| *n == call.name) {
+        if !names.contains(&call.name) {
             return ToolResultText::failed(format!(
                 "❌ There is no tool '{}'. Available tools: {}",
                 call.name,
