@@ -41,6 +41,10 @@ struct ConfigArgs {
     /// Shorthand for `--set http.bind=ADDR`.
     #[arg(long, global = true, value_name = "IP:PORT")]
     http: Option<String>,
+    /// Shorthand for `--set redis.url=URL`: the Redis of the Python tools
+    /// (`redis://[:password@]host:port/db`, `rediss://` for TLS); turns the Redis edge on.
+    #[arg(long, global = true, value_name = "URL")]
+    redis: Option<String>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -117,9 +121,6 @@ struct DoctorArgs {
     /// Remove the resources of dead bus nodes.
     #[arg(long)]
     clean: bool,
-    /// Check this Redis server (redis://host:port/db) instead of the configured one.
-    #[arg(long, value_name = "URL")]
-    redis: Option<String>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -197,6 +198,9 @@ fn load_config(args: &ConfigArgs) -> Result<Config> {
     }
     if let Some(http) = &args.http {
         overrides.push(("http.bind".into(), http.clone()));
+    }
+    if let Some(redis) = &args.redis {
+        overrides.push(("redis.url".into(), redis.clone()));
     }
     Ok(Config::load(LoadOptions {
         file: args.config.clone(),
@@ -293,7 +297,7 @@ fn run() -> Result<std::process::ExitCode> {
                 .map(PathBuf::from)
                 .unwrap_or_else(|| PathBuf::from("."));
             let report = doctor::run(&doctor::DoctorOptions {
-                redis_url: args.redis.or(config.redis.url.clone()),
+                redis_url: config.redis.url.clone(),
                 bus_namespace: config.bus.namespace.clone(),
                 config_dir,
                 clean: args.clean,

@@ -477,7 +477,10 @@ pub struct RedisConfig {
     pub annotated_fps: f64,
     /// Which detector the workspace model believes: `builtin`, `external` (over Redis; the
     /// built-in detector then does not run) or `both`.
-    #[serde(default = "defaults::redis_trust", deserialize_with = "lenient::string")]
+    #[serde(
+        default = "defaults::redis_trust",
+        deserialize_with = "lenient::string"
+    )]
     pub trust: String,
     /// Largest entry read from Redis, bytes of its values (bigger ones are skipped).
     #[serde(default = "defaults::redis_max_entry_bytes")]
@@ -1052,7 +1055,9 @@ impl Config {
                 ));
             }
         }
-        if !["builtin", "external", "both"].contains(&self.redis.trust.trim().to_ascii_lowercase().as_str()) {
+        if !["builtin", "external", "both"]
+            .contains(&self.redis.trust.trim().to_ascii_lowercase().as_str())
+        {
             out.push((
                 "redis.trust".into(),
                 format!(
