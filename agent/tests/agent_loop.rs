@@ -501,3 +501,48 @@ async fn the_bus_actor_streams_events_and_cancels() {
         "{event:?}"
     );
 }
+
+/// A writer collecting what the fmt layer prints.
+#[derive(Clone, Default)]
+struct Captured(Arc<Mutex<Vec<u8>>>);
+
+impl std::io::Write for Captured {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+#[tokio::test(flavor = "current_thread")]
+async fn every_llm_call_is_a_span_with_its_token_counts() {
+    let mock = MockLlm::start(vec![MockReply::text("hello")])
+        .await
+        .unwrap();
+    let captured = Captured::default();
+    let writer = captured.clone();
+    let subscriber = tracing_subscriber::fmt()
+        .with_writer(move || writer.clone())
+        .with_ansi(false)
+        .with_max_level(tracing::Level::INFO)
+        .finish();
+    let _default = tracing::subscriber::set_default(subscriber);
+    let client = LlmClient::new(openai_at(&mock), fast_retry()).unwrap();
+    client.complete(&[Message::user("hi")], &[]).await.unwrap();
+    let text = String::from_utf8(captured.0.lock().unwrap().clone()).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.contains("LLM replied"))
+        .unwrap_or_else(|| panic!("no LLM call logged:\n{text}"));
+    for field in [
+        "llm.call{",
+        "provider=\"openai\"",
+        "model=gpt-4o-mini",
+        "prompt_tokens=100",
+        "completion_tokens=20",
+    ] {
+        assert!(line.contains(field), "{field} missing in: {line}");
+    }
+}
