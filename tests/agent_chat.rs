@@ -491,3 +491,94 @@ fn interactive_chat_lists_tools_switches_provider_and_keeps_the_conversation() {
     });
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn ctrl_c_during_a_motion_stops_the_arm_over_mcp() {
+    use robotd_runtime::catalog::ARM_STATE;
+    use tokio::io::AsyncBufReadExt;
+    let namespace = common::fresh_namespace("chat-cancel");
+    let port = common::free_port();
+    // Real-time motions, so the interrupt lands mid-motion.
+    let _robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=1.0"]);
+    let dir = temp_dir("cancel");
+    runtime().block_on(async {
+        let bus = Bus::open(BusOptions::new(&namespace, "chat-cancel-test")).unwrap();
+        let mut states = bus.subscriber(&ARM_STATE).unwrap();
+        let mock = MockLlm::start(vec![MockReply::plan_and_call(
+            "Plan: pick up the red cube.",
+            "pick_object",
+            json!({"object_name": "red cube", "pick_coordinate": [0.28, 0.04]}),
+        )])
+        .await
+        .unwrap();
+        let mut command = tokio::process::Command::new(env!("CARGO_BIN_EXE_robotd"));
+        command
+            .args(["chat", "--mcp", &format!("http://127.0.0.1:{port}/sse")])
+            .args(["--command", "Pick up the red cube", "--set"])
+            .arg(format!("telemetry.log_dir={}", dir.join("log").display()))
+            .current_dir(&dir)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .kill_on_drop(true);
+        for v in KEY_VARIABLES {
+            command.env_remove(v);
+        }
+        command
+            .env("OPENAI_API_KEY", "sk-test-key")
+            .env("OPENAI_BASE_URL", mock.openai_base_url());
+        let mut child = command.spawn().unwrap();
+        let mut lines = tokio::io::BufReader::new(child.stdout.take().unwrap()).lines();
+        loop {
+            let line = tokio::time::timeout(Duration::from_secs(60), lines.next_line())
+                .await
+                .expect("the tool call is shown")
+                .unwrap()
+                .expect("robotd chat ended before calling the tool");
+            if line.starts_with("→ pick_object") {
+                break;
+            }
+        }
+        // Wait until the arm really moves, then interrupt the chat.
+        loop {
+            let state = tokio::time::timeout(Duration::from_secs(10), states.recv())
+                .await
+                .expect("arm states")
+                .unwrap()
+                .body;
+            if state.moving {
+                break;
+            }
+        }
+        let interrupted = std::time::Instant::now();
+        let pid = child.id().unwrap().to_string();
+        assert!(std::process::Command::new("kill")
+            .args(["-INT", &pid])
+            .status()
+            .unwrap()
+            .success());
+        loop {
+            let state = tokio::time::timeout(Duration::from_secs(5), states.recv())
+                .await
+                .expect("arm states")
+                .unwrap()
+                .body;
+            if !state.moving {
+                break;
+            }
+            assert!(
+                interrupted.elapsed() < Duration::from_secs(3),
+                "the arm kept moving after Ctrl-C"
+            );
+        }
+        let output = tokio::time::timeout(Duration::from_secs(30), child.wait_with_output())
+            .await
+            .expect("the chat ended")
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains("robotd chat: cancelled"), "{stderr}");
+        assert_eq!(mock.requests().len(), 1, "no LLM call after the cancel");
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}
