@@ -25,7 +25,7 @@
 //! assert_eq!(chosen.provider, Provider::Groq); // groq comes before gemini in the table
 //! assert_eq!(chosen.model, "qwen/qwen3-32b");
 //!
-//! let err = resolve("openai", None, &Env::from_pairs::<_, &str>([])).unwrap_err();
+//! let err = resolve("openai", None, &Env::default()).unwrap_err();
 //! assert!(err.to_string().contains("OPENAI_API_KEY"));
 //! ```
 
