@@ -135,6 +135,19 @@ enum BenchCommand {
     /// MCP latency over SSE and streamable HTTP, calls/s with 8 and 64 clients, the
     /// service's memory (starts its own `robotd serve`).
     Mcp(BenchMcpArgs),
+    /// Camera frames to Redis (JPEG q85, XADD) beside the bus's own frame rate, and the
+    /// running Redis edge (starts its own redis-server unless --redis names one).
+    Redis(BenchRedisArgs),
+}
+
+#[derive(Debug, Args)]
+struct BenchRedisArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Frames through the bus and to Redis.
+    #[arg(long, default_value_t = 300)]
+    frames: usize,
 }
 
 #[derive(Debug, Args)]
@@ -339,6 +352,13 @@ fn run() -> Result<std::process::ExitCode> {
             what: BenchCommand::Perception(args),
         } => {
             let figures = bench::perception::run(args.scenes.max(1), args.bus_frames.max(1))?;
+            print_figures(args.json, &figures, figures.table())
+        }
+        Command::Bench {
+            what: BenchCommand::Redis(args),
+        } => {
+            let config = load_config(&cli.config)?;
+            let figures = bench::redis::run(args.frames.max(10), config.redis.url.clone())?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {

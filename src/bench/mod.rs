@@ -7,6 +7,7 @@
 pub mod bus;
 pub mod mcp;
 pub mod perception;
+pub mod redis;
 pub mod sim;
 
 use std::time::Duration;
