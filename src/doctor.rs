@@ -34,6 +34,7 @@
 //!     bus_namespace: "robotd".into(),
 //!     config_dir: "config".into(),
 //!     clean: false,
+//!     http_bind: None,
 //! };
 //! let report = run(&opts)?;
 //! print!("{}", report.render_table());
@@ -75,6 +76,9 @@ pub struct DoctorOptions {
     pub config_dir: PathBuf,
     /// Remove the stale resources of dead bus nodes (`robotd doctor --clean`).
     pub clean: bool,
+    /// Where a running robotd serves HTTP (`http.bind`): its `/health` tells how its Redis edge
+    /// is doing.
+    pub http_bind: Option<String>,
 }
 
 /// Outcome of one check.
@@ -240,6 +244,7 @@ pub fn run(opts: &DoctorOptions) -> Result<DoctorReport> {
         check_shm(Path::new("/dev/shm")),
         check_bus(Config::global_config(), &opts.bus_namespace, opts.clean),
         check_redis(opts.redis_url.as_deref(), &env, &secrets),
+        check_redis_edge(opts.http_bind.as_deref()),
         check_espeak(env("PATH").as_deref()),
         check_audio(Path::new("/dev/snd"), &env),
         check_llm_keys(&env, &secrets, &ollama_reachable),
@@ -842,6 +847,85 @@ fn read_line(stream: &mut TcpStream) -> std::io::Result<String> {
         line.pop();
     }
     Ok(String::from_utf8_lossy(&line).into_owned())
+}
+
+/// The Redis edge of a robotd serving on `bind`, from its `/health`.
+fn check_redis_edge(bind: Option<&str>) -> Check {
+    const NAME: &str = "redis-edge";
+    let Some(bind) = bind else {
+        return Check::ok(NAME, "no HTTP address configured; nothing to ask");
+    };
+    let health = match fetch_health(bind) {
+        Ok(health) => health,
+        Err(_) => {
+            return Check::ok(
+                NAME,
+                format!("no robotd answers on {bind}; start it to see its Redis edge here"),
+            )
+        }
+    };
+    let redis = &health["redis"];
+    let state = redis["state"].as_str().unwrap_or("off");
+    let target = redis["target"].as_str().unwrap_or("?");
+    let sum = |prefix: &str| -> u64 {
+        redis["streams"]
+            .as_object()
+            .map(|streams| {
+                streams
+                    .values()
+                    .filter_map(|counts| counts.as_object())
+                    .flat_map(|counts| counts.iter())
+                    .filter(|(k, _)| k.starts_with(prefix))
+                    .filter_map(|(_, v)| v.as_u64())
+                    .sum()
+            })
+            .unwrap_or(0)
+    };
+    let counts = format!(
+        "{} entries published, {} dropped, {} consumed, {} skipped as bad",
+        sum("published"),
+        sum("dropped_"),
+        sum("consumed"),
+        sum("skipped_")
+    );
+    match state {
+        "connected" => Check::ok(
+            NAME,
+            format!(
+                "the robotd on {bind} is connected to {target} (trust {}; {counts})",
+                redis["trust"].as_str().unwrap_or("?")
+            ),
+        ),
+        "off" => Check::ok(
+            NAME,
+            format!("the robotd on {bind} runs without a Redis edge"),
+        ),
+        _ => Check::problem(
+            NAME,
+            format!(
+                "the robotd on {bind} cannot reach {target} ({state}: {}); {counts}",
+                redis["last_error"].as_str().unwrap_or("no error recorded")
+            ),
+            "start redis-server or correct the URL; robotd reconnects by itself within a second",
+        ),
+    }
+}
+
+/// `GET /health` of the robotd serving on `bind` (plain HTTP/1.1, bounded by the timeouts).
+fn fetch_health(bind: &str) -> std::io::Result<serde_json::Value> {
+    let addrs: Vec<SocketAddr> = bind.to_socket_addrs()?.collect();
+    let mut stream = connect(&addrs, NET_TIMEOUT)?;
+    stream.set_read_timeout(Some(NET_TIMEOUT))?;
+    stream.set_write_timeout(Some(NET_TIMEOUT))?;
+    write!(
+        stream,
+        "GET /health HTTP/1.1\r\nHost: {bind}\r\nConnection: close\r\n\r\n"
+    )?;
+    let mut response = Vec::new();
+    let _ = stream.take(1 << 20).read_to_end(&mut response);
+    let text = String::from_utf8_lossy(&response);
+    let body = text.split_once("\r\n\r\n").map(|(_, b)| b).unwrap_or("");
+    serde_json::from_str(body).map_err(|e| std::io::Error::new(ErrorKind::InvalidData, e))
 }
 
 /// What a Redis server said to AUTH (if a password is known) and PING.
@@ -1934,6 +2018,7 @@ URL=http://host:1/x#frag
             redis_url: Some("redis://127.0.0.1:1".into()),
             bus_namespace: "robotd".into(),
             config_dir: PathBuf::from("/nonexistent"),
+            http_bind: None,
             clean: false,
         };
         let start = Instant::now();
@@ -1942,7 +2027,15 @@ URL=http://host:1/x#frag
         let names: Vec<&str> = report.checks.iter().map(|c| c.name).collect();
         assert_eq!(
             names,
-            ["shm", "iceoryx2", "redis", "espeak-ng", "audio", "llm-keys"]
+            [
+                "shm",
+                "iceoryx2",
+                "redis",
+                "redis-edge",
+                "espeak-ng",
+                "audio",
+                "llm-keys"
+            ]
         );
         assert!(report.has_problems());
     }

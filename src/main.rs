@@ -311,6 +311,7 @@ fn run() -> Result<std::process::ExitCode> {
                 .unwrap_or_else(|| PathBuf::from("."));
             let report = doctor::run(&doctor::DoctorOptions {
                 redis_url: config.redis.url.clone(),
+                http_bind: Some(config.http.bind.to_string()),
                 bus_namespace: config.bus.namespace.clone(),
                 config_dir,
                 clean: args.clean,

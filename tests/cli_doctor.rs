@@ -7,7 +7,15 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 const SECRET: &str = "sk-test-secret-value";
-const CHECKS: [&str; 6] = ["shm", "iceoryx2", "redis", "espeak-ng", "audio", "llm-keys"];
+const CHECKS: [&str; 7] = [
+    "shm",
+    "iceoryx2",
+    "redis",
+    "redis-edge",
+    "espeak-ng",
+    "audio",
+    "llm-keys",
+];
 
 fn free_port() -> u16 {
     TcpListener::bind("127.0.0.1:0")

@@ -229,6 +229,25 @@ fn redis_going_away_never_stops_the_robot_and_publishing_resumes() {
     assert_eq!(redis["state"], "down", "{redis}");
     let (_, metrics) = common::http_get(port, "/metrics");
     assert_eq!(common::metric(&metrics, "robotd_redis_up "), Some(0.0));
+    // `robotd doctor` names the problem of the running service's edge.
+    let doctor = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["doctor", "--json", "--redis", &url, "--http"])
+        .arg(format!("127.0.0.1:{port}"))
+        .output()
+        .expect("run robotd doctor");
+    let report: Value = serde_json::from_slice(&doctor.stdout).expect("doctor's JSON");
+    let edge = report["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "redis-edge")
+        .expect("a redis-edge check")
+        .clone();
+    assert_eq!(edge["status"], "problem", "{edge}");
+    assert!(
+        edge["found"].as_str().unwrap().contains("cannot reach"),
+        "{edge}"
+    );
 
     // Back on the same port, empty (no persistence): new frames within 2 s.
     let _redis_again = start_redis(redis_port);
