@@ -25,10 +25,10 @@ use tokio_util::sync::CancellationToken;
 #[derive(Debug, Args)]
 pub struct ChatArgs {
     /// The LLM provider: openai, groq, gemini, ollama, openai-compatible, or auto (the first
-    /// whose key is set, in that order).
-    #[arg(long, default_value = "auto", value_name = "PROVIDER")]
-    pub api: String,
-    /// The model (default: the provider's, e.g. gpt-4o-mini).
+    /// whose key is set, in that order). Default: `[agent] api` of the configuration (auto).
+    #[arg(long, value_name = "PROVIDER")]
+    pub api: Option<String>,
+    /// The model (default: `[agent] model`, else the provider's, e.g. gpt-4o-mini).
     #[arg(long)]
     pub model: Option<String>,
     /// Run this one request, print what happens, and exit (0 on an answer, 1 otherwise).
@@ -42,15 +42,23 @@ pub struct ChatArgs {
     pub token: Option<String>,
 }
 
-/// Runs `robotd chat`.
-pub fn run(config: Config, config_file: Option<&Path>, args: ChatArgs) -> Result<ExitCode> {
+/// Where the agent's variables come from: the environment, then `secrets.env` next to the
+/// config file (or in the working directory), then the base URLs of `[agent]`.
+pub fn provider_env(config: &Config, config_file: Option<&Path>) -> Result<Env> {
     let secrets = config_file
         .and_then(Path::parent)
         .map(|dir| dir.join("secrets.env"))
         .unwrap_or_else(|| Path::new("secrets.env").to_owned());
-    let env = Env::from_process(Some(&secrets))?;
+    Ok(Env::from_process(Some(&secrets))?.with_defaults(config.agent.base_url_variables()))
+}
+
+/// Runs `robotd chat`.
+pub fn run(config: Config, config_file: Option<&Path>, args: ChatArgs) -> Result<ExitCode> {
+    let env = provider_env(&config, config_file)?;
     // Fail fast, before starting anything, when no provider can be used.
-    let settings = resolve(&args.api, args.model.as_deref(), &env)?;
+    let api = args.api.as_deref().unwrap_or(&config.agent.api);
+    let model = args.model.as_deref().or(config.agent.model.as_deref());
+    let settings = resolve(api, model, &env)?;
     let log = robotd_agent::chat_log::init(&config.telemetry.log_dir)?;
     tracing::info!(provider = %settings.provider, model = %settings.model, "robotd chat starting");
     let runtime = tokio::runtime::Builder::new_multi_thread()

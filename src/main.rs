@@ -257,7 +257,7 @@ fn run() -> Result<std::process::ExitCode> {
                 .enable_all()
                 .build()
                 .context("starting the tokio runtime")?;
-            runtime.block_on(serve::run(config))?;
+            runtime.block_on(serve::run(config, cli.config.config.as_deref()))?;
             Ok(std::process::ExitCode::SUCCESS)
         }
         Command::McpStdio => {

@@ -363,8 +363,9 @@ fn mcp_service(config: &Config, registry: Registry) -> McpService {
 
 /// `robotd serve`: the runtime, with `/health`, `/metrics` and the MCP edge on the HTTP port,
 /// until SIGINT or SIGTERM.
-pub async fn run(config: Config) -> Result<()> {
+pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Result<()> {
     let runtime = Runtime::start(&config).await?;
+    let _agent = start_agent(&config, config_file, &runtime)?;
     let mut edge = HttpEdge::bind(config.http.bind, runtime.health_source.clone()).await?;
     let address = edge.local_addr()?;
     let stop_sessions = CancellationToken::new();
@@ -401,6 +402,45 @@ pub async fn run(config: Config) -> Result<()> {
     tracing::info!("shutting down");
     runtime.shutdown().await;
     Ok(())
+}
+
+/// The LLM agent on the bus (`agent/request` → `agent/events`), when `[agent] serve` is on and
+/// a provider is usable; otherwise says why it is off (the robot runs either way).
+fn start_agent(
+    config: &Config,
+    config_file: Option<&std::path::Path>,
+    runtime: &Runtime,
+) -> Result<Option<robotd_agent::actor::AgentActor>> {
+    if !config.agent.serve {
+        return Ok(None);
+    }
+    let env = crate::chat::provider_env(config, config_file)?;
+    let settings = match robotd_agent::providers::resolve(
+        &config.agent.api,
+        config.agent.model.as_deref(),
+        &env,
+    ) {
+        Ok(settings) => settings,
+        Err(reason) => {
+            tracing::info!(%reason, "the LLM agent is off (robotd chat --mcp still works)");
+            return Ok(None);
+        }
+    };
+    let hints: Vec<robotd_agent::WorkspaceHint> = runtime
+        .workspaces
+        .iter()
+        .map(robotd_agent::WorkspaceHint::from)
+        .collect();
+    let tools = robotd_agent::RegistryTools::new(runtime.tool_registry(config)?);
+    let agent = robotd_agent::Agent::new(
+        settings.clone(),
+        Arc::new(tools),
+        &hints,
+        robotd_agent::AgentConfig::default(),
+    )?;
+    let actor = robotd_agent::actor::spawn(&runtime.bus, agent)?;
+    tracing::info!(provider = %settings.provider, model = %settings.model, "LLM agent on the bus");
+    Ok(Some(actor))
 }
 
 /// `robotd mcp-stdio`: the runtime, serving MCP on stdin/stdout until the client closes it

@@ -28,24 +28,15 @@
 //! ```
 
 use crate::agent::Agent;
-use robotd_protocol::agent::{AgentCancel, AgentEvent, AgentEventKind, AgentRequest};
+use robotd_protocol::agent::{AgentEvent, AgentEventKind, AgentRequest};
 use robotd_protocol::validate::Validate;
-use robotd_runtime::bus::{Bus, BusError, Overflow, Topic};
+use robotd_runtime::bus::{Bus, BusError};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 
-/// Requests to the agent. Back-pressure: a request is never dropped.
-pub const AGENT_REQUEST: Topic<AgentRequest> =
-    Topic::new("agent/request", Overflow::back_pressure(16));
-
-/// The agent's events. Back-pressure: a reader never misses a tool call or the answer.
-pub const AGENT_EVENTS: Topic<AgentEvent> = Topic::new("agent/events", Overflow::back_pressure(64));
-
-/// Cancel a request. Back-pressure: a cancel is never dropped.
-pub const AGENT_CANCEL: Topic<AgentCancel> =
-    Topic::new("agent/cancel", Overflow::back_pressure(16));
+pub use robotd_runtime::catalog::{AGENT_CANCEL, AGENT_EVENTS, AGENT_REQUEST};
 
 /// Longest text an event carries (tool results can be long; the bus slice is 64 KiB).
 const MAX_EVENT_TEXT: usize = 16 * 1024;

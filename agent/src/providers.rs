@@ -240,6 +240,18 @@ impl Env {
         self
     }
 
+    /// Adds fallbacks (e.g. base URLs from the config file) for variables that neither the
+    /// environment nor `secrets.env` sets.
+    pub fn with_defaults<K: Into<String>, V: Into<String>>(
+        mut self,
+        defaults: impl IntoIterator<Item = (K, V)>,
+    ) -> Env {
+        for (k, v) in defaults {
+            self.secrets.entry(k.into()).or_insert_with(|| v.into());
+        }
+        self
+    }
+
     /// The value of `name`: the environment's if set and not empty, else the secrets file's.
     pub fn get(&self, name: &str) -> Option<&str> {
         [&self.vars, &self.secrets]

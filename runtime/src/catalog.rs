@@ -109,3 +109,18 @@ pub const SKILLS_PROGRESS: crate::bus::Topic<robotd_protocol::skills::SkillProgr
 /// Cancel a running skill: the arm stops at once. Back-pressure: a cancel is never dropped.
 pub const SKILLS_CANCEL: crate::bus::Topic<robotd_protocol::skills::SkillCancel> =
     crate::bus::Topic::new("skills/cancel", Overflow::back_pressure(16));
+
+/// Requests to the LLM agent (`robotd chat`, a dashboard). Back-pressure: a request is never
+/// dropped.
+pub const AGENT_REQUEST: crate::bus::Topic<robotd_protocol::agent::AgentRequest> =
+    crate::bus::Topic::new("agent/request", Overflow::back_pressure(16));
+
+/// The agent's plan, tool calls, results and answer per request. Back-pressure: a reader
+/// never misses a tool call or the answer.
+pub const AGENT_EVENTS: crate::bus::Topic<robotd_protocol::agent::AgentEvent> =
+    crate::bus::Topic::new("agent/events", Overflow::back_pressure(64));
+
+/// Cancel an agent request (the running motion stops safely). Back-pressure: a cancel is never
+/// dropped.
+pub const AGENT_CANCEL: crate::bus::Topic<robotd_protocol::agent::AgentCancel> =
+    crate::bus::Topic::new("agent/cancel", Overflow::back_pressure(16));

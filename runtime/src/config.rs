@@ -123,6 +123,9 @@ pub struct Config {
     /// `[mcp]`: the MCP edge (served on the `[http]` port).
     #[serde(default)]
     pub mcp: McpConfig,
+    /// `[agent]`: the LLM agent (`robotd chat`, and the agent actor of `robotd serve`).
+    #[serde(default)]
+    pub agent: AgentConfig,
     /// `[actors.<name>]`: per-actor settings; actors without an entry run in-process with
     /// the `[supervision]` policy.
     #[serde(default)]
@@ -431,6 +434,12 @@ impl FaultConfig {
 }
 
 mod defaults {
+    pub fn agent_api() -> String {
+        "auto".into()
+    }
+    pub fn yes() -> bool {
+        true
+    }
     pub fn redis_camera_fps() -> f64 {
         10.0
     }
@@ -496,6 +505,73 @@ impl Default for RedisConfig {
             trust: defaults::redis_trust(),
             max_entry_bytes: defaults::redis_max_entry_bytes(),
         }
+    }
+}
+
+/// `[agent]`. Keys and base URLs set in the environment (or `secrets.env`) win over the base
+/// URLs here.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AgentConfig {
+    /// The provider: `auto` (the first whose key is set: openai, groq, gemini, ollama,
+    /// openai-compatible), or one of those names.
+    #[serde(default = "defaults::agent_api", deserialize_with = "lenient::string")]
+    pub api: String,
+    /// The model; `None` = the provider's default.
+    #[serde(
+        default,
+        deserialize_with = "lenient::opt_string",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub model: Option<String>,
+    /// Run the agent actor on the bus in `robotd serve` when a provider is usable.
+    #[serde(default = "defaults::yes")]
+    pub serve: bool,
+    /// Base URL of OpenAI (as `OPENAI_BASE_URL`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub openai_base_url: Option<String>,
+    /// Base URL of Groq (as `GROQ_BASE_URL`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub groq_base_url: Option<String>,
+    /// Base URL of Gemini's OpenAI-compatible API (as `GEMINI_BASE_URL`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gemini_base_url: Option<String>,
+    /// The Ollama server (as `OLLAMA_HOST`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ollama_host: Option<String>,
+    /// Any OpenAI-compatible server (as `LLM_BASE_URL`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub llm_base_url: Option<String>,
+}
+
+impl Default for AgentConfig {
+    fn default() -> Self {
+        Self {
+            api: defaults::agent_api(),
+            model: None,
+            serve: true,
+            openai_base_url: None,
+            groq_base_url: None,
+            gemini_base_url: None,
+            ollama_host: None,
+            llm_base_url: None,
+        }
+    }
+}
+
+impl AgentConfig {
+    /// The base URLs set here, under the names of their environment variables.
+    pub fn base_url_variables(&self) -> Vec<(&'static str, String)> {
+        [
+            ("OPENAI_BASE_URL", &self.openai_base_url),
+            ("GROQ_BASE_URL", &self.groq_base_url),
+            ("GEMINI_BASE_URL", &self.gemini_base_url),
+            ("OLLAMA_HOST", &self.ollama_host),
+            ("LLM_BASE_URL", &self.llm_base_url),
+        ]
+        .into_iter()
+        .filter_map(|(k, v)| v.clone().map(|v| (k, v)))
+        .collect()
     }
 }
 
@@ -1044,6 +1120,40 @@ impl Config {
                 ));
             }
         }
+        for (key, url) in [
+            ("agent.openai_base_url", &self.agent.openai_base_url),
+            ("agent.groq_base_url", &self.agent.groq_base_url),
+            ("agent.gemini_base_url", &self.agent.gemini_base_url),
+            ("agent.ollama_host", &self.agent.ollama_host),
+            ("agent.llm_base_url", &self.agent.llm_base_url),
+        ] {
+            if let Some(url) = url {
+                if let Err(reason) = check_url(url, &["http", "https"]) {
+                    out.push((key.into(), reason));
+                }
+            }
+        }
+        if ![
+            "auto",
+            "openai",
+            "groq",
+            "gemini",
+            "ollama",
+            "openai-compatible",
+            "compatible",
+            "llm",
+        ]
+        .contains(&self.agent.api.trim().to_ascii_lowercase().as_str())
+        {
+            out.push((
+                "agent.api".into(),
+                format!(
+                    "'{}' is not a provider; use auto, openai, groq, gemini, ollama or \
+                     openai-compatible",
+                    self.agent.api
+                ),
+            ));
+        }
         for (key, fps) in [
             ("redis.camera_fps", self.redis.camera_fps),
             ("redis.annotated_fps", self.redis.annotated_fps),
@@ -1175,7 +1285,7 @@ fn extract(figment: &Figment) -> Result<Config, ConfigError> {
 }
 
 /// The sections of [`Config`], in file order.
-const SECTIONS: [&str; 12] = [
+const SECTIONS: [&str; 13] = [
     "service",
     "http",
     "bus",
@@ -1187,6 +1297,7 @@ const SECTIONS: [&str; 12] = [
     "workspace",
     "tts",
     "mcp",
+    "agent",
     "actors",
 ];
 
@@ -1244,6 +1355,7 @@ fn deserialization_problems(figment: &Figment, first: figment::Error) -> Vec<Pro
     read::<PerceptionConfig>(figment, &top, "perception", p);
     read::<WorkspaceConfig>(figment, &top, "workspace", p);
     read::<TtsConfig>(figment, &top, "tts", p);
+    read::<AgentConfig>(figment, &top, "agent", p);
     read::<McpConfig>(figment, &top, "mcp", p);
     match top.get("actors").map(|actors| actors.as_dict()) {
         Some(Some(actors)) => {
