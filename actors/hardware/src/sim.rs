@@ -577,12 +577,15 @@ impl CameraDriver for SimCamera {
 
     fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
         self.faults.maybe_fail_blocking("capture");
+        // The capture time is taken before the world is read, never after: a thread preempted
+        // between the two would otherwise stamp a picture of an arm still moving with a time
+        // after it stopped, and that frame would pass for a steady view.
+        let timestamp_unix_ns = unix_now_ns();
         let (scene, q) = {
             let state = self.robot.lock();
             (Self::render_scene(&state.world), state.joints.clone())
         };
         let camera_pose = self.camera_pose(&q)?;
-        let timestamp_unix_ns = unix_now_ns();
         let mut renderer = self.renderer.lock().unwrap_or_else(|p| p.into_inner());
         renderer
             .render_into(&scene, &camera_pose, out)
