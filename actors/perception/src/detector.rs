@@ -19,14 +19,11 @@
 
 use crate::camera::Camera;
 use crate::components::Components;
-use crate::footprint::{measure, Footprint};
+use crate::footprint::{measure, Footprint, Sighting};
 use crate::labels::{hue_signature, HeightRule, LabelTable, ShapeClass};
 use crate::plane::TablePlane;
 use crate::rect::{normalise_half_turn, normalise_quarter_turn};
-use robotd_protocol::geometry::Point3;
-use robotd_protocol::objects::{
-    DetectedObject, Dimensions, ImageCoordinates, ObjectPosition, RelBox, RelPoint,
-};
+use robotd_protocol::objects::{DetectedObject, RelBox, RelPoint};
 use robotd_protocol::workspace::WorkspaceInfo;
 
 /// One frame, as row-major RGB8.
@@ -378,7 +375,6 @@ impl Detector for ColourDetector {
                 Some(r) => (self.table.rules[r].label.clone(), r as i64),
                 None => (format!("{} {}", colour_ref.name, shape.noun()), -1),
             };
-            let (width_m, height_m_along_x) = fp.rect.width_height();
             // A square looks the same turned by 90°: report the smallest such rotation.
             let aspect = fp.rect.long / fp.rect.short.max(1e-6);
             let gripper_rotation = match shape {
@@ -386,44 +382,25 @@ impl Detector for ColourDetector {
                 _ if aspect < SQUARE_SYMMETRY_ASPECT => normalise_quarter_turn(fp.rect.angle),
                 _ => normalise_half_turn(fp.rect.angle),
             };
-            let z = fp.height_m / 2.0;
             let (wf, hf) = (w as f64, h as f64);
-            let (com_u, com_v) = (blob.u_mean, blob.v_mean);
-            let bbox = RelBox {
-                u_min: f64::from(blob.u_min) / wf,
-                v_min: f64::from(blob.v_min) / hf,
-                u_max: f64::from(blob.u_max + 1) / wf,
-                v_max: f64::from(blob.v_max + 1) / hf,
-            };
-            objects.push(DetectedObject {
-                id: String::new(),
+            objects.push(fp.to_object(Sighting {
                 label,
+                class_id,
+                confidence,
                 workspace_id: ws.id.clone(),
                 timestamp_unix_s: timestamp,
-                position: ObjectPosition {
-                    center_of_mass: Point3::new(fp.centre_of_mass[0], fp.centre_of_mass[1], z),
-                    center: Point3::new(centre[0], centre[1], z),
+                bbox: RelBox {
+                    u_min: f64::from(blob.u_min) / wf,
+                    v_min: f64::from(blob.v_min) / hf,
+                    u_max: f64::from(blob.u_max + 1) / wf,
+                    v_max: f64::from(blob.v_max + 1) / hf,
                 },
-                image_coordinates: ImageCoordinates {
-                    center_rel: RelPoint {
-                        u: (bbox.u_min + bbox.u_max) / 2.0,
-                        v: (bbox.v_min + bbox.v_max) / 2.0,
-                    },
-                    center_of_mass_rel: RelPoint {
-                        u: (com_u + 0.5) / wf,
-                        v: (com_v + 0.5) / hf,
-                    },
-                    bounding_box_rel: bbox,
-                },
-                dimensions: Dimensions {
-                    width_m,
-                    height_m: height_m_along_x,
-                    size_m2: width_m * height_m_along_x,
+                center_of_mass_rel: RelPoint {
+                    u: (blob.u_mean + 0.5) / wf,
+                    v: (blob.v_mean + 0.5) / hf,
                 },
                 gripper_rotation_rad: gripper_rotation,
-                confidence,
-                class_id,
-            });
+            }));
         }
         Ok(objects)
     }

@@ -13,14 +13,12 @@
 //! mostly there).
 
 use crate::detector::FrameView;
-use crate::footprint::{measure, Footprint};
+use crate::footprint::{measure, Footprint, Sighting};
 use crate::labels::{HeightRule, LabelTable};
 use crate::pipeline::{Pipeline, SheetStatus};
 use crate::rect::normalise_half_turn;
-use robotd_protocol::geometry::{Point2, Point3, Pose};
-use robotd_protocol::objects::{
-    DetectedObject, Detections, Dimensions, ImageCoordinates, ObjectPosition, RelBox, RelPoint,
-};
+use robotd_protocol::geometry::{Point2, Pose};
+use robotd_protocol::objects::{Detections, RelBox, RelPoint};
 
 /// An object's centre may lie this far outside its workspace and still count, metres.
 const OUTSIDE_TOLERANCE_M: f64 = 0.01;
@@ -127,48 +125,29 @@ impl Pipeline {
                 skipped.push(Skipped::OutsideWorkspace);
                 continue;
             }
-            let (width_m, height_along_x) = fp.rect.width_height();
-            let z = fp.height_m / 2.0;
             let (wf, hf) = (w as f64, h as f64);
             let n = pixels.len().max(1) as f64;
             let (su, sv) = pixels.iter().fold((0.0, 0.0), |(su, sv), &i| {
                 (su + (i as usize % w) as f64, sv + (i as usize / w) as f64)
             });
-            let bbox = RelBox {
-                u_min: f64::from(x0) / wf,
-                v_min: f64::from(y0) / hf,
-                u_max: f64::from(x1) / wf,
-                v_max: f64::from(y1) / hf,
-            };
-            detections.objects.push(DetectedObject {
-                id: String::new(),
+            detections.objects.push(fp.to_object(Sighting {
                 label,
+                class_id: object.class_id,
+                confidence: object.confidence.clamp(0.0, 1.0),
                 workspace_id: workspace.id.clone(),
                 timestamp_unix_s: frame.timestamp_unix_ns as f64 / 1e9,
-                position: ObjectPosition {
-                    center_of_mass: Point3::new(fp.centre_of_mass[0], fp.centre_of_mass[1], z),
-                    center: Point3::new(centre[0], centre[1], z),
+                bbox: RelBox {
+                    u_min: f64::from(x0) / wf,
+                    v_min: f64::from(y0) / hf,
+                    u_max: f64::from(x1) / wf,
+                    v_max: f64::from(y1) / hf,
                 },
-                image_coordinates: ImageCoordinates {
-                    center_rel: RelPoint {
-                        u: (bbox.u_min + bbox.u_max) / 2.0,
-                        v: (bbox.v_min + bbox.v_max) / 2.0,
-                    },
-                    center_of_mass_rel: RelPoint {
-                        u: (su / n + 0.5) / wf,
-                        v: (sv / n + 0.5) / hf,
-                    },
-                    bounding_box_rel: bbox,
-                },
-                dimensions: Dimensions {
-                    width_m,
-                    height_m: height_along_x,
-                    size_m2: width_m * height_along_x,
+                center_of_mass_rel: RelPoint {
+                    u: (su / n + 0.5) / wf,
+                    v: (sv / n + 0.5) / hf,
                 },
                 gripper_rotation_rad: normalise_half_turn(fp.rect.angle),
-                confidence: object.confidence.clamp(0.0, 1.0),
-                class_id: object.class_id,
-            });
+            }));
         }
         detections.workspace_id = workspace.id.clone();
         (detections, SheetStatus::Found, skipped)

@@ -11,6 +11,10 @@
 use crate::camera::Camera;
 use crate::plane::TablePlane;
 use crate::rect::{convex_hull, min_area_rect, RotatedRect};
+use robotd_protocol::geometry::Point3;
+use robotd_protocol::objects::{
+    DetectedObject, Dimensions, ImageCoordinates, ObjectPosition, RelBox, RelPoint,
+};
 
 /// Pixels whose centres lie on the edge of a mask stand for about half a pixel beyond it; the
 /// rectangle through the outermost pixel centres is grown by this many pixels in total.
@@ -73,6 +77,65 @@ pub fn measure(
         fill,
         height_m,
     })
+}
+
+/// Who found an object and where in the image: what [`Footprint::to_object`] needs besides
+/// the footprint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sighting {
+    /// The label.
+    pub label: String,
+    /// The detector's class index (−1: none).
+    pub class_id: i64,
+    /// The detector's confidence, 0..=1.
+    pub confidence: f64,
+    /// The workspace the object lies in.
+    pub workspace_id: String,
+    /// Capture time of the frame, seconds since the Unix epoch.
+    pub timestamp_unix_s: f64,
+    /// The object's box, as fractions of the image size.
+    pub bbox: RelBox,
+    /// The centre of mass of its pixels, as fractions of the image size.
+    pub center_of_mass_rel: RelPoint,
+    /// Yaw to turn the gripper by to grasp it, radians.
+    pub gripper_rotation_rad: f64,
+}
+
+impl Footprint {
+    /// The object of the tools' JSON that this footprint and `sighting` describe (id left
+    /// empty: the workspace model assigns it). Its centre lies at half its height.
+    pub fn to_object(&self, sighting: Sighting) -> DetectedObject {
+        let (width_m, height_m) = self.rect.width_height();
+        let z = self.height_m / 2.0;
+        let centre = self.rect.centre;
+        let bbox = sighting.bbox;
+        DetectedObject {
+            id: String::new(),
+            label: sighting.label,
+            workspace_id: sighting.workspace_id,
+            timestamp_unix_s: sighting.timestamp_unix_s,
+            position: ObjectPosition {
+                center_of_mass: Point3::new(self.centre_of_mass[0], self.centre_of_mass[1], z),
+                center: Point3::new(centre[0], centre[1], z),
+            },
+            image_coordinates: ImageCoordinates {
+                center_rel: RelPoint {
+                    u: (bbox.u_min + bbox.u_max) / 2.0,
+                    v: (bbox.v_min + bbox.v_max) / 2.0,
+                },
+                center_of_mass_rel: sighting.center_of_mass_rel,
+                bounding_box_rel: bbox,
+            },
+            dimensions: Dimensions {
+                width_m,
+                height_m,
+                size_m2: width_m * height_m,
+            },
+            gripper_rotation_rad: sighting.gripper_rotation_rad,
+            confidence: sighting.confidence,
+            class_id: sighting.class_id,
+        }
+    }
 }
 
 fn polygon_area(poly: &[[f64; 2]]) -> f64 {
