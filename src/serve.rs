@@ -260,6 +260,7 @@ impl Runtime {
                         instance: instance_id(&config.service.name),
                         camera_fps: config.redis.camera_fps,
                         annotated_fps: config.redis.annotated_fps,
+                        objects_fps: config.redis.objects_fps,
                         trust,
                         max_entry_bytes: config.redis.max_entry_bytes as usize,
                         intrinsics: hardware.camera_intrinsics.clone(),

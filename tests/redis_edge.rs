@@ -18,9 +18,15 @@ use std::time::{Duration, Instant};
 
 /// A `redis-server` on `port`, without persistence; killed when dropped.
 fn start_redis(port: u16) -> common::Running {
+    start_redis_with(port, &[])
+}
+
+/// [`start_redis`] with extra server options.
+fn start_redis_with(port: u16, options: &[&str]) -> common::Running {
     let child = Command::new("redis-server")
         .args(["--port", &port.to_string()])
         .args(["--bind", "127.0.0.1", "--save", "", "--appendonly", "no"])
+        .args(options)
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
@@ -492,4 +498,36 @@ fn two_robotd_instances_share_one_redis() {
         "B sees only A's objects: {labels_b:?} vs {labels_a:?}"
     );
     assert_eq!(health(port_b)["redis"]["trust"], "external");
+}
+
+#[test]
+fn the_python_tools_variables_reach_a_password_protected_redis() {
+    let redis_port = common::free_port();
+    let _redis = start_redis_with(redis_port, &["--requirepass", "lab-secret"]);
+    let port = common::free_port();
+    let redis_port_text = redis_port.to_string();
+    let _robotd = common::start_robotd_with_env(
+        &common::fresh_namespace("redis-env"),
+        port,
+        &["--set", "robot.time_scale=0.05"],
+        &[
+            ("REDIS_HOST", "127.0.0.1"),
+            ("REDIS_PORT", &redis_port_text),
+            ("REDIS_DB", "2"),
+            ("REDIS_PASSWORD", "lab-secret"),
+        ],
+    );
+    let mut conn = redis::Client::open(format!("redis://:lab-secret@127.0.0.1:{redis_port}/2"))
+        .and_then(|c| c.get_connection())
+        .expect("connect with the password");
+    wait_until("frames in db 2", Duration::from_secs(10), || {
+        xlen(&mut conn, "robot_camera") > 0
+    });
+    let redis = &health(port)["redis"];
+    assert_eq!(redis["state"], "connected", "{redis}");
+    assert_eq!(redis["target"], format!("redis://127.0.0.1:{redis_port}/2"));
+    assert!(
+        !redis.to_string().contains("lab-secret"),
+        "the password never shows: {redis}"
+    );
 }

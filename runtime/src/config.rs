@@ -443,6 +443,9 @@ mod defaults {
     pub fn redis_camera_fps() -> f64 {
         10.0
     }
+    pub fn redis_objects_fps() -> f64 {
+        5.0
+    }
     pub fn redis_annotated_fps() -> f64 {
         2.0
     }
@@ -484,6 +487,10 @@ pub struct RedisConfig {
     /// Annotated frames per second to `annotated_camera` (0 = none; at most 60).
     #[serde(default = "defaults::redis_annotated_fps")]
     pub annotated_fps: f64,
+    /// Entries per second of robotd's own detections to `detected_objects` (0 = none; at
+    /// most 60).
+    #[serde(default = "defaults::redis_objects_fps")]
+    pub objects_fps: f64,
     /// Which detector the workspace model believes: `builtin`, `external` (over Redis; the
     /// built-in detector then does not run) or `both`.
     #[serde(
@@ -502,6 +509,7 @@ impl Default for RedisConfig {
             url: None,
             camera_fps: defaults::redis_camera_fps(),
             annotated_fps: defaults::redis_annotated_fps(),
+            objects_fps: defaults::redis_objects_fps(),
             trust: defaults::redis_trust(),
             max_entry_bytes: defaults::redis_max_entry_bytes(),
         }
@@ -1157,6 +1165,7 @@ impl Config {
         for (key, fps) in [
             ("redis.camera_fps", self.redis.camera_fps),
             ("redis.annotated_fps", self.redis.annotated_fps),
+            ("redis.objects_fps", self.redis.objects_fps),
         ] {
             if !(0.0..=60.0).contains(&fps) {
                 out.push((

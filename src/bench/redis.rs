@@ -234,6 +234,7 @@ pub fn run(frames: usize, redis_url: Option<String>) -> Result<RedisFigures> {
                 instance: "bench".into(),
                 camera_fps: 60.0,
                 annotated_fps: 0.0,
+                objects_fps: 0.0,
                 trust: Trust::Builtin,
                 max_entry_bytes: 16 << 20,
                 intrinsics: lab.intrinsics(),

@@ -99,8 +99,19 @@ fn wait_for_line(stream: impl Read + Send + 'static, marker: &'static str, what:
 
 /// Starts `robotd serve` and waits until it serves HTTP.
 pub fn start_robotd(namespace: &str, port: u16, extra: &[&str]) -> Running {
+    start_robotd_with_env(namespace, port, extra, &[])
+}
+
+/// [`start_robotd`] with extra environment variables.
+pub fn start_robotd_with_env(
+    namespace: &str,
+    port: u16,
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> Running {
     let log_dir = std::env::temp_dir().join(format!("robotd-test-logs-{}", std::process::id()));
     let mut child = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .envs(env.iter().copied())
         .args(["serve", "--namespace", namespace, "--http"])
         .arg(format!("127.0.0.1:{port}"))
         .arg("--set")

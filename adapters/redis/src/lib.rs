@@ -60,6 +60,8 @@ pub struct RedisEdgeSettings {
     pub camera_fps: f64,
     /// Frames per second to `annotated_camera` (0 = none).
     pub annotated_fps: f64,
+    /// Entries per second of robotd's own detections to `detected_objects` (0 = none).
+    pub objects_fps: f64,
     /// Which detector the workspace model believes.
     pub trust: Trust,
     /// Largest entry the consumer accepts, bytes of field values.
@@ -109,8 +111,14 @@ impl RedisEdge {
         let stop = CancellationToken::new();
         let (sender, writer_task) = writer::start(client.clone(), status.clone(), stop.clone());
         let ring = Arc::new(Mutex::new(camera::FrameRing::default()));
-        let relay_task = relay::start(bus, settings.instance.clone(), sender.clone(), stop.clone())
-            .map_err(|e| RedisStartError::Bus(e.to_string()))?;
+        let relay_task = relay::start(
+            bus,
+            settings.instance.clone(),
+            settings.objects_fps,
+            sender.clone(),
+            stop.clone(),
+        )
+        .map_err(|e| RedisStartError::Bus(e.to_string()))?;
         let consumer_task = consume::start(
             bus,
             client,

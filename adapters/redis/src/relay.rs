@@ -1,6 +1,7 @@
 //! Bus messages out to Redis: robotd's own detections, the label list, the overlay texts.
 //!
-//! - `perception/detections` from the built-in detector → `detected_objects`, each object with
+//! - `perception/detections` from the built-in detector → `detected_objects` (at most
+//!   `objects_fps` entries a second), each object with
 //!   the id the workspace model tracks it under (taken from the newest `workspace/objects`:
 //!   same label, within the tracker's 3 cm gate; a frame-local id `f<frame>-<n>` until the model
 //!   has it). Detections that came in from Redis are not sent back out.
@@ -69,6 +70,7 @@ pub fn tracked_ids(detections: &Detections, tracked: Option<&TrackedObjects>) ->
 pub fn start(
     bus: &Bus,
     instance: String,
+    objects_fps: f64,
     sender: EntrySender,
     stop: CancellationToken,
 ) -> Result<tokio::task::JoinHandle<()>, BusError> {
@@ -77,7 +79,10 @@ pub fn start(
     let mut labels = bus.subscriber(&WORKSPACE_LABELS)?;
     let mut overlays = bus.subscriber(&OVERLAY_TEXT)?;
     let workspace = bus.client(&WORKSPACE_QUERY)?;
+    let objects_every = (objects_fps > 0.0 && objects_fps.is_finite())
+        .then(|| Duration::from_secs_f64(1.0 / objects_fps));
     Ok(tokio::spawn(async move {
+        let mut last_objects: Option<tokio::time::Instant> = None;
         let mut tracked: Option<TrackedObjects> = None;
         let mut last_labels: Option<DetectableLabels> = None;
         // The list as it is now (its start-up publication may have gone before we listened).
@@ -111,6 +116,11 @@ pub fn start(
                     if d.source != BUILTIN_SOURCE || d.workspace_id.is_empty() {
                         continue;
                     }
+                    let Some(every) = objects_every else { continue };
+                    if last_objects.is_some_and(|t| t.elapsed() < every) {
+                        continue;
+                    }
+                    last_objects = Some(tokio::time::Instant::now());
                     let ids = tracked_ids(&d, tracked.as_ref());
                     sender.offer(detections_entry(&instance, &d, &ids));
                 }
