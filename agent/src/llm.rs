@@ -543,6 +543,39 @@ fn non_empty(text: Option<&str>) -> Option<String> {
         .map(str::to_owned)
 }
 
+/// The `tool_calls` of a reply message (the same shape in both wire formats; `arguments` a JSON
+/// string or an object). `id_of` names a call from its JSON and index.
+fn parse_tool_calls(
+    message: &Value,
+    id_of: impl Fn(&Value, usize) -> String,
+) -> Result<Vec<ToolCall>, String> {
+    let mut tool_calls = Vec::new();
+    let Some(calls) = message.get("tool_calls").and_then(Value::as_array) else {
+        return Ok(tool_calls);
+    };
+    for (i, call) in calls.iter().enumerate() {
+        let function = call
+            .get("function")
+            .ok_or_else(|| format!("tool call {i} has no function"))?;
+        let name = function
+            .get("name")
+            .and_then(Value::as_str)
+            .filter(|n| !n.is_empty())
+            .ok_or_else(|| format!("tool call {i} has no function name"))?;
+        let arguments = match function.get("arguments") {
+            Some(Value::String(s)) => s.clone(),
+            Some(Value::Null) | None => "{}".to_owned(),
+            Some(other) => other.to_string(),
+        };
+        tool_calls.push(ToolCall {
+            id: id_of(call, i),
+            name: name.to_owned(),
+            arguments,
+        });
+    }
+    Ok(tool_calls)
+}
+
 /// Reads an OpenAI chat-completions reply.
 pub fn parse_openai(text: &str) -> Result<Completion, String> {
     let v: Value = serde_json::from_str(text)
@@ -552,35 +585,13 @@ pub fn parse_openai(text: &str) -> Result<Completion, String> {
         .and_then(|c| c.get(0))
         .and_then(|c| c.get("message"))
         .ok_or_else(|| format!("no choices[0].message in {}", shorten(text, 200)))?;
-    let mut tool_calls = Vec::new();
-    if let Some(calls) = message.get("tool_calls").and_then(Value::as_array) {
-        for (i, call) in calls.iter().enumerate() {
-            let function = call
-                .get("function")
-                .ok_or_else(|| format!("tool call {i} has no function"))?;
-            let name = function
-                .get("name")
-                .and_then(Value::as_str)
-                .filter(|n| !n.is_empty())
-                .ok_or_else(|| format!("tool call {i} has no function name"))?;
-            let arguments = match function.get("arguments") {
-                Some(Value::String(s)) => s.clone(),
-                Some(Value::Null) | None => "{}".to_owned(),
-                Some(other) => other.to_string(),
-            };
-            let id = call
-                .get("id")
-                .and_then(Value::as_str)
-                .filter(|s| !s.is_empty())
-                .map(str::to_owned)
-                .unwrap_or_else(|| format!("call_{i}"));
-            tool_calls.push(ToolCall {
-                id,
-                name: name.to_owned(),
-                arguments,
-            });
-        }
-    }
+    let tool_calls = parse_tool_calls(message, |call, i| {
+        call.get("id")
+            .and_then(Value::as_str)
+            .filter(|s| !s.is_empty())
+            .map(str::to_owned)
+            .unwrap_or_else(|| format!("call_{i}"))
+    })?;
     let usage = v.get("usage").map(|u| Usage {
         prompt_tokens: u.get("prompt_tokens").and_then(Value::as_u64).unwrap_or(0),
         completion_tokens: u
@@ -605,29 +616,7 @@ pub fn parse_ollama(text: &str) -> Result<Completion, String> {
     let message = v
         .get("message")
         .ok_or_else(|| format!("no message in {}", shorten(text, 200)))?;
-    let mut tool_calls = Vec::new();
-    if let Some(calls) = message.get("tool_calls").and_then(Value::as_array) {
-        for (i, call) in calls.iter().enumerate() {
-            let function = call
-                .get("function")
-                .ok_or_else(|| format!("tool call {i} has no function"))?;
-            let name = function
-                .get("name")
-                .and_then(Value::as_str)
-                .filter(|n| !n.is_empty())
-                .ok_or_else(|| format!("tool call {i} has no function name"))?;
-            let arguments = match function.get("arguments") {
-                Some(Value::String(s)) => s.clone(),
-                Some(Value::Null) | None => "{}".to_owned(),
-                Some(other) => other.to_string(),
-            };
-            tool_calls.push(ToolCall {
-                id: format!("ollama_{i}"),
-                name: name.to_owned(),
-                arguments,
-            });
-        }
-    }
+    let tool_calls = parse_tool_calls(message, |_, i| format!("ollama_{i}"))?;
     let usage = match (
         v.get("prompt_eval_count").and_then(Value::as_u64),
         v.get("eval_count").and_then(Value::as_u64),
