@@ -6,8 +6,7 @@
 //! supervisor, and serves `/health` and `/metrics` on the HTTP port until SIGINT or SIGTERM.
 
 use anyhow::{Context, Result};
-use robotd_adapters::http::{HealthSource, HttpEdge};
-use robotd_hardware::Hardware;
+use robotd_http::{HealthSource, HttpEdge};
 use robotd_mcp::call_log::CallLog;
 use robotd_mcp::http::HttpGuard;
 use robotd_mcp::McpService;
@@ -18,6 +17,7 @@ use robotd_protocol::diagnostics::Pong;
 use robotd_protocol::geometry::RobotModel;
 use robotd_protocol::health::{ActorHealth, ActorState, RestartEvent};
 use robotd_protocol::workspace::WorkspaceInfo;
+use robotd_robot::Hardware;
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
 use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
 use robotd_runtime::config::{ActorMode, Config, WorkspaceConfig};

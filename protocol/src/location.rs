@@ -2,7 +2,7 @@
 //!
 //! LLMs and existing clients send these as strings (`"right next to"`, `"up"`,
 //! `"upper left corner"`). Each enum here is spelled on the wire — in JSON and in
-//! MessagePack — as exactly the string of `spec/mcp-tools.md`, parses it case-insensitively with
+//! MessagePack — as exactly the string of `docs/mcp-tools.md`, parses it case-insensitively with
 //! surrounding whitespace trimmed, and refuses anything else with an error that names the bad
 //! value and lists the valid ones, so an LLM can correct itself from the message alone.
 //!

@@ -1,6 +1,6 @@
 //! Detected objects: the world-frame description of what the camera sees.
 //!
-//! [`DetectedObject`] serialises to exactly the object JSON of `spec/mcp-tools.md` (the Python
+//! [`DetectedObject`] serialises to exactly the object JSON of `docs/mcp-tools.md` (the Python
 //! server's format), so the MCP edge can print it, the Redis edge can publish it and Python
 //! readers can parse it without a translation layer:
 //!

@@ -2,7 +2,7 @@
 //! request each.
 //!
 //! A skill is a short plan of arm and gripper commands built around the workspace model's
-//! objects (see `spec/mcp-tools.md`, "Robot control"). Every target is checked — inside the
+//! objects (see `docs/mcp-tools.md`, "Robot control"). Every target is checked — inside the
 //! workspace plus a margin, reachable by the arm — before anything moves, and the reply is the
 //! real outcome: `Done` only when the gripper really held (or released) the object.
 //!

@@ -2,7 +2,7 @@
 //!
 //! The workspace model actor keeps the objects of each workspace with stable ids, the
 //! configured workspaces and the list of detectable labels. It answers a [`WorkspaceRequest`] —
-//! one variant per detection or workspace tool of `spec/mcp-tools.md`, plus the skills' hooks
+//! one variant per detection or workspace tool of `docs/mcp-tools.md`, plus the skills' hooks
 //! [`WorkspaceRequest::ObjectPicked`] and [`WorkspaceRequest::ObjectPlaced`] — with one
 //! [`WorkspaceReply`] (`"workspace.reply"`). On the bus a request travels wrapped in a
 //! [`WorkspaceQuery`] (`"workspace.query"`), which can ask for an answer from a view taken after

@@ -65,3 +65,14 @@ pub fn fault_from<E: Display>(error: SupervisedError<E>) -> Fault {
     };
     Fault::new(kind, error.to_string())
 }
+
+/// Why an in-process actor could not be put on the bus.
+#[derive(Debug, thiserror::Error)]
+pub enum ActorStartError {
+    /// A bus port (service, topic) could not be created.
+    #[error("bus: {0}")]
+    Bus(#[from] crate::bus::BusError),
+    /// The actor failed its first start (reported, not retried).
+    #[error(transparent)]
+    Spawn(#[from] crate::supervision::SpawnError),
+}

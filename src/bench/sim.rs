@@ -7,9 +7,9 @@
 
 use super::Latency;
 use anyhow::{Context, Result};
-use robotd_hardware::driver::CameraDriver;
-use robotd_hardware::faults::FaultInjector;
-use robotd_hardware::sim::{SimRobot, SimSettings};
+use robotd_driver::CameraDriver;
+use robotd_driver_sim::faults::FaultInjector;
+use robotd_driver_sim::{SimRobot, SimSettings};
 use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::geometry::{Pose, RobotModel};
 use robotd_runtime::bus::{Bus, BusOptions, FRAME_BYTES};

@@ -2,7 +2,7 @@
 //!
 //! The skills actor serves `skills/run`: one [`Skill`](robotd_protocol::skills::Skill) at a
 //! time, composed from the arm (`arm/command`), the gripper (`gripper/command`) and the
-//! workspace model (`workspace/query`), with the semantics of `spec/mcp-tools.md`:
+//! workspace model (`workspace/query`), with the semantics of `docs/mcp-tools.md`:
 //!
 //! - **Look before acting**: a pick, push or relative placement first moves to the
 //!   workspace's observation pose and works from the first steady camera view taken there.

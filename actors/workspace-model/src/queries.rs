@@ -1,7 +1,7 @@
 //! The object questions of the detection tools, as pure functions over a list of objects.
 //!
 //! Each function takes the objects on the table of the current workspace (in the order memory
-//! keeps them: first seen first) and answers one tool of `spec/mcp-tools.md`:
+//! keeps them: first seen first) and answers one tool of `docs/mcp-tools.md`:
 //!
 //! | function | tool | rule |
 //! |---|---|---|

@@ -1,0 +1,491 @@
+//! The arm actor: plans and checks every motion, then has its driver execute it.
+//!
+//! The actor owns the arm's planning: inverse kinematics for pose targets, joint-limit and
+//! reachability checks **before** anything moves (an unreachable target is an error naming the
+//! target and the reason), straight-line tool paths as dense joint waypoints, and the
+//! workspaces' observation poses. The driver only executes.
+//!
+//! [`serve_arm`] puts it on the bus (`arm/command`). Motion commands go through the
+//! supervised actor one at a time, in order. `Stop` and the queries (`GetPose`, `GetJoints`,
+//! `GetCollisionState`) are answered by the serving loop itself at once, even while a motion
+//! runs: a stop must never wait behind the motion it is meant to stop. The emergency stop
+//! arrives on `safety/estop` and halts the motion within one control tick.
+//! [`publish_arm_state`] publishes joint states and the tool pose on `arm/state`.
+
+use kameo::prelude::*;
+use nalgebra::{Isometry3, Translation3};
+pub use robotd_driver::ObservationPose;
+use robotd_driver::{ArmDriver, DriverError, Motion, MotionControl};
+use robotd_kinematics::{isometry_to_pose, pose_to_isometry, Kinematics};
+use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, ArmState, PathKind};
+use robotd_protocol::geometry::{JointState, Pose};
+use robotd_protocol::validate::Validate;
+use robotd_runtime::bus::{BusError, Fault, Publisher, Server, Subscriber};
+use robotd_runtime::host::fault_from;
+use robotd_runtime::supervision::Supervised;
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::Duration;
+use tracing::Instrument;
+
+/// Spacing of the waypoints of a straight tool path, metres.
+const LINEAR_STEP_M: f64 = 0.005;
+
+/// What the arm actor and its serving loop share.
+#[derive(Clone)]
+pub struct ArmContext {
+    /// The driver (sim or real).
+    pub driver: Arc<dyn ArmDriver>,
+    /// The arm's kinematics.
+    pub kinematics: Kinematics,
+    /// Stop and e-stop signals.
+    pub control: MotionControl,
+    /// Configured observation poses.
+    pub observation_poses: Vec<ObservationPose>,
+}
+
+impl std::fmt::Debug for ArmContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ArmContext")
+            .field("model", &self.kinematics.model())
+            .finish_non_exhaustive()
+    }
+}
+
+impl ArmContext {
+    /// The current tool pose.
+    pub fn tool_pose(&self) -> Result<Pose, ArmError> {
+        let q = self.driver.joints().map_err(arm_error)?;
+        self.kinematics
+            .tool_pose(&q)
+            .map(|iso| isometry_to_pose(&iso))
+            .map_err(|e| ArmError::Driver {
+                message: e.to_string(),
+            })
+    }
+
+    /// The state published on `arm/state`.
+    pub fn state(&self) -> Result<ArmState, ArmError> {
+        let q = self.driver.joints().map_err(arm_error)?;
+        let tool_pose = self
+            .kinematics
+            .tool_pose(&q)
+            .map(|iso| isometry_to_pose(&iso))
+            .map_err(|e| ArmError::Driver {
+                message: e.to_string(),
+            })?;
+        let flags = self.driver.flags();
+        Ok(ArmState {
+            joints: JointState::from_positions(q, robotd_protocol::envelope::unix_now_ns()),
+            tool_pose,
+            moving: flags.moving,
+            collision_detected: flags.collision_detected,
+            calibrated: flags.calibrated,
+        })
+    }
+
+    /// Answers the commands that need no motion (and `Stop`); `None` for motion commands.
+    pub fn answer_at_once(&self, command: &ArmCommand) -> Option<ArmReply> {
+        let reply = match command {
+            ArmCommand::Stop => {
+                self.control.request_stop();
+                self.tool_pose().map(|pose| ArmReply::Ok { pose })
+            }
+            ArmCommand::GetPose => self.tool_pose().map(|pose| ArmReply::Ok { pose }),
+            ArmCommand::GetJoints => {
+                self.driver
+                    .joints()
+                    .map_err(arm_error)
+                    .map(|q| ArmReply::Joints {
+                        joints: JointState::from_positions(
+                            q,
+                            robotd_protocol::envelope::unix_now_ns(),
+                        ),
+                    })
+            }
+            ArmCommand::GetCollisionState => Ok(ArmReply::CollisionState {
+                collision_detected: self.driver.flags().collision_detected,
+            }),
+            _ => return None,
+        };
+        Some(reply.unwrap_or_else(ArmReply::from))
+    }
+}
+
+/// The supervised arm actor (motion commands).
+#[derive(Actor)]
+pub struct ArmActor {
+    context: ArmContext,
+}
+
+impl ArmActor {
+    /// An actor driving `context.driver`.
+    pub fn new(context: ArmContext) -> Self {
+        Self { context }
+    }
+
+    async fn run(&mut self, command: ArmCommand) -> Result<ArmReply, ArmError> {
+        command.validate()?;
+        if let Some(reply) = self.context.answer_at_once(&command) {
+            return reply.into_result();
+        }
+        let ctx = &self.context;
+        if command.moves_arm() && ctx.control.estop_engaged() {
+            return Err(ArmError::EStopped {
+                reason: ctx.control.estop_reason(),
+            });
+        }
+        match command {
+            ArmCommand::MoveToPose { target, path } => self.move_to(target, path).await,
+            ArmCommand::ShiftPose { delta } => {
+                let target = ctx.tool_pose()?.shifted(&delta);
+                self.move_to(target, PathKind::Linear).await
+            }
+            ArmCommand::MoveJoints { positions_rad } => {
+                ctx.kinematics
+                    .check_joints(&positions_rad)
+                    .map_err(|e| joint_error(&e, &positions_rad, &ctx.kinematics))?;
+                self.execute(Motion::Joints(positions_rad)).await
+            }
+            ArmCommand::GoToObservationPose { workspace_id } => {
+                let Some(observation) = ctx
+                    .observation_poses
+                    .iter()
+                    .find(|o| o.workspace_id == workspace_id)
+                else {
+                    return Err(ArmError::UnknownWorkspace {
+                        workspace_id,
+                        known: ctx
+                            .observation_poses
+                            .iter()
+                            .map(|o| o.workspace_id.clone())
+                            .collect(),
+                    });
+                };
+                let pose = observation.pose;
+                self.move_to(pose, PathKind::Joint).await
+            }
+            ArmCommand::Calibrate => {
+                ctx.driver.calibrate().await.map_err(arm_error)?;
+                Ok(ArmReply::Ok {
+                    pose: ctx.tool_pose()?,
+                })
+            }
+            ArmCommand::ClearCollision => {
+                ctx.driver.clear_collision().map_err(arm_error)?;
+                Ok(ArmReply::Ok {
+                    pose: ctx.tool_pose()?,
+                })
+            }
+            ArmCommand::Stop
+            | ArmCommand::GetPose
+            | ArmCommand::GetJoints
+            | ArmCommand::GetCollisionState => unreachable_query(),
+        }
+    }
+
+    async fn move_to(&mut self, target: Pose, path: PathKind) -> Result<ArmReply, ArmError> {
+        let motion = plan(&self.context, target, path)?;
+        self.execute(motion).await
+    }
+
+    async fn execute(&mut self, motion: Motion) -> Result<ArmReply, ArmError> {
+        let ctx = &self.context;
+        if ctx.driver.flags().collision_detected {
+            return Err(ArmError::Collision);
+        }
+        ctx.control.clear_stop();
+        ctx.driver
+            .execute(motion, &ctx.control)
+            .await
+            .map_err(|e| match e {
+                DriverError::Stopped { reason } if ctx.control.estop_engaged() => {
+                    ArmError::EStopped { reason }
+                }
+                other => arm_error(other),
+            })?;
+        Ok(ArmReply::Ok {
+            pose: ctx.tool_pose()?,
+        })
+    }
+}
+
+fn unreachable_query() -> Result<ArmReply, ArmError> {
+    Err(ArmError::InvalidCommand {
+        reason: "internal: a query reached the motion path".into(),
+    })
+}
+
+impl Message<ArmCommand> for ArmActor {
+    type Reply = Result<ArmReply, Infallible>;
+
+    async fn handle(
+        &mut self,
+        command: ArmCommand,
+        _: &mut Context<Self, Self::Reply>,
+    ) -> Self::Reply {
+        Ok(self.run(command).await.unwrap_or_else(ArmReply::from))
+    }
+}
+
+/// Plans a motion to `target`: reachability and joint limits are checked before anything
+/// moves; a straight path is checked waypoint by waypoint.
+pub fn plan(context: &ArmContext, target: Pose, path: PathKind) -> Result<Motion, ArmError> {
+    target.validate()?;
+    let kin = &context.kinematics;
+    let q0 = context.driver.joints().map_err(arm_error)?;
+    let goal = pose_to_isometry(&target);
+    let unreachable = |reason: String| ArmError::Unreachable { target, reason };
+    match path {
+        PathKind::Joint => {
+            let q = kin
+                .inverse(&goal, Some(&q0))
+                .map_err(|e| unreachable(e.to_string()))?;
+            Ok(Motion::Joints(q))
+        }
+        PathKind::Linear => {
+            let start = kin.tool_pose(&q0).map_err(|e| unreachable(e.to_string()))?;
+            let distance = (goal.translation.vector - start.translation.vector).norm();
+            let turn = start.rotation.angle_to(&goal.rotation);
+            let steps = ((distance / LINEAR_STEP_M).ceil() as usize)
+                .max((turn / 0.05).ceil() as usize)
+                .clamp(1, 2000);
+            let mut waypoints = Vec::with_capacity(steps);
+            let mut seed = q0;
+            for i in 1..=steps {
+                let t = i as f64 / steps as f64;
+                let position = start.translation.vector.lerp(&goal.translation.vector, t);
+                let rotation = start
+                    .rotation
+                    .try_slerp(&goal.rotation, t, 1e-9)
+                    .unwrap_or(goal.rotation);
+                let waypoint = Isometry3::from_parts(Translation3::from(position), rotation);
+                let q = kin.inverse(&waypoint, Some(&seed)).map_err(|e| {
+                    unreachable(format!(
+                        "the straight path leaves the reachable space at ({:.3}, {:.3}, {:.3}): {e}",
+                        position.x, position.y, position.z
+                    ))
+                })?;
+                // A straight path must not flip the arm between waypoints.
+                let jump = q
+                    .iter()
+                    .zip(&seed)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                if jump > 0.5 {
+                    return Err(unreachable(format!(
+                        "the straight path needs a joint to jump {jump:.2} rad near ({:.3}, {:.3}, {:.3}); use a joint move",
+                        position.x, position.y, position.z
+                    )));
+                }
+                seed = q.clone();
+                waypoints.push(q);
+            }
+            Ok(Motion::JointPath(waypoints))
+        }
+    }
+}
+
+fn joint_error(
+    error: &robotd_kinematics::KinematicsError,
+    q: &[f64],
+    kin: &Kinematics,
+) -> ArmError {
+    for (i, (value, limit)) in q.iter().zip(kin.joint_limits()).enumerate() {
+        if !(limit.min_rad..=limit.max_rad).contains(value) {
+            return ArmError::JointLimit {
+                joint: i as u32,
+                value_rad: *value,
+                min_rad: limit.min_rad,
+                max_rad: limit.max_rad,
+            };
+        }
+    }
+    ArmError::InvalidCommand {
+        reason: error.to_string(),
+    }
+}
+
+/// The arm error of a driver error.
+pub fn arm_error(error: DriverError) -> ArmError {
+    match error {
+        DriverError::Collision { .. } | DriverError::CollisionPending => ArmError::Collision,
+        DriverError::Stopped { .. } => ArmError::Stopped,
+        DriverError::NotCalibrated => ArmError::NotCalibrated,
+        DriverError::OutOfRange(reason) => ArmError::InvalidCommand { reason },
+        DriverError::Hardware(message) => ArmError::Driver { message },
+    }
+}
+
+/// Serves `arm/command` until the bus fails: queries and `Stop` at once, motions through the
+/// supervised `actor`, one at a time, each reply sent when its motion has ended.
+pub async fn serve_arm(
+    mut server: Server<ArmCommand, ArmReply>,
+    actor: Supervised<ArmActor>,
+    context: ArmContext,
+) -> Result<(), BusError> {
+    let (done_tx, mut done_rx) = tokio::sync::mpsc::unbounded_channel();
+    loop {
+        tokio::select! {
+            incoming = server.next() => {
+                let (envelope, pending) = incoming?.split();
+                let span = tracing::info_span!("arm.command", kind = command_kind(&envelope.body));
+                robotd_runtime::telemetry::set_parent_from(&span, &envelope.trace);
+                if let Some(reply) = context.answer_at_once(&envelope.body) {
+                    let _in_span = span.enter();
+                    if let Err(error) = server.respond(pending, Ok(reply)) {
+                        tracing::warn!(%error, "could not send an arm reply");
+                    }
+                    continue;
+                }
+                let actor = actor.clone();
+                let done = done_tx.clone();
+                tokio::spawn(async move {
+                    let reply: Result<ArmReply, Fault> = actor
+                        .ask(envelope.body)
+                        .await
+                        .map_err(fault_from);
+                    let _ = done.send((pending, reply, tracing::Span::current()));
+                }.instrument(span));
+            }
+            Some((pending, reply, span)) = done_rx.recv() => {
+                let _in_span = span.enter();
+                if let Err(error) = server.respond(pending, reply) {
+                    tracing::warn!(%error, "could not send an arm reply");
+                }
+            }
+        }
+    }
+}
+
+fn command_kind(command: &ArmCommand) -> &'static str {
+    match command {
+        ArmCommand::MoveToPose { .. } => "move_to_pose",
+        ArmCommand::MoveJoints { .. } => "move_joints",
+        ArmCommand::ShiftPose { .. } => "shift_pose",
+        ArmCommand::Stop => "stop",
+        ArmCommand::GoToObservationPose { .. } => "go_to_observation_pose",
+        ArmCommand::Calibrate => "calibrate",
+        ArmCommand::ClearCollision => "clear_collision",
+        ArmCommand::GetPose => "get_pose",
+        ArmCommand::GetJoints => "get_joints",
+        ArmCommand::GetCollisionState => "get_collision_state",
+    }
+}
+
+/// Publishes the arm's state on `arm/state`: every `period` while it moves, about once a
+/// second while it rests. Runs until the publisher fails.
+pub async fn publish_arm_state(
+    publisher: Publisher<ArmState>,
+    context: ArmContext,
+    period: Duration,
+) -> Result<(), BusError> {
+    let mut ticker = tokio::time::interval(period);
+    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let idle_every = (Duration::from_secs(1).as_secs_f64() / period.as_secs_f64()).ceil() as u64;
+    let mut ticks: u64 = 0;
+    let mut was_moving = false;
+    loop {
+        ticker.tick().await;
+        ticks += 1;
+        let moving = context.driver.flags().moving;
+        if moving || was_moving || ticks.is_multiple_of(idle_every.max(1)) {
+            match context.state() {
+                Ok(state) => {
+                    publisher.publish(&state)?;
+                }
+                Err(error) => tracing::warn!(%error, "reading the arm state"),
+            }
+        }
+        was_moving = moving;
+    }
+}
+
+/// Applies emergency stops from `safety/estop`: engaging halts the arm within one control
+/// tick and refuses new motions until released.
+pub async fn watch_estop(
+    mut subscriber: Subscriber<robotd_protocol::health::EmergencyStop>,
+    context: ArmContext,
+) -> Result<(), BusError> {
+    loop {
+        let envelope = subscriber.recv().await?;
+        let estop = envelope.body;
+        context.control.set_estop(estop.engaged, &estop.reason);
+        if estop.engaged {
+            tracing::warn!(reason = %estop.reason, source = %estop.source, "emergency stop engaged");
+            if let Err(error) = context.driver.halt() {
+                tracing::error!(%error, "halting the arm for the emergency stop");
+            }
+        } else {
+            tracing::info!(source = %estop.source, "emergency stop released");
+        }
+    }
+}
+
+/// The running arm: the supervised actor and its bus tasks (`arm/command`, `arm/state`,
+/// `safety/estop`).
+pub struct RunningArm {
+    /// The supervised actor.
+    pub actor: Supervised<ArmActor>,
+    /// Serving, publishing and e-stop tasks; aborted by [`RunningArm::shutdown`].
+    pub tasks: Vec<tokio::task::JoinHandle<()>>,
+}
+
+/// Puts the arm on the bus: the actor under `supervisor` (whose safe state halts the arm
+/// through the driver, not through the dead actor), `arm/command`, `arm/state` every
+/// `state_period`, and the e-stop watcher.
+pub async fn start(
+    bus: &robotd_runtime::bus::Bus,
+    supervisor: robotd_runtime::supervision::Supervisor,
+    context: ArmContext,
+    state_period: Duration,
+) -> Result<RunningArm, robotd_runtime::host::ActorStartError> {
+    use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP};
+    let halt_driver = context.driver.clone();
+    let actor_context = context.clone();
+    let actor = supervisor
+        .safe_state(robotd_runtime::supervision::safe_state_fn(
+            Duration::from_secs(1),
+            move |reason: String| {
+                let driver = halt_driver.clone();
+                async move {
+                    tracing::warn!(%reason, "arm actor failed: halting the arm");
+                    driver.halt().map_err(|e| e.to_string())
+                }
+            },
+        ))
+        .spawn_actor::<ArmActor>(move || ArmActor::new(actor_context.clone()))
+        .await?;
+    let mut tasks = Vec::new();
+    let server = bus.server(&ARM_COMMAND)?;
+    let (serve_actor, serve_context) = (actor.clone(), context.clone());
+    tasks.push(tokio::spawn(async move {
+        if let Err(error) = serve_arm(server, serve_actor, serve_context).await {
+            tracing::error!(%error, "arm/command stopped serving");
+        }
+    }));
+    let state_publisher = bus.publisher(&ARM_STATE)?;
+    let state_context = context.clone();
+    tasks.push(tokio::spawn(async move {
+        if let Err(error) = publish_arm_state(state_publisher, state_context, state_period).await {
+            tracing::error!(%error, "arm/state stopped publishing");
+        }
+    }));
+    let estop = bus.subscriber(&SAFETY_ESTOP)?;
+    tasks.push(tokio::spawn(async move {
+        if let Err(error) = watch_estop(estop, context).await {
+            tracing::error!(%error, "safety/estop stopped being watched");
+        }
+    }));
+    Ok(RunningArm { actor, tasks })
+}
+
+impl RunningArm {
+    /// Stops the bus tasks and the actor.
+    pub async fn shutdown(self) -> Result<(), robotd_runtime::supervision::SupervisionError> {
+        for task in &self.tasks {
+            task.abort();
+        }
+        self.actor.shutdown().await
+    }
+}

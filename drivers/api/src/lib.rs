@@ -1,0 +1,238 @@
+//! The driver traits: what the arm, gripper and camera actors need from a robot.
+//!
+//! A driver is the one piece that differs between the simulator and a real robot. The actors
+//! plan, check and report; the driver only executes. The traits are shaped for the drivers
+//! robotd has and will have:
+//!
+//! - **sim** (`drivers/sim`): a kinematic Ned2 or WidowX in a simulated world;
+//! - **niryo**: the Ned2's TCP protocol, whose motion commands block until the motion ends;
+//! - **widowx**: Dynamixel servos over a serial line, polled for their positions.
+//!
+//! So a motion is one call that returns when the motion has ended (or was stopped, or hit
+//! something), queries are cheap reads, and [`ArmDriver::halt`] works from any task while a
+//! motion runs, because the supervisor's safe-state hook must be able to stop an arm whose
+//! actor just died.
+//!
+//! A driver crate hands the actors a [`RobotDrivers`]: one driver per actor, the robot's
+//! model and the workspaces' observation poses. Adding a driver = a crate in `drivers/`
+//! implementing these traits, plus one line where `robotd-robot` chooses the driver.
+
+use nalgebra::Isometry3;
+use robotd_protocol::geometry::{Pose, RobotModel};
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// A driver's answer that arrives later (a motion, a calibration).
+pub type DriverFuture<'a, T> = Pin<Box<dyn Future<Output = Result<T, DriverError>> + Send + 'a>>;
+
+/// Why a driver command did not do what was asked.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DriverError {
+    /// The arm touched something (an object, the table) and stopped.
+    #[error("collision with {what}; the arm stopped")]
+    Collision {
+        /// What was hit.
+        what: String,
+    },
+    /// A collision was detected earlier and not cleared.
+    #[error("collision detected earlier; clear it (clear_collision_detected) before moving")]
+    CollisionPending,
+    /// The motion was interrupted by a stop or the emergency stop.
+    #[error("motion stopped: {reason}")]
+    Stopped {
+        /// A stop command, or the e-stop's reason.
+        reason: String,
+    },
+    /// The arm must be calibrated first.
+    #[error("the arm is not calibrated; run calibrate first")]
+    NotCalibrated,
+    /// A joint target is outside the robot's limits (drivers check again).
+    #[error("joint target out of range: {0}")]
+    OutOfRange(String),
+    /// The robot (connection, servo, camera) failed.
+    #[error("{0}")]
+    Hardware(String),
+}
+
+/// Shared stop signals of one arm: the `Stop` command and the emergency stop. A running motion
+/// checks them at every control tick.
+#[derive(Debug, Clone, Default)]
+pub struct MotionControl {
+    inner: Arc<ControlFlags>,
+}
+
+#[derive(Debug, Default)]
+struct ControlFlags {
+    stop: AtomicBool,
+    estop: AtomicBool,
+    estop_reason: std::sync::Mutex<String>,
+}
+
+impl MotionControl {
+    /// Asks the running motion (if any) to stop at its next control tick.
+    pub fn request_stop(&self) {
+        self.inner.stop.store(true, Ordering::SeqCst);
+    }
+
+    /// Clears a stop request; called when a new motion starts.
+    pub fn clear_stop(&self) {
+        self.inner.stop.store(false, Ordering::SeqCst);
+    }
+
+    /// Engages (`true`) or releases the emergency stop.
+    pub fn set_estop(&self, engaged: bool, reason: &str) {
+        if let Ok(mut r) = self.inner.estop_reason.lock() {
+            *r = reason.to_owned();
+        }
+        self.inner.estop.store(engaged, Ordering::SeqCst);
+    }
+
+    /// Whether the emergency stop is engaged.
+    pub fn estop_engaged(&self) -> bool {
+        self.inner.estop.load(Ordering::SeqCst)
+    }
+
+    /// Why the emergency stop was engaged.
+    pub fn estop_reason(&self) -> String {
+        self.inner
+            .estop_reason
+            .lock()
+            .map(|r| r.clone())
+            .unwrap_or_default()
+    }
+
+    /// `Err(Stopped)` when the motion must stop now (stop requested or e-stop engaged).
+    pub fn check(&self) -> Result<(), DriverError> {
+        if self.estop_engaged() {
+            return Err(DriverError::Stopped {
+                reason: format!("emergency stop: {}", self.estop_reason()),
+            });
+        }
+        if self.inner.stop.load(Ordering::SeqCst) {
+            return Err(DriverError::Stopped {
+                reason: "stop command".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// One motion for [`ArmDriver::execute`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum Motion {
+    /// Joint-space motion to these positions (radians, base to wrist); all joints start and
+    /// end together.
+    Joints(Vec<f64>),
+    /// A straight tool path, given as dense joint waypoints the arm actor computed (and
+    /// checked) with inverse kinematics; the last one is the target.
+    JointPath(Vec<Vec<f64>>),
+}
+
+/// What an arm driver reports besides joints.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ArmFlags {
+    /// A motion is under way.
+    pub moving: bool,
+    /// A collision was detected and not cleared.
+    pub collision_detected: bool,
+    /// The arm is calibrated.
+    pub calibrated: bool,
+}
+
+/// An arm: joint motions that finish when the arm has arrived, and cheap queries.
+pub trait ArmDriver: Send + Sync + 'static {
+    /// Which robot this is.
+    fn model(&self) -> RobotModel;
+    /// Current joint positions, radians, base to wrist.
+    fn joints(&self) -> Result<Vec<f64>, DriverError>;
+    /// Moving / collision / calibration flags.
+    fn flags(&self) -> ArmFlags;
+    /// Executes `motion`; returns when it has ended. Checks `control` at every control tick
+    /// and returns [`DriverError::Stopped`] when asked to stop.
+    fn execute<'a>(&'a self, motion: Motion, control: &'a MotionControl) -> DriverFuture<'a, ()>;
+    /// Runs the calibration (Ned2) or homing.
+    fn calibrate(&self) -> DriverFuture<'_, ()>;
+    /// Clears the collision flag.
+    fn clear_collision(&self) -> Result<(), DriverError>;
+    /// Stops any motion now and holds position. Safe to call from any task, also while an
+    /// [`execute`](Self::execute) is running elsewhere and after the arm actor died.
+    fn halt(&self) -> Result<(), DriverError>;
+}
+
+/// What a gripper reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GripperStatus {
+    /// Whether an object is between the fingers (they stopped before closing fully).
+    pub holding: bool,
+    /// Distance between the fingers, metres.
+    pub width_m: f64,
+}
+
+/// A gripper.
+pub trait GripperDriver: Send + Sync + 'static {
+    /// Widest opening, metres.
+    fn max_width_m(&self) -> f64;
+    /// Opens fully (releasing what it holds).
+    fn open(&self) -> DriverFuture<'_, GripperStatus>;
+    /// Closes until fully closed or blocked by an object.
+    fn close(&self) -> DriverFuture<'_, GripperStatus>;
+    /// Moves the fingers to `width_m` apart.
+    fn set_width(&self, width_m: f64) -> DriverFuture<'_, GripperStatus>;
+    /// Reads the state.
+    fn status(&self) -> Result<GripperStatus, DriverError>;
+}
+
+/// Where and when a frame was taken.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CaptureInfo {
+    /// Pose of the camera's optical frame (z = viewing direction) in the base frame.
+    pub camera_pose: Isometry3<f64>,
+    /// Capture time, nanoseconds since the Unix epoch.
+    pub timestamp_unix_ns: u64,
+}
+
+/// A camera producing 640×480 RGB8 frames.
+pub trait CameraDriver: Send + Sync + 'static {
+    /// Image width and height in pixels.
+    fn size(&self) -> (u32, u32);
+    /// Intrinsics: fx, fy, cx, cy and the distortion k1, k2, p1, p2, k3.
+    fn intrinsics(&self) -> robotd_protocol::camera::CameraIntrinsics;
+    /// Writes one frame (row-major RGB8, width × height × 3 bytes) into `out`, which is the
+    /// shared-memory frame on the bus, so the image is written exactly once.
+    fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError>;
+}
+
+/// A workspace's observation pose, by id.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObservationPose {
+    /// Workspace id, e.g. `niryo_ws`.
+    pub workspace_id: String,
+    /// Tool pose from which the camera sees the whole workspace.
+    pub pose: Pose,
+}
+
+/// What a driver hands the robot's actors.
+#[derive(Clone)]
+pub struct RobotDrivers {
+    /// The robot's model (its kinematics and limits).
+    pub model: RobotModel,
+    /// The arm driver.
+    pub arm: Arc<dyn ArmDriver>,
+    /// The gripper driver.
+    pub gripper: Arc<dyn GripperDriver>,
+    /// The camera driver.
+    pub camera: Arc<dyn CameraDriver>,
+    /// The workspaces' observation poses.
+    pub observation_poses: Vec<ObservationPose>,
+}
+
+impl std::fmt::Debug for RobotDrivers {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RobotDrivers")
+            .field("model", &self.model)
+            .field("observation_poses", &self.observation_poses)
+            .finish_non_exhaustive()
+    }
+}

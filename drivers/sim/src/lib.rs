@@ -1,0 +1,80 @@
+//! The simulated robot as a driver: a kinematic Niryo Ned2 or WidowX 250 in a simulated world,
+//! behind the same driver traits ([`robotd_driver`]) a real robot implements.
+//!
+//! `robot.driver = "sim-ned2"` (the default) or `"sim-widowx"` selects it. [`open`] loads the
+//! scene (`robot.scene`, or the model's built-in one), checks every object against the arm's
+//! reach, and builds one [`SimRobot`] whose arm, gripper and camera drivers share one world:
+//!
+//! - [`robot`]: the simulated arm, gripper and wrist camera (motions in time, collisions,
+//!   grasps, rendered frames);
+//! - [`faults`]: fault injection (`[robot.faults.<actor>]`), so supervision is exercised
+//!   without hardware;
+//! - [`serve_ground_truth`]: `sim/world`, where every object really is, for tests.
+//!
+//! ```no_run
+//! # fn demo() -> Result<(), Box<dyn std::error::Error>> {
+//! use robotd_runtime::config::{Config, LoadOptions};
+//! let config = Config::load(LoadOptions::default())?;
+//! let sim = robotd_driver_sim::open(&config)?;
+//! println!("{} objects on the table", sim.robot.with_world(|w| w.objects().len()));
+//! # Ok(()) }
+//! ```
+
+pub mod faults;
+mod ground_truth;
+pub mod robot;
+mod scene;
+
+pub use ground_truth::serve_ground_truth;
+pub use robot::{gripper_max_width, SimArm, SimCamera, SimGripper, SimRobot, SimSettings};
+pub use scene::{load_scene, reachable_from_above, SceneError};
+
+use faults::FaultInjector;
+use robotd_driver::{ObservationPose, RobotDrivers};
+use robotd_protocol::geometry::Pose;
+use robotd_runtime::config::Config;
+use robotd_sim::Scene;
+use std::sync::Arc;
+
+/// A started simulated robot: its drivers, and the simulator behind them.
+pub struct SimDriver {
+    /// The simulator (ground truth, teleport), shared by the three drivers.
+    pub robot: SimRobot,
+    /// The scene it was built from.
+    pub scene: Scene,
+    /// The drivers for the arm, gripper and camera actors.
+    pub drivers: RobotDrivers,
+}
+
+/// Builds the simulated robot the configuration asks for.
+pub fn open(config: &Config) -> Result<SimDriver, SceneError> {
+    let scene = load_scene(config)?;
+    let settings = SimSettings {
+        time_scale: config.robot.time_scale,
+        control_period: config.robot.control_period(),
+        noise_stddev: config.robot.camera.noise_stddev,
+        lens_distortion: config.robot.camera.lens_distortion,
+    };
+    let robot = SimRobot::new(&scene, settings);
+    let faults = &config.robot.faults;
+    let observation_poses = scene
+        .workspaces
+        .iter()
+        .map(|w| ObservationPose {
+            workspace_id: w.id.clone(),
+            pose: Pose::from_array(w.observation_pose),
+        })
+        .collect();
+    let drivers = RobotDrivers {
+        model: scene.robot,
+        arm: Arc::new(robot.arm(FaultInjector::new("arm", faults.arm.clone()))),
+        gripper: Arc::new(robot.gripper(FaultInjector::new("gripper", faults.gripper.clone()))),
+        camera: Arc::new(robot.camera(FaultInjector::new("camera", faults.camera.clone()))),
+        observation_poses,
+    };
+    Ok(SimDriver {
+        robot,
+        scene,
+        drivers,
+    })
+}

@@ -1,0 +1,192 @@
+//! The robot: chooses the driver `[robot] driver` names and starts the arm, gripper and
+//! camera actors on it.
+//!
+//! The actors (`actors/arm`, `actors/gripper`, `actors/camera`) plan, check and report; the
+//! driver (`drivers/*`) only executes. This crate is the one place that joins them:
+//!
+//! | actor | serves / publishes | catalogue |
+//! |---|---|---|
+//! | arm | `arm/command` (motions, stop, queries), `arm/state`, listens to `safety/estop` | [`ARM_COMMAND`](robotd_runtime::catalog::ARM_COMMAND) |
+//! | gripper | `gripper/command`, `gripper/state` | [`GRIPPER_COMMAND`](robotd_runtime::catalog::GRIPPER_COMMAND) |
+//! | camera | `camera/frames` (640×480 RGB, zero-copy) | [`CAMERA_FRAMES`](robotd_runtime::catalog::CAMERA_FRAMES) |
+//!
+//! Drivers: `sim-ned2` (the default) and `sim-widowx` run the simulator of `drivers/sim`; the
+//! real `niryo` and `widowx` drivers are not in this build and are refused at start-up with a
+//! message saying so. A new driver is a crate in `drivers/` plus one arm of the `match` in
+//! [`Hardware::start`].
+//!
+//! ```no_run
+//! # async fn demo() -> anyhow::Result<()> {
+//! use robotd_runtime::bus::{Bus, BusOptions};
+//! use robotd_runtime::config::{Config, LoadOptions};
+//! use robotd_robot::Hardware;
+//!
+//! let config = Config::load(LoadOptions::default())?;
+//! let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd"))?;
+//! let hardware = Hardware::start(&bus, &config, |_actor| {
+//!     robotd_runtime::supervision::observer_fn(|event: &robotd_runtime::supervision::SupervisionEvent| {
+//!         eprintln!("{event}")
+//!     })
+//! })
+//! .await?;
+//! // ... arm/command, gripper/command and camera/frames are on the bus now.
+//! hardware.shutdown().await;
+//! # Ok(()) }
+//! ```
+
+use robotd_arm::{ArmActor, ArmContext, RunningArm};
+use robotd_camera::CameraActor;
+use robotd_driver::{MotionControl, RobotDrivers};
+use robotd_driver_sim::SimRobot;
+use robotd_gripper::GripperActor;
+use robotd_runtime::bus::Bus;
+use robotd_runtime::config::{Config, RobotDriver};
+use robotd_runtime::host::ActorStartError;
+use robotd_runtime::supervision::{Supervised, SupervisionObserver, Supervisor};
+
+/// Why the robot's actors could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum StartError {
+    /// The configured driver is not part of this build.
+    #[error("robot.driver = \"{driver}\" is not available in this build yet (only \"sim-ned2\" and \"sim-widowx\" are); use a simulator or wait for the hardware drivers")]
+    DriverNotAvailable {
+        /// The configured driver.
+        driver: String,
+    },
+    /// The simulator's scene is missing, malformed or for another robot.
+    #[error(transparent)]
+    Scene(#[from] robotd_driver_sim::SceneError),
+    /// An actor could not be put on the bus.
+    #[error("starting the {actor} actor: {source}")]
+    Actor {
+        /// Actor name.
+        actor: &'static str,
+        /// Why.
+        source: ActorStartError,
+    },
+    /// A bus port of the driver could not be created.
+    #[error("bus: {0}")]
+    Bus(#[from] robotd_runtime::bus::BusError),
+}
+
+/// The running arm, gripper and camera actors and their bus tasks.
+pub struct Hardware {
+    /// The simulated robot (ground truth, for tests and benchmarks); `None` on real hardware.
+    pub sim: Option<SimRobot>,
+    /// The supervised arm actor.
+    pub arm: Supervised<ArmActor>,
+    /// The supervised gripper actor.
+    pub gripper: Supervised<GripperActor>,
+    /// The supervised camera actor.
+    pub camera: Supervised<CameraActor>,
+    /// Shared arm state (driver, kinematics, stop signals).
+    pub arm_context: ArmContext,
+    /// The camera's intrinsics as its driver reports them (zero distortion when the image is
+    /// already an ideal pinhole image), for the perception actor.
+    pub camera_intrinsics: robotd_protocol::camera::CameraIntrinsics,
+    tasks: Vec<tokio::task::JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for Hardware {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Hardware")
+            .field("simulated", &self.sim.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Hardware {
+    /// Opens the configured driver and starts the arm, gripper and camera actors on `bus`,
+    /// each under its supervisor with the observer `observer(actor name)` gives.
+    pub async fn start<O: SupervisionObserver>(
+        bus: &Bus,
+        config: &Config,
+        observer: impl Fn(&'static str) -> O,
+    ) -> Result<Hardware, StartError> {
+        match config.robot.driver {
+            RobotDriver::SimNed2 | RobotDriver::SimWidowx => {
+                let sim = robotd_driver_sim::open(config)?;
+                let ground_truth = robotd_driver_sim::serve_ground_truth(bus, sim.robot.clone())?;
+                let mut hardware = Self::start_with(bus, config, sim.drivers, observer).await?;
+                hardware.tasks.push(ground_truth);
+                hardware.sim = Some(sim.robot);
+                Ok(hardware)
+            }
+            RobotDriver::Niryo | RobotDriver::Widowx => Err(StartError::DriverNotAvailable {
+                driver: format!("{:?}", config.robot.driver).to_lowercase(),
+            }),
+        }
+    }
+
+    /// Starts the three actors on the given drivers (any driver, simulated or real).
+    pub async fn start_with<O: SupervisionObserver>(
+        bus: &Bus,
+        config: &Config,
+        drivers: RobotDrivers,
+        observer: impl Fn(&'static str) -> O,
+    ) -> Result<Hardware, StartError> {
+        let supervisor = |actor: &'static str| {
+            Supervisor::new(actor)
+                .policy(config.supervision_for(actor).policy())
+                .observer(observer(actor))
+        };
+        let failed = |actor: &'static str| move |source| StartError::Actor { actor, source };
+        let camera_intrinsics = drivers.camera.intrinsics();
+        let context = ArmContext {
+            kinematics: robotd_kinematics::Kinematics::new(drivers.model),
+            driver: drivers.arm,
+            control: MotionControl::default(),
+            observation_poses: drivers.observation_poses,
+        };
+        let RunningArm {
+            actor: arm,
+            mut tasks,
+        } = robotd_arm::start(
+            bus,
+            supervisor("arm"),
+            context.clone(),
+            config.robot.control_period(),
+        )
+        .await
+        .map_err(failed("arm"))?;
+        let (gripper, task) = robotd_gripper::start(bus, supervisor("gripper"), drivers.gripper)
+            .await
+            .map_err(failed("gripper"))?;
+        tasks.push(task);
+        let (camera, task) = robotd_camera::start(
+            bus,
+            supervisor("camera"),
+            drivers.camera,
+            config.robot.camera.fps,
+        )
+        .await
+        .map_err(failed("camera"))?;
+        tasks.push(task);
+        Ok(Hardware {
+            sim: None,
+            arm,
+            gripper,
+            camera,
+            arm_context: context,
+            camera_intrinsics,
+            tasks,
+        })
+    }
+
+    /// Stops the bus tasks and the actors (halting the arm first).
+    pub async fn shutdown(self) {
+        let _ = self.arm_context.driver.halt();
+        for task in &self.tasks {
+            task.abort();
+        }
+        for result in [
+            self.camera.shutdown().await,
+            self.gripper.shutdown().await,
+            self.arm.shutdown().await,
+        ] {
+            if let Err(error) = result {
+                tracing::warn!(%error, "stopping a hardware actor");
+            }
+        }
+    }
+}
