@@ -12,7 +12,7 @@ mod serve;
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use robotd_runtime::config::{Config, LoadOptions};
+use robotd_config::{Config, LoadOptions};
 use robotd_runtime::telemetry::{self, Mode};
 use std::path::PathBuf;
 

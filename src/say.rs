@@ -4,9 +4,9 @@
 //! spool, and the command says where).
 
 use anyhow::{bail, Context, Result};
+use robotd_config::Config;
 use robotd_protocol::speech::SpeakRequest;
 use robotd_protocol::validate::Validate;
-use robotd_runtime::config::Config;
 use robotd_speech::engine::Utterance;
 use std::path::Path;
 

@@ -6,6 +6,7 @@
 //! supervisor, and serves `/health` and `/metrics` on the HTTP port until SIGINT or SIGTERM.
 
 use anyhow::{Context, Result};
+use robotd_config::{ActorMode, Config, WorkspaceConfig};
 use robotd_http::{HealthSource, HttpEdge};
 use robotd_mcp::call_log::CallLog;
 use robotd_mcp::http::HttpGuard;
@@ -20,7 +21,6 @@ use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_robot::Hardware;
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
 use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
-use robotd_runtime::config::{ActorMode, Config, WorkspaceConfig};
 use robotd_runtime::supervision::{
     observer_fn, SupervisedProcess, SupervisionEvent, SupervisionObserver, Supervisor,
 };

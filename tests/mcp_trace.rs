@@ -1,6 +1,7 @@
 //! One trace from an MCP tool call into the actors: the bus request a tool sends carries the
 //! call's trace, and the call log names the same trace id.
 
+use robotd_config::Config;
 use robotd_mcp::call_log::CallLog;
 use robotd_mcp::client::connect;
 use robotd_mcp::{http, McpService};
@@ -8,7 +9,6 @@ use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceReply};
 use robotd_protocol::{Point2, Pose, RobotModel};
 use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_runtime::catalog::WORKSPACE_QUERY;
-use robotd_runtime::config::Config;
 use robotd_runtime::telemetry::{self, Mode};
 use robotd_tools::{Registry, ToolSettings};
 use std::sync::Arc;

@@ -3,10 +3,10 @@
 
 mod common;
 
+use robotd_config::Config;
 use robotd_protocol::diagnostics::Ping;
 use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_runtime::catalog::SYSTEM_PING;
-use robotd_runtime::config::Config;
 use robotd_runtime::telemetry::{self, current_trace_context, Mode};
 use std::time::Duration;
 use tracing::Instrument;

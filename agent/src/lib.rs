@@ -36,6 +36,9 @@
 //! - [`mock`]: a scripted LLM server speaking the real wire formats, for tests.
 //! - [`chat_log`]: the `log/mcp_client_YYYYmmdd_HHMMSS.log` file of a chat session.
 
+pub mod config;
+pub use config::AgentSection;
+
 pub mod actor;
 pub mod agent;
 pub mod chat_log;

@@ -18,7 +18,7 @@
 //! ```no_run
 //! # async fn demo() -> anyhow::Result<()> {
 //! use robotd_runtime::bus::{Bus, BusOptions};
-//! use robotd_runtime::config::{Config, LoadOptions};
+//! use robotd_config::{Config, LoadOptions};
 //! use robotd_robot::Hardware;
 //!
 //! let config = Config::load(LoadOptions::default())?;
@@ -36,11 +36,11 @@
 
 use robotd_arm::{ArmActor, ArmContext, RunningArm};
 use robotd_camera::CameraActor;
+use robotd_config::{Config, RobotDriver};
 use robotd_driver::{MotionControl, RobotDrivers};
 use robotd_driver_sim::SimRobot;
 use robotd_gripper::GripperActor;
 use robotd_runtime::bus::Bus;
-use robotd_runtime::config::{Config, RobotDriver};
 use robotd_runtime::host::ActorStartError;
 use robotd_runtime::supervision::{Supervised, SupervisionObserver, Supervisor};
 
@@ -105,7 +105,7 @@ impl Hardware {
     ) -> Result<Hardware, StartError> {
         match config.robot.driver {
             RobotDriver::SimNed2 | RobotDriver::SimWidowx => {
-                let sim = robotd_driver_sim::open(config)?;
+                let sim = robotd_driver_sim::open(&config.robot)?;
                 let ground_truth = robotd_driver_sim::serve_ground_truth(bus, sim.robot.clone())?;
                 let mut hardware = Self::start_with(bus, config, sim.drivers, observer).await?;
                 hardware.tasks.push(ground_truth);

@@ -4,6 +4,7 @@
 //! `gripper/command`, frames on `camera/frames` that show the scene where the projection says,
 //! and supervised restarts under injected faults.
 
+use robotd_config::Config;
 use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, PathKind};
 use robotd_protocol::geometry::{Pose, PoseDelta, RobotModel};
@@ -15,7 +16,6 @@ use robotd_runtime::bus::{Bus, BusError, BusOptions, FaultKind};
 use robotd_runtime::catalog::{
     ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, GRIPPER_COMMAND, SAFETY_ESTOP,
 };
-use robotd_runtime::config::Config;
 use robotd_runtime::supervision::{observer_fn, SupervisionEvent};
 use std::f64::consts::FRAC_PI_2;
 use std::sync::atomic::{AtomicU32, Ordering};

@@ -20,12 +20,18 @@
 //! collector delays exit by at most [`SHUTDOWN_BUDGET`].
 //!
 //! ```no_run
-//! use robotd_runtime::config::Config;
+//! use robotd_runtime::config::{LogFormat, TelemetryConfig};
 //! use robotd_runtime::telemetry::{self, Mode};
 //!
-//! let config = Config::load(Default::default())?;
-//! let _telemetry = telemetry::init(&config.telemetry, Mode::Service)?;
-//! tracing::info!(bind = %config.http.bind, "robotd starting");
+//! let config = TelemetryConfig {
+//!     log_dir: "log".into(),
+//!     filter: "info".into(),
+//!     log_format: LogFormat::Text,
+//!     otlp_endpoint: None,
+//!     service_name: Some("robotd".into()),
+//! };
+//! let _telemetry = telemetry::init(&config, Mode::Service)?;
+//! tracing::info!("robotd starting");
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!

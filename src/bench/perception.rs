@@ -205,7 +205,7 @@ fn through_the_bus(lab: &mut Lab, frames: usize) -> Result<(f64, f64, usize)> {
             &bus,
             vec![workspace.clone()],
             &table,
-            &robotd_runtime::config::WorkspaceConfig::default(),
+            &robotd_workspace_model::WorkspaceConfig::default(),
         )?;
         let mut objects = bus.subscriber(&WORKSPACE_OBJECTS)?;
         let publisher = bus.frame_publisher(&CAMERA_FRAMES)?;

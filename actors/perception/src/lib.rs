@@ -37,6 +37,9 @@
 //! assert!(pipeline.detector_labels().contains(&"pencil".to_string()));
 //! ```
 
+pub mod config;
+pub use config::PerceptionConfig;
+
 pub mod actor;
 pub mod camera;
 pub mod components;

@@ -16,6 +16,9 @@
 //! blocking) with HTTPS by rustls on the `ring` provider, checking certificates against the
 //! system's roots.
 
+pub mod config;
+pub use config::TtsConfig;
+
 pub mod engine;
 pub mod output;
 pub mod queue;
@@ -28,7 +31,6 @@ use robotd_protocol::speech::{OverlayKind, SpeakRequest, SpeechEvent, TextOverla
 use robotd_protocol::validate::Validate;
 use robotd_runtime::bus::{Bus, BusError, Publisher};
 use robotd_runtime::catalog::{OVERLAY_TEXT, SPEECH_EVENTS, SPEECH_SPEAK};
-use robotd_runtime::config::TtsConfig;
 use robotd_runtime::supervision::{Supervised, SupervisedError, SupervisionObserver, Supervisor};
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -48,6 +48,9 @@
 //! # }
 //! ```
 
+pub mod config;
+pub use config::WorkspaceConfig;
+
 pub mod free_space;
 pub mod labels;
 pub mod memory;

@@ -17,6 +17,9 @@
 //! model and the workspaces' observation poses. Adding a driver = a crate in `drivers/`
 //! implementing these traits, plus one line where `robotd-robot` chooses the driver.
 
+pub mod config;
+pub use config::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
+
 use nalgebra::Isometry3;
 use robotd_protocol::geometry::{Pose, RobotModel};
 use std::future::Future;

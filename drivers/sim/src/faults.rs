@@ -12,7 +12,7 @@
 
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
-use robotd_runtime::config::FaultConfig;
+use robotd_driver::FaultConfig;
 use std::sync::Mutex;
 use std::time::Duration;
 

@@ -13,9 +13,8 @@
 //!
 //! ```no_run
 //! # fn demo() -> Result<(), Box<dyn std::error::Error>> {
-//! use robotd_runtime::config::{Config, LoadOptions};
-//! let config = Config::load(LoadOptions::default())?;
-//! let sim = robotd_driver_sim::open(&config)?;
+//! let robot: robotd_driver::RobotConfig = toml::from_str("driver = \"sim-ned2\"")?;
+//! let sim = robotd_driver_sim::open(&robot)?;
 //! println!("{} objects on the table", sim.robot.with_world(|w| w.objects().len()));
 //! # Ok(()) }
 //! ```
@@ -30,9 +29,9 @@ pub use robot::{gripper_max_width, SimArm, SimCamera, SimGripper, SimRobot, SimS
 pub use scene::{load_scene, reachable_from_above, SceneError};
 
 use faults::FaultInjector;
+use robotd_driver::RobotConfig;
 use robotd_driver::{ObservationPose, RobotDrivers};
 use robotd_protocol::geometry::Pose;
-use robotd_runtime::config::Config;
 use robotd_sim::Scene;
 use std::sync::Arc;
 
@@ -46,17 +45,17 @@ pub struct SimDriver {
     pub drivers: RobotDrivers,
 }
 
-/// Builds the simulated robot the configuration asks for.
-pub fn open(config: &Config) -> Result<SimDriver, SceneError> {
+/// Builds the simulated robot `[robot]` asks for.
+pub fn open(config: &RobotConfig) -> Result<SimDriver, SceneError> {
     let scene = load_scene(config)?;
     let settings = SimSettings {
-        time_scale: config.robot.time_scale,
-        control_period: config.robot.control_period(),
-        noise_stddev: config.robot.camera.noise_stddev,
-        lens_distortion: config.robot.camera.lens_distortion,
+        time_scale: config.time_scale,
+        control_period: config.control_period(),
+        noise_stddev: config.camera.noise_stddev,
+        lens_distortion: config.camera.lens_distortion,
     };
     let robot = SimRobot::new(&scene, settings);
-    let faults = &config.robot.faults;
+    let faults = &config.faults;
     let observation_poses = scene
         .workspaces
         .iter()

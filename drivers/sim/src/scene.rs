@@ -1,8 +1,8 @@
 //! The simulator's scene: which one to load, and whether the arm can reach what is on it.
 
+use robotd_driver::{RobotConfig, RobotDriver};
 use robotd_kinematics::Kinematics;
 use robotd_protocol::geometry::{Pose, RobotModel};
-use robotd_runtime::config::{Config, RobotDriver};
 use robotd_sim::Scene;
 use std::path::Path;
 
@@ -26,9 +26,9 @@ pub enum SceneError {
 
 /// Loads the scene the configuration asks for (the model's built-in one by default) and checks
 /// it against the robot's reach.
-pub fn load_scene(config: &Config) -> Result<Scene, SceneError> {
-    let driver = config.robot.driver;
-    let scene = match &config.robot.scene {
+pub fn load_scene(robot: &RobotConfig) -> Result<Scene, SceneError> {
+    let driver = robot.driver;
+    let scene = match &robot.scene {
         Some(path) => {
             Scene::load(Path::new(path)).map_err(|e| SceneError::Invalid(e.to_string()))?
         }

@@ -12,6 +12,9 @@
 //! # }
 //! ```
 
+pub mod config;
+pub use config::HttpConfig;
+
 use axum::extract::State;
 use axum::http::{header, StatusCode};
 use axum::response::IntoResponse;

@@ -24,6 +24,9 @@
 //! # Ok(()) }
 //! ```
 
+pub mod config;
+pub use config::McpConfig;
+
 pub mod call_log;
 pub mod client;
 pub mod http;

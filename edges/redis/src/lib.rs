@@ -29,6 +29,9 @@
 //! - [`writer`]: the queue and the task that appends to Redis.
 //! - [`status`]: state and counters.
 
+pub mod config;
+pub use config::RedisConfig;
+
 pub mod annotate;
 pub mod camera;
 pub mod consume;

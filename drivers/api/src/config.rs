@@ -1,0 +1,184 @@
+//! `[robot]`: which arm robotd drives and the settings every driver shares (control rate,
+//! camera rate), plus the simulator's own (scene, time scale, sensor noise, fault injection).
+
+use robotd_runtime::config::{Checks, Section};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Which arm robotd drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RobotDriver {
+    /// Simulated Niryo Ned2 (the default; no hardware).
+    SimNed2,
+    /// Simulated WidowX.
+    SimWidowx,
+    /// A real Niryo Ned2 over its TCP protocol.
+    Niryo,
+    /// A real WidowX over Dynamixel Protocol 2.0.
+    Widowx,
+}
+
+impl RobotDriver {
+    /// Whether this driver is a simulator (needs no hardware).
+    pub fn is_simulated(self) -> bool {
+        matches!(self, RobotDriver::SimNed2 | RobotDriver::SimWidowx)
+    }
+}
+
+/// `[robot]`
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotConfig {
+    /// The arm driver.
+    pub driver: RobotDriver,
+    /// Scene file of the simulator (objects, workspaces); `None` = the built-in default scene
+    /// of the simulated model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<PathBuf>,
+    /// Simulated motion time relative to the real robot (1.0 = realistic, 0.1 = ten times
+    /// faster). Finite, from 0.001 to 100.
+    #[serde(default = "defaults::time_scale")]
+    pub time_scale: f64,
+    /// Control ticks per second of the arm: how often a motion is advanced, checked for a stop
+    /// and published on `arm/state` (1 to 1000).
+    #[serde(default = "defaults::control_rate_hz")]
+    pub control_rate_hz: u32,
+    /// `[robot.camera]`: the wrist camera.
+    #[serde(default)]
+    pub camera: CameraConfig,
+    /// `[robot.faults.<arm|gripper|camera>]`: faults the simulated drivers inject on purpose.
+    #[serde(default)]
+    pub faults: FaultsConfig,
+}
+
+impl RobotConfig {
+    /// [`Self::control_rate_hz`] as the period of one control tick.
+    pub fn control_period(&self) -> Duration {
+        Duration::from_secs_f64(1.0 / f64::from(self.control_rate_hz.max(1)))
+    }
+}
+
+/// `[robot.camera]`
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraConfig {
+    /// Frames per second published on `camera/frames` (0.1 to 60).
+    #[serde(default = "defaults::camera_fps")]
+    pub fps: f64,
+    /// Standard deviation of the simulated sensor noise, in 0–255 pixel units (0 to 50).
+    #[serde(default = "defaults::noise_stddev")]
+    pub noise_stddev: f64,
+    /// Whether the simulated camera applies the lens distortion of its intrinsics.
+    #[serde(default)]
+    pub lens_distortion: bool,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        Self {
+            fps: defaults::camera_fps(),
+            noise_stddev: defaults::noise_stddev(),
+            lens_distortion: false,
+        }
+    }
+}
+
+/// `[robot.faults]`: fault injection per simulated hardware actor.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaultsConfig {
+    /// Faults of the arm driver.
+    #[serde(default)]
+    pub arm: FaultConfig,
+    /// Faults of the gripper driver.
+    #[serde(default)]
+    pub gripper: FaultConfig,
+    /// Faults of the camera driver.
+    #[serde(default)]
+    pub camera: FaultConfig,
+}
+
+/// Faults one simulated driver injects: a failing command crashes the driver (as a driver bug
+/// would), so supervision brings the actor to its safe state and restarts it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaultConfig {
+    /// Fail every Nth command (0 = never).
+    #[serde(default)]
+    pub fail_every_n: u32,
+    /// Fail each command with this probability (0.0 to 1.0).
+    #[serde(default)]
+    pub fail_probability: f64,
+    /// Seed of the random failures, so a run can be repeated.
+    #[serde(default)]
+    pub seed: u64,
+    /// A failing command first hangs this long, in ms (0 = fails at once).
+    #[serde(default)]
+    pub hang_ms: u64,
+}
+
+impl FaultConfig {
+    /// Whether any fault is configured.
+    pub fn is_active(&self) -> bool {
+        self.fail_every_n > 0 || self.fail_probability > 0.0
+    }
+}
+
+mod defaults {
+    pub fn time_scale() -> f64 {
+        1.0
+    }
+    pub fn control_rate_hz() -> u32 {
+        50
+    }
+    pub fn camera_fps() -> f64 {
+        15.0
+    }
+    pub fn noise_stddev() -> f64 {
+        2.0
+    }
+}
+
+impl Section for RobotConfig {
+    fn check(&self, checks: &mut Checks) {
+        checks.range_f64("time_scale", self.time_scale, 0.001..=100.0, "");
+        checks.range_u64("control_rate_hz", self.control_rate_hz.into(), 1..=1000, "");
+        if let Some(scene) = &self.scene {
+            if scene.as_os_str().is_empty() {
+                checks.problem(
+                    "scene",
+                    "must not be empty (leave it out for the built-in scene)",
+                );
+            }
+        }
+        checks.range_f64("camera.fps", self.camera.fps, 0.1..=60.0, "");
+        checks.range_f64(
+            "camera.noise_stddev",
+            self.camera.noise_stddev,
+            0.0..=50.0,
+            "",
+        );
+        for (name, fault) in [
+            ("arm", &self.faults.arm),
+            ("gripper", &self.faults.gripper),
+            ("camera", &self.faults.camera),
+        ] {
+            if !(fault.fail_probability.is_finite()
+                && (0.0..=1.0).contains(&fault.fail_probability))
+            {
+                checks.problem(
+                    &format!("faults.{name}.fail_probability"),
+                    format!("must be from 0.0 to 1.0, got {}", fault.fail_probability),
+                );
+            }
+            if fault.hang_ms > 600_000 {
+                checks.problem(
+                    &format!("faults.{name}.hang_ms"),
+                    format!("must be at most 600000 ms, got {}", fault.hang_ms),
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,84 @@
+//! `[mcp]`: the MCP edge on the HTTP port — on or off, bearer token, body limit, allowed
+//! browser origins, error style, motion time limit.
+
+use robotd_runtime::config::{check_url, Checks, Section};
+use serde::{Deserialize, Serialize};
+
+/// `[mcp]`: the MCP edge, served on the `[http]` port (`/sse`, `/messages/`, `/mcp`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct McpConfig {
+    /// Serve the MCP routes at all.
+    pub enabled: bool,
+    /// Bearer token every MCP request must carry (`Authorization: Bearer …`). Required when
+    /// `http.bind` is not a loopback address. Prefer the `ROBOTD_MCP__TOKEN` environment
+    /// variable to writing it in a file.
+    pub token: Option<String>,
+    /// Largest request body, bytes (1 KiB … 64 MiB).
+    pub max_body_bytes: usize,
+    /// Browser origins allowed besides local ones, e.g. "https://lab.example.org".
+    pub allowed_origins: Vec<String>,
+    /// Set `isError: true` on failure replies (the Python server never did).
+    pub strict_errors: bool,
+    /// Longest a motion tool (pick, place, push …) may take, seconds.
+    pub skill_timeout_s: u64,
+}
+
+impl Default for McpConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            token: None,
+            max_body_bytes: 1024 * 1024,
+            allowed_origins: Vec::new(),
+            strict_errors: false,
+            skill_timeout_s: 180,
+        }
+    }
+}
+
+impl Section for McpConfig {
+    fn check(&self, checks: &mut Checks) {
+        checks.range_u64(
+            "max_body_bytes",
+            self.max_body_bytes as u64,
+            1024..=64 * 1024 * 1024,
+            "",
+        );
+        checks.range_u64("skill_timeout_s", self.skill_timeout_s, 1..=3600, " s");
+        if let Some(token) = &self.token {
+            if token.trim().len() < 8 {
+                checks.problem(
+                    "token",
+                    "must be at least 8 characters (a random string; leave it out for no token)",
+                );
+            }
+        }
+        for origin in &self.allowed_origins {
+            if let Err(reason) = check_url(origin, &["http", "https"]) {
+                checks.problem(
+                    "allowed_origins",
+                    format!("{reason}; expected an origin such as \"https://lab.example.org\""),
+                );
+            }
+        }
+    }
+}
+
+impl McpConfig {
+    /// The problem of serving MCP on `bind` without a token: anyone on the network could
+    /// move the robot. `None` when `bind` is loopback, MCP is off, or a token is set.
+    pub fn bind_problem(&self, bind: std::net::SocketAddr) -> Option<(String, String)> {
+        let no_token = self.token.as_deref().is_none_or(|t| t.trim().is_empty());
+        (self.enabled && !bind.ip().is_loopback() && no_token).then(|| {
+            (
+                "mcp.token".to_owned(),
+                format!(
+                    "is required because http.bind {bind} is not a loopback address: without it \
+                     anyone on the network could move the robot (set ROBOTD_MCP__TOKEN, or bind \
+                     127.0.0.1)"
+                ),
+            )
+        })
+    }
+}
