@@ -272,9 +272,24 @@ pub fn load_secrets(path: &Path) -> Result<HashMap<String, String>, ProviderErro
     }
 }
 
-/// Parses dotenv text: `KEY=VALUE` lines, `#` comments, optional `export `, values in single
-/// or double quotes (double quotes understand `\n`, `\"`, `\\`), trailing ` # comment` after
-/// unquoted values. Lines that are not assignments are skipped.
+/// Parses dotenv text — the one parser of `secrets.env` in robotd (the agent's keys and
+/// `robotd doctor` read the file through it, so both always see the same values).
+///
+/// Understood: `KEY=VALUE` lines; blank lines and `#` comments; an optional `export ` in front;
+/// values in single quotes (taken literally) or double quotes (`\n`, `\t`, `\"` and `\\`
+/// are escapes); ` # comment` (or a tab before the `#`) after an unquoted value. Keys are
+/// letters, digits, `_` and `.`, not starting with a digit. Lines that are not such an
+/// assignment are skipped, never an error, and `$VAR` is never expanded: a password with a `$`
+/// in it stays as written. A key given twice keeps its last value.
+///
+/// ```
+/// use robotd_agent::providers::parse_dotenv;
+///
+/// let vars = parse_dotenv("export GROQ_API_KEY=gsk_1 # lab key\nPW='p$ss'\nnot a line\n");
+/// assert_eq!(vars["GROQ_API_KEY"], "gsk_1");
+/// assert_eq!(vars["PW"], "p$ss");
+/// assert_eq!(vars.len(), 2);
+/// ```
 pub fn parse_dotenv(text: &str) -> HashMap<String, String> {
     let mut out = HashMap::new();
     for line in text.lines() {
@@ -282,12 +297,16 @@ pub fn parse_dotenv(text: &str) -> HashMap<String, String> {
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let line = line.strip_prefix("export ").unwrap_or(line);
+        let line = line
+            .strip_prefix("export ")
+            .map(str::trim_start)
+            .unwrap_or(line);
         let Some((key, value)) = line.split_once('=') else {
             continue;
         };
         let key = key.trim();
         if key.is_empty()
+            || key.starts_with(|c: char| c.is_ascii_digit())
             || !key
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
@@ -305,7 +324,7 @@ pub fn parse_dotenv(text: &str) -> HashMap<String, String> {
                         Some('n') => s.push('\n'),
                         Some('t') => s.push('\t'),
                         Some(other) => s.push(other),
-                        None => break,
+                        None => s.push('\\'),
                     },
                     c => s.push(c),
                 }
@@ -314,10 +333,8 @@ pub fn parse_dotenv(text: &str) -> HashMap<String, String> {
         } else if let Some(rest) = value.strip_prefix('\'') {
             rest.split('\'').next().unwrap_or("").to_owned()
         } else {
-            match value.find(" #") {
-                Some(i) => value[..i].trim_end().to_owned(),
-                None => value.to_owned(),
-            }
+            let end = value.find(" #").or_else(|| value.find("\t#"));
+            value[..end.unwrap_or(value.len())].trim_end().to_owned()
         };
         out.insert(key.to_owned(), value);
     }
