@@ -752,3 +752,26 @@ mod tests {
         assert_eq!(file_prefix(".."), "robotd..");
     }
 }
+
+/// `(year, month, day, hour, minute, second)` in UTC of a Unix time in seconds, for the names
+/// and lines of robotd's log files (times past the year 9999 read as 9999-12-31 23:59:59).
+pub fn utc_fields(unix_s: u64) -> (i32, u8, u8, u8, u8, u8) {
+    let at = i64::try_from(unix_s)
+        .ok()
+        .and_then(|s| time::OffsetDateTime::from_unix_timestamp(s).ok())
+        .unwrap_or_else(|| time::PrimitiveDateTime::MAX.assume_utc());
+    (
+        at.year(),
+        u8::from(at.month()),
+        at.day(),
+        at.hour(),
+        at.minute(),
+        at.second(),
+    )
+}
+
+/// `YYYYmmdd_HHMMSS` (UTC) of a Unix time: the stamp in log file names.
+pub fn file_stamp(unix_s: u64) -> String {
+    let (y, mo, d, h, mi, s) = utc_fields(unix_s);
+    format!("{y:04}{mo:02}{d:02}_{h:02}{mi:02}{s:02}")
+}

@@ -38,23 +38,6 @@ pub struct CallLog {
     file: Mutex<Option<std::fs::File>>,
 }
 
-/// `(year, month, day, hour, minute, second)` in UTC of a Unix time in seconds.
-fn utc_fields(unix_s: u64) -> (i64, u32, u32, u32, u32, u32) {
-    let days = (unix_s / 86_400) as i64;
-    let secs = (unix_s % 86_400) as u32;
-    // Civil date from days since 1970-01-01 (proleptic Gregorian calendar).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    (year, month, day, secs / 3600, (secs / 60) % 60, secs % 60)
-}
-
 fn now_s() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -62,11 +45,7 @@ fn now_s() -> u64 {
         .unwrap_or(0)
 }
 
-/// `YYYYmmdd_HHMMSS` (UTC) of a Unix time.
-pub fn file_stamp(unix_s: u64) -> String {
-    let (y, mo, d, h, mi, s) = utc_fields(unix_s);
-    format!("{y:04}{mo:02}{d:02}_{h:02}{mi:02}{s:02}")
-}
+pub use robotd_runtime::telemetry::{file_stamp, utc_fields};
 
 fn iso_time(unix: Duration) -> String {
     let (y, mo, d, h, mi, s) = utc_fields(unix.as_secs());
