@@ -25,13 +25,20 @@
 //!
 //! ## Modules
 //!
-//! - [`definitions`]: the tools as clients see them (schemas).
-//! - [`args`]: robotd's own argument validation and the validation error text.
-//! - `handlers`: what each tool does and says.
+//! - `tools`: one module per tool — its name, argument struct, data type and handler — and
+//!   the table that dispatches calls by name. Start here to read or add a tool.
+//! - [`args`]: how a call's arguments are deserialized into a tool's argument struct, every
+//!   problem listed in the contract's validation error text.
+//! - [`schema`]: the JSON Schemas derived from those types, and shared schema pieces.
+//! - [`definitions`]: the tools as clients see them (`tools/list`).
+//! - `skill`, `view`: what the tools share to ask the skills actor and the workspace model.
 
 pub mod args;
 pub mod definitions;
-mod handlers;
+pub mod schema;
+mod skill;
+mod tools;
+mod view;
 
 pub use definitions::ToolInfo;
 
@@ -299,11 +306,11 @@ impl Registry {
         arguments: Option<serde_json::Map<String, serde_json::Value>>,
         hooks: CallHooks,
     ) -> Result<ToolOutput, CallError> {
-        let tool = self.tool(name).ok_or_else(|| CallError::UnknownTool {
+        let tool = tools::find(name).ok_or_else(|| CallError::UnknownTool {
             name: name.to_owned(),
         })?;
         let args = arguments.unwrap_or_default();
-        Ok(handlers::call(self, tool.name, &args, hooks).await)
+        Ok((tool.call)(self, &args, hooks).await)
     }
 
     fn query_client(&self) -> &Client<WorkspaceQuery, WorkspaceReply> {

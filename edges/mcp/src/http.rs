@@ -63,7 +63,7 @@ pub enum StartError {
     /// A non-loopback address without a token would give the robot to anyone on the network.
     #[error(
         "refusing to serve MCP on {bind} without a bearer token: a non-loopback address \
-         exposes the robot to the network. Set [mcp] token (or ROBOTD_MCP_TOKEN), or bind \
+         exposes the robot to the network. Set [mcp] token (or ROBOTD_MCP__TOKEN), or bind \
          127.0.0.1"
     )]
     TokenRequired {
@@ -350,7 +350,9 @@ mod tests {
         let mut guard = HttpGuard::default();
         assert!(check_bind(local, &guard).is_ok());
         let e = check_bind(open, &guard).unwrap_err().to_string();
-        assert!(e.contains("ROBOTD_MCP_TOKEN"), "{e}");
+        // The server reads its token through the configuration's environment layer
+        // (`ROBOTD_MCP__TOKEN`, double underscore); naming anything else sends users astray.
+        assert!(e.contains("(or ROBOTD_MCP__TOKEN)"), "{e}");
         guard.token = Some("s3cret".into());
         assert!(check_bind(open, &guard).is_ok());
         assert!(constant_time_eq(b"abc", b"abc"));
