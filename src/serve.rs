@@ -75,6 +75,12 @@ impl HealthBoard {
             .map(|a| a.values().cloned().collect())
             .unwrap_or_default();
         let all_up = actors.iter().all(|a| a.state == ActorState::Running);
+        // The robot can be used when its arm, gripper and camera actors all run.
+        let robot_available = ["arm", "gripper", "camera"].iter().all(|name| {
+            actors
+                .iter()
+                .any(|a| a.actor == *name && a.state == ActorState::Running)
+        });
         serde_json::json!({
             "status": if all_up { "ok" } else { "degraded" },
             "service": config.service.name,
@@ -84,7 +90,7 @@ impl HealthBoard {
             "bus_namespace": config.bus.namespace,
             "robot": {
                 "driver": config.robot.driver,
-                "available": true,
+                "available": robot_available,
                 "model": robot.model,
                 "scene": robot.scene,
             },
@@ -632,4 +638,46 @@ async fn start_speech(
         observer,
     )
     .await?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn started(actor: &str) -> SupervisionEvent {
+        SupervisionEvent::Started {
+            actor: actor.into(),
+            attempt: 0,
+        }
+    }
+
+    #[test]
+    fn the_robot_is_available_only_while_arm_gripper_and_camera_run() {
+        let board = HealthBoard::default();
+        let robot = RobotInfo {
+            model: "Niryo Ned2".into(),
+            scene: "default".into(),
+        };
+        let config = Config::default();
+        let available = |board: &HealthBoard| {
+            board.report(&config, &robot, Instant::now())["robot"]["available"].clone()
+        };
+        board.apply(&started("arm"));
+        board.apply(&started("gripper"));
+        assert_eq!(available(&board), false, "the camera has not started yet");
+        board.apply(&started("camera"));
+        board.apply(&started("tts"));
+        assert_eq!(available(&board), true);
+        board.apply(&SupervisionEvent::Failed {
+            actor: "arm".into(),
+            reason: "driver crashed".into(),
+        });
+        assert_eq!(available(&board), false, "the arm is in its safe state");
+        board.apply(&started("arm"));
+        board.apply(&SupervisionEvent::Failed {
+            actor: "tts".into(),
+            reason: "espeak-ng died".into(),
+        });
+        assert_eq!(available(&board), true, "speech is not the robot");
+    }
 }

@@ -311,14 +311,26 @@ fn env_filter(configured: &str, rust_log: Option<&str>) -> Result<EnvFilter, Tel
         Some(value) => ("RUST_LOG", value),
         None => ("telemetry.filter", configured),
     };
-    EnvFilter::builder()
+    let filter = EnvFilter::builder()
         .parse(text)
         .map_err(|source| TelemetryError::Filter {
             origin,
             filter: text.to_owned(),
             source,
-        })
+        })?;
+    // The URDF loader (`k`) logs every link at INFO when the kinematics are built: keep it to
+    // warnings unless the filter names it.
+    let names_k = text
+        .split(',')
+        .any(|directive| directive.trim().starts_with("k=") || directive.trim().starts_with("k::"));
+    Ok(match QUIET_URDF_LOADER.parse() {
+        Ok(directive) if !names_k => filter.add_directive(directive),
+        _ => filter,
+    })
 }
+
+/// The directive that keeps the URDF loader's per-link INFO lines out of the logs.
+const QUIET_URDF_LOADER: &str = "k=warn";
 
 /// The OTLP/HTTP traces URL: the configured base URL, else the standard OTel variables.
 fn otlp_endpoint(config: &TelemetryConfig, env: impl Fn(&str) -> Option<String>) -> Option<String> {
@@ -506,6 +518,29 @@ impl Extractor for ContextReader<'_> {
 /// nothing.
 pub fn install_tls_provider() {
     let _ = rustls::crypto::ring::default_provider().install_default();
+}
+
+/// `(year, month, day, hour, minute, second)` in UTC of a Unix time in seconds, for the names
+/// and lines of robotd's log files (times past the year 9999 read as 9999-12-31 23:59:59).
+pub fn utc_fields(unix_s: u64) -> (i32, u8, u8, u8, u8, u8) {
+    let at = i64::try_from(unix_s)
+        .ok()
+        .and_then(|s| time::OffsetDateTime::from_unix_timestamp(s).ok())
+        .unwrap_or_else(|| time::PrimitiveDateTime::MAX.assume_utc());
+    (
+        at.year(),
+        u8::from(at.month()),
+        at.day(),
+        at.hour(),
+        at.minute(),
+        at.second(),
+    )
+}
+
+/// `YYYYmmdd_HHMMSS` (UTC) of a Unix time: the stamp in log file names.
+pub fn file_stamp(unix_s: u64) -> String {
+    let (y, mo, d, h, mi, s) = utc_fields(unix_s);
+    format!("{y:04}{mo:02}{d:02}_{h:02}{mi:02}{s:02}")
 }
 
 #[cfg(test)]
@@ -751,27 +786,4 @@ mod tests {
         assert_eq!(file_prefix(""), "robotd");
         assert_eq!(file_prefix(".."), "robotd..");
     }
-}
-
-/// `(year, month, day, hour, minute, second)` in UTC of a Unix time in seconds, for the names
-/// and lines of robotd's log files (times past the year 9999 read as 9999-12-31 23:59:59).
-pub fn utc_fields(unix_s: u64) -> (i32, u8, u8, u8, u8, u8) {
-    let at = i64::try_from(unix_s)
-        .ok()
-        .and_then(|s| time::OffsetDateTime::from_unix_timestamp(s).ok())
-        .unwrap_or_else(|| time::PrimitiveDateTime::MAX.assume_utc());
-    (
-        at.year(),
-        u8::from(at.month()),
-        at.day(),
-        at.hour(),
-        at.minute(),
-        at.second(),
-    )
-}
-
-/// `YYYYmmdd_HHMMSS` (UTC) of a Unix time: the stamp in log file names.
-pub fn file_stamp(unix_s: u64) -> String {
-    let (y, mo, d, h, mi, s) = utc_fields(unix_s);
-    format!("{y:04}{mo:02}{d:02}_{h:02}{mi:02}{s:02}")
 }

@@ -1,6 +1,6 @@
 //! # robotd-tools: the one tool registry
 //!
-//! robotd's 20 robot tools (`spec/mcp-tools.md`) are defined here once — name, description,
+//! robotd's 20 robot tools (`docs/mcp-tools.md`) are defined here once — name, description,
 //! typed parameters with their JSON Schema, validation, reply texts, and a handler that sends
 //! bus requests to the actors (skills, workspace model, arm, speech). The MCP edge serves this
 //! registry over SSE, streamable HTTP and stdio; the LLM agent calls it in process. Nothing
