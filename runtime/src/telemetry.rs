@@ -743,10 +743,19 @@ mod tests {
 
     #[test]
     fn rust_log_wins_over_config_and_bad_filters_are_reported() {
+        // The filter's directives, sorted (its display orders them by specificity).
+        fn directives(filter: &EnvFilter) -> Vec<String> {
+            let mut all: Vec<String> = filter.to_string().split(',').map(str::to_owned).collect();
+            all.sort();
+            all
+        }
         let filter = env_filter("info", Some("robotd=trace")).unwrap();
-        assert_eq!(filter.to_string(), "robotd=trace");
+        assert_eq!(directives(&filter), ["k=warn", "robotd=trace"]);
         let filter = env_filter("warn", Some("  ")).unwrap();
-        assert_eq!(filter.to_string(), "warn");
+        assert_eq!(directives(&filter), ["k=warn", "warn"]);
+        // A filter that names the URDF loader keeps its own level for it.
+        let filter = env_filter("info,k=debug", None).unwrap();
+        assert_eq!(directives(&filter), ["info", "k=debug"]);
         let error = env_filter("info", Some("[=nope")).unwrap_err();
         assert!(error.to_string().contains("RUST_LOG"), "{error}");
         let error = env_filter("[=nope", None).unwrap_err();
