@@ -158,7 +158,7 @@ fn supervision_observer(
 pub struct Runtime {
     /// The bus this instance joined.
     pub bus: Bus,
-    /// The configured workspaces (from the robot's scene).
+    /// The configured workspaces (`[robot] workspaces`, or the model's built-in ones).
     pub workspaces: Vec<WorkspaceInfo>,
     /// The report behind `/health` and `get_system_status`.
     pub health_source: HealthSource,
@@ -230,19 +230,8 @@ impl Runtime {
                 .unwrap_or_default(),
         };
         tracing::info!(model = %robot.model, scene = %robot.scene, "robot ready");
-        let workspaces = hardware
-            .sim
-            .as_ref()
-            .map(|sim| {
-                sim.with_world(|world| {
-                    world
-                        .workspaces()
-                        .iter()
-                        .map(|w| w.to_info(world.robot()))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .unwrap_or_default();
+        // From [robot] workspaces (or the model's built-in ones), whatever the driver.
+        let workspaces = config.robot.workspace_infos();
         let labels = load_label_table(config)?;
         let workspace_model =
             start_workspace_model(&bus, workspaces.clone(), &labels, &config.workspace)?;

@@ -396,3 +396,79 @@ fn filter_with_commas_from_env_stays_text() {
     .unwrap();
     assert_eq!(config.telemetry.filter, "info,robotd_runtime::bus=debug");
 }
+
+#[test]
+fn workspaces_come_from_the_configuration_or_the_model() {
+    let config = Config::default();
+    let ids: Vec<String> = config
+        .robot
+        .workspaces()
+        .into_iter()
+        .map(|w| w.id)
+        .collect();
+    assert_eq!(ids, ["niryo_ws", "gazebo_1"], "the Ned2's built-in sheets");
+    let widowx = Config::load_with_env(
+        LoadOptions {
+            file: None,
+            overrides: vec![("robot.driver".into(), "widowx".into())],
+        },
+        no_env(),
+    )
+    .unwrap();
+    let ids: Vec<String> = widowx
+        .robot
+        .workspaces()
+        .into_iter()
+        .map(|w| w.id)
+        .collect();
+    assert_eq!(
+        ids,
+        ["widowx_ws"],
+        "a real WidowX starts with workspaces too"
+    );
+
+    let file = TempFile::new(
+        "[robot]\ndriver = \"niryo\"\n\n[[robot.workspaces]]\nid = \"lab_ws\"\n\
+         upper_left = [0.30, 0.10]\nlower_right = [0.15, -0.10]\n\
+         observation_pose = [0.2, 0.0, 0.3, 0.0, 1.57, 0.0]\n",
+    );
+    let config = Config::load_with_env(with_file(&file), no_env()).unwrap();
+    let infos = config.robot.workspace_infos();
+    assert_eq!(infos.len(), 1);
+    assert_eq!(infos[0].id, "lab_ws");
+    assert_eq!(infos[0].upper_left.x_m, 0.30);
+}
+
+#[test]
+fn bad_workspaces_are_refused_naming_each_one() {
+    let file = TempFile::new(
+        "[[robot.workspaces]]\nid = \"a\"\nupper_left = [0.1, 0.1]\nlower_right = [0.3, -0.1]\n\
+         observation_pose = [0.2, 0.0, 0.3, 0.0, 1.57, 0.0]\n\n\
+         [[robot.workspaces]]\nid = \"b\"\nupper_left = [0.3, 0.1]\nlower_right = [0.1, -0.1]\n\
+         observation_pose = [0.2, 0.0, 0.3, 0.0, 1.57, 0.0]\n\n\
+         [[robot.workspaces]]\nid = \"b\"\nupper_left = [0.3, 0.1]\nlower_right = [0.1, -0.1]\n\
+         observation_pose = [0.2, 0.0, 0.3, 0.0, 1.57, 0.0]\n",
+    );
+    let problems = problems_of(Config::load_with_env(with_file(&file), no_env()).unwrap_err());
+    let text: Vec<String> = problems.iter().map(|p| p.to_string()).collect();
+    assert_eq!(problems.len(), 2, "{text:#?}");
+    assert!(
+        text[0].starts_with(
+            "robot.workspaces[0]: 'a': upper_left [0.1, 0.1] must be the far-left corner"
+        ),
+        "{text:#?}"
+    );
+    assert!(text[0].contains("(set in config file"), "{text:#?}");
+    assert!(
+        text[1].starts_with("robot.workspaces[2]: id 'b' is used twice"),
+        "{text:#?}"
+    );
+    let missing = TempFile::new("[[robot.workspaces]]\nid = \"c\"\n");
+    let problems = problems_of(Config::load_with_env(with_file(&missing), no_env()).unwrap_err());
+    assert!(
+        problems
+            .iter()
+            .any(|p| p.key.starts_with("robot.workspaces")),
+        "{problems:#?}"
+    );
+}

@@ -42,6 +42,127 @@ use crate::objects::DetectedObject;
 use crate::validate::{non_empty, Validate, ValidationError};
 use serde::{Deserialize, Serialize};
 
+/// Largest distance of a workspace corner from the robot base, metres.
+pub const MAX_WORKSPACE_COORD_M: f64 = 2.0;
+
+/// A workspace: a white sheet on the table with a circle marker at each corner.
+///
+/// "upper left" is the far-left corner (larger x, larger y), "lower right" the near-right one
+/// (smaller x, smaller y). In the configuration (`[[robot.workspaces]]`):
+///
+/// ```toml
+/// [[robot.workspaces]]
+/// id = "niryo_ws"
+/// upper_left = [0.337, 0.087]
+/// lower_right = [0.163, -0.087]
+/// observation_pose = [0.173, -0.002, 0.277, -3.042, 1.327, -3.027]  # x y z roll pitch yaw
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorkspaceSpec {
+    /// Workspace id, as the MCP tools name it (`niryo_ws`).
+    pub id: String,
+    /// Far-left corner `[x, y]`, metres.
+    pub upper_left: [f64; 2],
+    /// Near-right corner `[x, y]`, metres.
+    pub lower_right: [f64; 2],
+    /// Tool pose from which the camera sees the whole sheet: x, y, z (m), roll, pitch, yaw (rad).
+    pub observation_pose: [f64; 6],
+}
+
+impl WorkspaceSpec {
+    /// The workspace as the rest of robotd describes it (the tools, the workspace model).
+    pub fn to_info(&self, robot: RobotModel) -> WorkspaceInfo {
+        WorkspaceInfo {
+            id: self.id.clone(),
+            robot,
+            upper_left: Point2::new(self.upper_left[0], self.upper_left[1]),
+            lower_right: Point2::new(self.lower_right[0], self.lower_right[1]),
+            observation_pose: Pose::from_array(self.observation_pose),
+        }
+    }
+
+    /// Centre of the sheet `[x, y]`.
+    pub fn centre(&self) -> [f64; 2] {
+        [
+            (self.upper_left[0] + self.lower_right[0]) / 2.0,
+            (self.upper_left[1] + self.lower_right[1]) / 2.0,
+        ]
+    }
+
+    /// Every problem with the values; empty when all is well.
+    pub fn problems(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.id.trim().is_empty() {
+            out.push("id must not be empty".to_owned());
+        }
+        let corners = [
+            ("upper_left", self.upper_left),
+            ("lower_right", self.lower_right),
+        ];
+        let mut corners_ok = true;
+        for (key, c) in corners {
+            if c.iter()
+                .any(|v| !v.is_finite() || v.abs() > MAX_WORKSPACE_COORD_M)
+            {
+                out.push(format!(
+                    "{key} must be finite coordinates within ±{MAX_WORKSPACE_COORD_M} m, got {c:?}"
+                ));
+                corners_ok = false;
+            }
+        }
+        if corners_ok
+            && (self.upper_left[0] <= self.lower_right[0] + 0.01
+                || self.upper_left[1] <= self.lower_right[1] + 0.01)
+        {
+            out.push(format!(
+                "upper_left {:?} must be the far-left corner: larger x and larger y than \
+                 lower_right {:?} (by at least 1 cm)",
+                self.upper_left, self.lower_right
+            ));
+        }
+        if let Some(v) = self.observation_pose.iter().find(|v| !v.is_finite()) {
+            out.push(format!("observation_pose must be finite, got {v}"));
+        }
+        out
+    }
+}
+
+/// The workspaces robotd knows for `model` when `[robot] workspaces` lists none: the sheets of
+/// the robot's standard set-up (docs/robot-models.md, "Workspaces").
+// gazebo_1's pitch is the 1.5708 the Python stack configures, kept as written.
+#[allow(clippy::approx_constant)]
+pub fn builtin_workspaces(model: RobotModel) -> Vec<WorkspaceSpec> {
+    let spec = |id: &str, upper_left, lower_right, observation_pose| WorkspaceSpec {
+        id: id.to_owned(),
+        upper_left,
+        lower_right,
+        observation_pose,
+    };
+    match model {
+        RobotModel::Ned2 => vec![
+            spec(
+                "niryo_ws",
+                [0.337, 0.087],
+                [0.163, -0.087],
+                [0.173, -0.002, 0.277, -3.042, 1.327, -3.027],
+            ),
+            spec(
+                "gazebo_1",
+                [0.337, 0.087],
+                [0.163, -0.087],
+                [0.18, 0.0, 0.36, 2.4, 1.5708, 2.4],
+            ),
+        ],
+        RobotModel::WidowX250 => vec![spec(
+            "widowx_ws",
+            [0.35, 0.10],
+            [0.15, -0.10],
+            [0.30, 0.0, 0.25, 0.0, 0.0, 0.0],
+        )],
+    }
+}
+
 /// One configured workspace.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WorkspaceInfo {

@@ -37,7 +37,7 @@
 use robotd_arm::{ArmActor, ArmContext, RunningArm};
 use robotd_camera::CameraActor;
 use robotd_config::{Config, RobotDriver};
-use robotd_driver::{MotionControl, RobotDrivers};
+use robotd_driver::{MotionControl, ObservationPose, RobotDrivers};
 use robotd_driver_sim::SimRobot;
 use robotd_gripper::GripperActor;
 use robotd_runtime::bus::Bus;
@@ -136,7 +136,15 @@ impl Hardware {
             kinematics: robotd_kinematics::Kinematics::new(drivers.model),
             driver: drivers.arm,
             control: MotionControl::default(),
-            observation_poses: drivers.observation_poses,
+            observation_poses: config
+                .robot
+                .workspaces()
+                .iter()
+                .map(|w| ObservationPose {
+                    workspace_id: w.id.clone(),
+                    pose: robotd_protocol::geometry::Pose::from_array(w.observation_pose),
+                })
+                .collect(),
         };
         let RunningArm {
             actor: arm,

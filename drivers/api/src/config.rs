@@ -1,6 +1,8 @@
 //! `[robot]`: which arm robotd drives and the settings every driver shares (control rate,
 //! camera rate), plus the simulator's own (scene, time scale, sensor noise, fault injection).
 
+use robotd_protocol::geometry::RobotModel;
+use robotd_protocol::workspace::{builtin_workspaces, WorkspaceInfo, WorkspaceSpec};
 use robotd_runtime::config::{Checks, Section};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -21,6 +23,14 @@ pub enum RobotDriver {
 }
 
 impl RobotDriver {
+    /// The robot model this driver drives.
+    pub fn model(self) -> RobotModel {
+        match self {
+            RobotDriver::SimNed2 | RobotDriver::Niryo => RobotModel::Ned2,
+            RobotDriver::SimWidowx | RobotDriver::Widowx => RobotModel::WidowX250,
+        }
+    }
+
     /// Whether this driver is a simulator (needs no hardware).
     pub fn is_simulated(self) -> bool {
         matches!(self, RobotDriver::SimNed2 | RobotDriver::SimWidowx)
@@ -51,9 +61,29 @@ pub struct RobotConfig {
     /// `[robot.faults.<arm|gripper|camera>]`: faults the simulated drivers inject on purpose.
     #[serde(default)]
     pub faults: FaultsConfig,
+    /// `[[robot.workspaces]]`: the workspace sheets on the table (id, corners, observation
+    /// pose), the same for the simulator and a real robot. Empty: the robot model's built-in
+    /// ones ([`robotd_protocol::workspace::builtin_workspaces`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub workspaces: Vec<WorkspaceSpec>,
 }
 
 impl RobotConfig {
+    /// The workspaces robotd uses: `[[robot.workspaces]]`, else the model's built-in ones.
+    pub fn workspaces(&self) -> Vec<WorkspaceSpec> {
+        if self.workspaces.is_empty() {
+            builtin_workspaces(self.driver.model())
+        } else {
+            self.workspaces.clone()
+        }
+    }
+
+    /// [`Self::workspaces`] as the rest of robotd describes them (tools, workspace model).
+    pub fn workspace_infos(&self) -> Vec<WorkspaceInfo> {
+        let model = self.driver.model();
+        self.workspaces().iter().map(|w| w.to_info(model)).collect()
+    }
+
     /// [`Self::control_rate_hz`] as the period of one control tick.
     pub fn control_period(&self) -> Duration {
         Duration::from_secs_f64(1.0 / f64::from(self.control_rate_hz.max(1)))
@@ -152,6 +182,22 @@ impl Section for RobotConfig {
                     "must not be empty (leave it out for the built-in scene)",
                 );
             }
+        }
+        let mut ids: Vec<&str> = Vec::new();
+        for (i, workspace) in self.workspaces.iter().enumerate() {
+            for problem in workspace.problems() {
+                checks.problem(
+                    &format!("workspaces[{i}]"),
+                    format!("'{}': {problem}", workspace.id),
+                );
+            }
+            if ids.contains(&workspace.id.as_str()) {
+                checks.problem(
+                    &format!("workspaces[{i}]"),
+                    format!("id '{}' is used twice", workspace.id),
+                );
+            }
+            ids.push(&workspace.id);
         }
         checks.range_f64("camera.fps", self.camera.fps, 0.1..=60.0, "");
         checks.range_f64(

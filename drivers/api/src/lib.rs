@@ -13,8 +13,9 @@
 //! motion runs, because the supervisor's safe-state hook must be able to stop an arm whose
 //! actor just died.
 //!
-//! A driver crate hands the actors a [`RobotDrivers`]: one driver per actor, the robot's
-//! model and the workspaces' observation poses. Adding a driver = a crate in `drivers/`
+//! A driver crate hands the actors a [`RobotDrivers`]: one driver per actor and the robot's
+//! model. The workspaces (and their observation poses) come from `[robot] workspaces`, not
+//! from the driver, so a real robot starts with the same ones as the simulator. Adding a driver = a crate in `drivers/`
 //! implementing these traits, plus one line where `robotd-robot` chooses the driver.
 
 pub mod config;
@@ -227,15 +228,12 @@ pub struct RobotDrivers {
     pub gripper: Arc<dyn GripperDriver>,
     /// The camera driver.
     pub camera: Arc<dyn CameraDriver>,
-    /// The workspaces' observation poses.
-    pub observation_poses: Vec<ObservationPose>,
 }
 
 impl std::fmt::Debug for RobotDrivers {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RobotDrivers")
             .field("model", &self.model)
-            .field("observation_poses", &self.observation_poses)
             .finish_non_exhaustive()
     }
 }

@@ -30,8 +30,7 @@ pub use scene::{load_scene, reachable_from_above, SceneError};
 
 use faults::FaultInjector;
 use robotd_driver::RobotConfig;
-use robotd_driver::{ObservationPose, RobotDrivers};
-use robotd_protocol::geometry::Pose;
+use robotd_driver::RobotDrivers;
 use robotd_sim::Scene;
 use std::sync::Arc;
 
@@ -56,20 +55,11 @@ pub fn open(config: &RobotConfig) -> Result<SimDriver, SceneError> {
     };
     let robot = SimRobot::new(&scene, settings);
     let faults = &config.faults;
-    let observation_poses = scene
-        .workspaces
-        .iter()
-        .map(|w| ObservationPose {
-            workspace_id: w.id.clone(),
-            pose: Pose::from_array(w.observation_pose),
-        })
-        .collect();
     let drivers = RobotDrivers {
         model: scene.robot,
         arm: Arc::new(robot.arm(FaultInjector::new("arm", faults.arm.clone()))),
         gripper: Arc::new(robot.gripper(FaultInjector::new("gripper", faults.gripper.clone()))),
         camera: Arc::new(robot.camera(FaultInjector::new("camera", faults.camera.clone()))),
-        observation_poses,
     };
     Ok(SimDriver {
         robot,

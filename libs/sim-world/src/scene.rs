@@ -8,6 +8,7 @@
 use crate::geom::{footprint_overlap, Footprint};
 use nalgebra::Vector2;
 use robotd_protocol::geometry::RobotModel;
+pub use robotd_protocol::workspace::WorkspaceSpec;
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
 use std::fmt;
@@ -420,88 +421,6 @@ impl<'de> Deserialize<'de> for Colour {
     }
 }
 
-/// A workspace: a white sheet on the table with a circle marker at each corner.
-///
-/// "upper left" is the far-left corner (larger x, larger y), "lower right" the near-right one
-/// (smaller x, smaller y). In a scene file (`[[workspaces]]`):
-///
-/// ```toml
-/// [[workspaces]]
-/// id = "niryo_ws"
-/// upper_left = [0.337, 0.087]
-/// lower_right = [0.163, -0.087]
-/// observation_pose = [0.173, -0.002, 0.277, -3.042, 1.327, -3.027]  # x y z roll pitch yaw
-/// ```
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct WorkspaceSpec {
-    /// Workspace id, as the MCP tools name it (`niryo_ws`).
-    pub id: String,
-    /// Far-left corner `[x, y]`, metres.
-    pub upper_left: [f64; 2],
-    /// Near-right corner `[x, y]`, metres.
-    pub lower_right: [f64; 2],
-    /// Tool pose from which the camera sees the whole sheet: x, y, z (m), roll, pitch, yaw (rad).
-    pub observation_pose: [f64; 6],
-}
-
-impl WorkspaceSpec {
-    /// The workspace as the rest of robotd describes it (the tools, the workspace model).
-    pub fn to_info(&self, robot: RobotModel) -> robotd_protocol::workspace::WorkspaceInfo {
-        use robotd_protocol::geometry::{Point2, Pose};
-        robotd_protocol::workspace::WorkspaceInfo {
-            id: self.id.clone(),
-            robot,
-            upper_left: Point2::new(self.upper_left[0], self.upper_left[1]),
-            lower_right: Point2::new(self.lower_right[0], self.lower_right[1]),
-            observation_pose: Pose::from_array(self.observation_pose),
-        }
-    }
-
-    /// Centre of the sheet `[x, y]`.
-    pub fn centre(&self) -> [f64; 2] {
-        [
-            (self.upper_left[0] + self.lower_right[0]) / 2.0,
-            (self.upper_left[1] + self.lower_right[1]) / 2.0,
-        ]
-    }
-
-    /// Every problem with the values; empty when all is well.
-    pub fn problems(&self) -> Vec<String> {
-        let mut out = Vec::new();
-        if self.id.trim().is_empty() {
-            out.push("id must not be empty".to_owned());
-        }
-        let corners = [
-            ("upper_left", self.upper_left),
-            ("lower_right", self.lower_right),
-        ];
-        let mut corners_ok = true;
-        for (key, c) in corners {
-            if c.iter().any(|v| !v.is_finite() || v.abs() > MAX_COORD_M) {
-                out.push(format!(
-                    "{key} must be finite coordinates within ±{MAX_COORD_M} m, got {c:?}"
-                ));
-                corners_ok = false;
-            }
-        }
-        if corners_ok
-            && (self.upper_left[0] <= self.lower_right[0] + 0.01
-                || self.upper_left[1] <= self.lower_right[1] + 0.01)
-        {
-            out.push(format!(
-                "upper_left {:?} must be the far-left corner: larger x and larger y than \
-                 lower_right {:?} (by at least 1 cm)",
-                self.upper_left, self.lower_right
-            ));
-        }
-        if let Some(v) = self.observation_pose.iter().find(|v| !v.is_finite()) {
-            out.push(format!("observation_pose must be finite, got {v}"));
-        }
-        out
-    }
-}
-
 /// Why a scene could not be loaded, or why a world refused an object.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
@@ -549,8 +468,11 @@ pub struct Scene {
     pub origin: String,
     /// The arm this scene is made for.
     pub robot: RobotModel,
-    /// Workspace sheets.
+    /// Workspace sheets: the file's own `[[workspaces]]`, else the robot model's built-in ones
+    /// (robotd's service replaces them with `[robot] workspaces`, see `drivers/sim`).
     pub workspaces: Vec<WorkspaceSpec>,
+    /// Whether the file listed its own `[[workspaces]]`.
+    pub own_workspaces: bool,
     /// Objects standing on the table at the start.
     pub objects: Vec<ObjectSpec>,
 }
@@ -590,7 +512,8 @@ impl Scene {
     /// Parses a scene file's text. `origin` (the file name) is used in messages.
     ///
     /// Refuses unknown keys, wrong types, non-finite or out-of-range numbers, unknown colour
-    /// names, empty labels, duplicate workspace ids and a scene without workspaces. Overlaps and
+    /// names, empty labels and duplicate workspace ids. A file without `[[workspaces]]` gets the
+    /// robot model's built-in ones. Overlaps and
     /// reach are checked by [`validate`](Self::validate).
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Scene, SceneError> {
         let raw: RawScene = toml::from_str(text).map_err(|e| {
@@ -616,9 +539,6 @@ impl Scene {
         };
         if raw.name.trim().is_empty() {
             problems.push("name must not be empty".to_owned());
-        }
-        if raw.workspaces.is_empty() {
-            problems.push("a scene needs at least one [[workspaces]] entry".to_owned());
         }
         let mut workspaces = Vec::new();
         for (i, ws) in raw.workspaces.into_iter().enumerate() {
@@ -659,7 +579,12 @@ impl Scene {
                 name: raw.name,
                 origin: origin.to_owned(),
                 robot,
-                workspaces,
+                own_workspaces: !workspaces.is_empty(),
+                workspaces: if workspaces.is_empty() {
+                    robotd_protocol::workspace::builtin_workspaces(robot)
+                } else {
+                    workspaces
+                },
                 objects,
             }),
             _ => Err(SceneError::Invalid {
@@ -757,7 +682,8 @@ impl Scene {
             name: "empty".to_owned(),
             origin: origin.to_owned(),
             robot,
-            workspaces: Vec::new(),
+            workspaces: robotd_protocol::workspace::builtin_workspaces(robot),
+            own_workspaces: false,
             objects: Vec::new(),
         })
     }
