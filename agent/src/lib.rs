@@ -7,13 +7,16 @@
 //!
 //! ```no_run
 //! # async fn demo() -> Result<(), Box<dyn std::error::Error>> {
-//! use robotd_agent::{Agent, AgentConfig, McpTools};
+//! use robotd_agent::{Agent, AgentConfig, ToolBackend};
 //! use robotd_agent::providers::{resolve, Env};
 //! use std::sync::Arc;
 //!
+//! # fn robot_tools() -> Arc<dyn ToolBackend> { unimplemented!() }
 //! let settings = resolve("auto", None, &Env::from_process(None)?)?;
-//! let tools = McpTools::connect("http://127.0.0.1:8000/sse", None).await?;
-//! let mut agent = Agent::new(settings, Arc::new(tools), &[], AgentConfig::default())?;
+//! // robotd's registry in process (`RegistryTools`), or an MCP server
+//! // (`robotd_mcp::agent_tools::McpTools::connect(url, token)` in the MCP edge).
+//! let tools: Arc<dyn ToolBackend> = robot_tools();
+//! let mut agent = Agent::new(settings, tools, &[], AgentConfig::default())?;
 //! let cancel = tokio_util::sync::CancellationToken::new();
 //! agent
 //!     .run("Pick up the pencil and place it right next to the red cube", cancel, |event| {
@@ -30,7 +33,8 @@
 //! - [`llm`]: the conversation's messages and the two wire formats (OpenAI chat completions,
 //!   Ollama `/api/chat`), with retries, timeouts and a `llm.call` span per call.
 //! - [`memory`]: the bounded conversation history.
-//! - [`tools`]: the [`ToolBackend`] trait; the registry and MCP implementations.
+//! - [`tools`]: the [`ToolBackend`] trait and the registry's implementation (the MCP one is in
+//!   the MCP edge, `robotd_mcp::agent_tools`).
 //! - [`agent`]: the system prompt and the tool-calling loop.
 //! - [`actor`]: the agent on the bus (`agent/request` → `agent/events`, `agent/cancel`).
 //! - [`mock`]: a scripted LLM server speaking the real wire formats, for tests.
@@ -49,4 +53,4 @@ pub mod providers;
 pub mod tools;
 
 pub use agent::{Agent, AgentConfig, WorkspaceHint};
-pub use tools::{McpTools, RegistryTools, ToolBackend, ToolResultText};
+pub use tools::{RegistryTools, ToolBackend, ToolResultText};

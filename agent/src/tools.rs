@@ -1,15 +1,14 @@
 //! Where the agent's tools come from: one small trait, [`ToolBackend`], with two
 //! implementations — the in-process tool registry ([`RegistryTools`], robotd's own 20 tools
-//! over the bus) and any MCP server ([`McpTools`], SSE or streamable HTTP), so the same agent
-//! drives robotd in process, a robotd elsewhere, or another MCP robot server.
+//! over the bus) and any MCP server (`robotd_mcp::agent_tools::McpTools`, SSE or streamable HTTP,
+//! in the MCP edge), so the same agent drives robotd in process, a robotd elsewhere, or
+//! another MCP robot server.
 //!
 //! A call takes a [`CancellationToken`]: cancelling it stops the running call — the registry
 //! stops the motion and holds the arm; the MCP client sends `notifications/cancelled`, on
 //! which robotd's edge does the same.
 
 use crate::llm::ToolSpec;
-use rmcp::model::CallToolRequestParams;
-use robotd_mcp::client::McpClient;
 use serde_json::{Map, Value};
 use std::future::Future;
 use std::pin::Pin;
@@ -99,116 +98,6 @@ impl ToolBackend for RegistryTools {
                     text: out.text,
                 },
                 Err(error) => ToolResultText::failed(format!("❌ {error}")),
-            }
-        })
-    }
-}
-
-/// Why the MCP tools could not be listed.
-#[derive(Debug, thiserror::Error)]
-pub enum McpToolsError {
-    /// Connecting failed.
-    #[error(transparent)]
-    Connect(#[from] robotd_mcp::client::ConnectError),
-    /// `tools/list` failed.
-    #[error("{url}: listing the tools failed: {reason}")]
-    List {
-        /// The server.
-        url: String,
-        /// Why.
-        reason: String,
-    },
-}
-
-/// The tools of an MCP server.
-pub struct McpTools {
-    client: McpClient,
-    tools: Vec<ToolSpec>,
-    url: String,
-}
-
-impl std::fmt::Debug for McpTools {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("McpTools")
-            .field("url", &self.url)
-            .field("tools", &self.tools.len())
-            .finish()
-    }
-}
-
-impl McpTools {
-    /// Connects to the MCP server at `url` (`…/sse` for legacy SSE, else streamable HTTP) and
-    /// lists its tools.
-    pub async fn connect(url: &str, token: Option<&str>) -> Result<McpTools, McpToolsError> {
-        let client = robotd_mcp::client::connect(url, token).await?;
-        let listed = client
-            .list_all_tools()
-            .await
-            .map_err(|e| McpToolsError::List {
-                url: url.to_owned(),
-                reason: e.to_string(),
-            })?;
-        let tools = listed
-            .into_iter()
-            .map(|t| ToolSpec {
-                name: t.name.to_string(),
-                description: t.description.as_deref().unwrap_or("").to_owned(),
-                parameters: (*t.input_schema).clone(),
-            })
-            .collect();
-        Ok(McpTools {
-            client,
-            tools,
-            url: url.to_owned(),
-        })
-    }
-
-    /// The server's URL.
-    pub fn url(&self) -> &str {
-        &self.url
-    }
-
-    /// Closes the session.
-    pub async fn close(self) {
-        let _ = self.client.cancel().await;
-    }
-}
-
-impl ToolBackend for McpTools {
-    fn tools(&self) -> Vec<ToolSpec> {
-        self.tools.clone()
-    }
-
-    fn call<'a>(
-        &'a self,
-        name: &'a str,
-        arguments: Map<String, Value>,
-        cancel: CancellationToken,
-    ) -> BoxFuture<'a, ToolResultText> {
-        Box::pin(async move {
-            let params = CallToolRequestParams::new(name.to_owned()).with_arguments(arguments);
-            // Dropping the call's future sends `notifications/cancelled` to the server.
-            let result = tokio::select! {
-                r = self.client.peer().call_tool(params) => r,
-                _ = cancel.cancelled() => {
-                    return ToolResultText::failed(format!("❌ {name} was cancelled"));
-                }
-            };
-            match result {
-                Ok(result) => {
-                    let text = result
-                        .content
-                        .iter()
-                        .filter_map(|c| c.as_text().map(|t| t.text.clone()))
-                        .collect::<Vec<_>>()
-                        .join("\n");
-                    let failed = result.is_error == Some(true) || text.starts_with('❌');
-                    ToolResultText { text, ok: !failed }
-                }
-                Err(error) => ToolResultText::failed(format!(
-                    "❌ calling {name} on {} failed: {error}",
-                    self.url
-                )),
             }
         })
     }

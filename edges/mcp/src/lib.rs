@@ -27,6 +27,7 @@
 pub mod config;
 pub use config::McpConfig;
 
+pub mod agent_tools;
 pub mod call_log;
 pub mod client;
 pub mod http;
