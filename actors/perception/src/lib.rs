@@ -1,58 +1,23 @@
-//! robotd's eyes: objects from the wrist camera's pixels, in robot coordinates, at frame rate.
+//! robotd's eyes on the bus: the perception actor reads the wrist camera's frames in shared
+//! memory (`camera/frames`), runs the vision pipeline of `libs/vision` ([`robotd_vision`]:
+//! markers, table plane, detector, footprints) on each, and publishes the objects in robot
+//! coordinates on `perception/detections`, at frame rate.
 //!
-//! The Python stack sends each frame to a GPU detector and then asks the robot, over TCP,
-//! where each pixel lies on the table. robotd does both itself on the CPU:
-//!
-//! - [`markers`] finds the workspace sheet's four ring markers in the frame;
-//! - [`plane`] fits the table plane's homography to them, recovers where the camera is, and
-//!   maps a pixel to the table — or to the height of an object's top face (parallax);
-//! - a [`detector::Detector`] finds the objects; the built-in [`detector::ColourDetector`]
-//!   segments coloured objects on the white sheet and names them with the [`labels`] table;
-//! - [`footprint`] measures every object the same way whoever found it: centre of mass,
-//!   minimum-area rectangle (width along y, height along x), gripper rotation;
-//! - [`pipeline::Pipeline`] is that chain for one frame; [`actor::Perception`] runs it on the
-//!   bus, reading `camera/frames` in shared memory and publishing `perception/detections`.
-//!
-//! Nothing here looks at the simulator's ground truth: the simulated camera's pixels are all
-//! it gets, as on the real robot.
-//!
-//! ```
-//! use robotd_perception::detector::{ColourDetector, ColourDetectorSettings};
-//! use robotd_perception::labels::LabelTable;
-//! use robotd_perception::pipeline::Pipeline;
-//! use robotd_protocol::geometry::{Point2, Pose, RobotModel};
-//! use robotd_protocol::workspace::WorkspaceInfo;
-//! use robotd_render::Intrinsics;
-//!
-//! let workspace = WorkspaceInfo {
-//!     id: "niryo_ws".into(),
-//!     robot: RobotModel::Ned2,
-//!     upper_left: Point2::new(0.337, 0.087),
-//!     lower_right: Point2::new(0.163, -0.087),
-//!     observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
-//! };
-//! let detector = ColourDetector::new(LabelTable::builtin(), ColourDetectorSettings::default());
-//! let pipeline = Pipeline::new(&Intrinsics::ned2().into(), vec![workspace], Box::new(detector))
-//!     .unwrap();
-//! assert!(pipeline.detector_labels().contains(&"pencil".to_string()));
-//! ```
+//! The vision modules are re-exported here under their usual names (`robotd_perception::
+//! detector`, …). Nothing here looks at the simulator's ground truth: the simulated camera's
+//! pixels are all it gets, as on the real robot (the `eval` feature scores it against ground
+//! truth for tests and `robotd bench perception`).
 
 pub mod config;
 pub use config::PerceptionConfig;
 
 pub mod actor;
-pub mod camera;
-pub mod components;
-pub mod detector;
 #[cfg(feature = "eval")]
 pub mod eval;
-pub mod external;
-pub mod footprint;
-pub mod labels;
-pub mod markers;
-pub mod pipeline;
-pub mod plane;
-pub mod rect;
+
+pub use robotd_vision::{
+    camera, components, detector, external, footprint, labels, markers, pipeline, plane, rect,
+};
 
 pub use actor::{Perception, PerceptionStartError, PerceptionStats};
 pub use pipeline::{Pipeline, PipelineError, SheetStatus};

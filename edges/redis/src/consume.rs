@@ -9,7 +9,7 @@
 //!   are; objects in the vision format (pixel boxes, masks) are mapped through the frame they
 //!   were made from — named by `frame_id`, else the newest published frame taken at or before
 //!   the entry's frame timestamp — with robotd's own pixel-to-world transform
-//!   ([`robotd_perception::external`]). The workspace model then tracks them like its own
+//!   ([`robotd_vision::external`]). The workspace model then tracks them like its own
 //!   (`source` = `redis:<model>`).
 //! - **Labels**: each label not yet known is added to the workspace model's label registry.
 //!
@@ -21,15 +21,15 @@ use crate::camera::SharedRing;
 use crate::status::EdgeStatus;
 use crate::wire::{self, Skip, DETECTABLE_LABELS, DETECTED_OBJECTS};
 use crate::writer;
-use robotd_perception::detector::{DetectError, Detector, FrameView, SheetView};
-use robotd_perception::external::PixelObject;
-use robotd_perception::labels::LabelTable;
-use robotd_perception::Pipeline;
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::objects::{DetectedObject, Detections};
 use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
 use robotd_runtime::bus::{Bus, BusError, Client, Publisher};
 use robotd_runtime::catalog::{PERCEPTION_DETECTIONS, WORKSPACE_QUERY};
+use robotd_vision::detector::{DetectError, Detector, FrameView, SheetView};
+use robotd_vision::external::PixelObject;
+use robotd_vision::labels::LabelTable;
+use robotd_vision::Pipeline;
 use serde_json::{Map, Value};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -422,7 +422,7 @@ impl Consumer {
             self.status
                 .count(DETECTED_OBJECTS, "skipped_object_not_placeable");
         }
-        if sheet != robotd_perception::SheetStatus::Found {
+        if sheet != robotd_vision::SheetStatus::Found {
             return Err(Skip::Malformed {
                 field: "objects",
                 reason: "the workspace markers are not visible in that frame".into(),

@@ -44,10 +44,10 @@ pub mod writer;
 pub use settings::{resolve_target, RedisTarget, Trust};
 pub use status::{EdgeStatus, LinkState};
 
-use robotd_perception::labels::LabelTable;
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_runtime::bus::Bus;
+use robotd_vision::labels::LabelTable;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio_util::sync::CancellationToken;
