@@ -60,13 +60,20 @@ pub fn run(config: Config, config_file: Option<&Path>, args: ChatArgs) -> Result
     let api = args.api.as_deref().unwrap_or(&config.agent.api);
     let model = args.model.as_deref().or(config.agent.model.as_deref());
     let settings = resolve(api, model, &env)?;
-    let log = robotd_agent::chat_log::init(&config.telemetry.log_dir)?;
+    // robotd's telemetry in its chat mode: warnings on the terminal, the session's file, and
+    // OTLP export when configured (the agent's llm.call spans reach the collector).
+    let log =
+        robotd_runtime::telemetry::init(&config.telemetry, robotd_runtime::telemetry::Mode::Chat)?;
     tracing::info!(provider = %settings.provider, model = %settings.model, "robotd chat starting");
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .context("starting the tokio runtime")?;
-    let code = runtime.block_on(session(config, env, settings, args, log.path()))?;
+    let log_path = log
+        .session_file()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    let code = runtime.block_on(session(config, env, settings, args, &log_path))?;
     drop(runtime);
     drop(log);
     Ok(code)

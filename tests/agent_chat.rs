@@ -582,3 +582,74 @@ fn ctrl_c_during_a_motion_stops_the_arm_over_mcp() {
     });
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A local OTLP/HTTP collector stand-in: records the bodies POSTed to `/v1/traces`.
+async fn trace_collector() -> (u16, std::sync::Arc<std::sync::Mutex<Vec<Vec<u8>>>>) {
+    use axum::routing::post;
+    let bodies = std::sync::Arc::new(std::sync::Mutex::new(Vec::<Vec<u8>>::new()));
+    let seen = bodies.clone();
+    let app = axum::Router::new().route(
+        "/v1/traces",
+        post(move |body: axum::body::Bytes| {
+            let seen = seen.clone();
+            async move {
+                seen.lock().unwrap().push(body.to_vec());
+                ""
+            }
+        }),
+    );
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let port = listener.local_addr().unwrap().port();
+    tokio::spawn(async move { axum::serve(listener, app).await });
+    (port, bodies)
+}
+
+#[test]
+fn chat_exports_its_llm_spans_over_otlp_and_keeps_the_session_log() {
+    let namespace = common::fresh_namespace("chat-otlp");
+    let dir = temp_dir("otlp");
+    runtime().block_on(async {
+        let (port, bodies) = trace_collector().await;
+        let mock = MockLlm::start(vec![MockReply::text("Nothing to do.")])
+            .await
+            .unwrap();
+        let endpoint = format!("telemetry.otlp_endpoint=http://127.0.0.1:{port}");
+        let (code, stdout, stderr) = chat(
+            &[
+                "--namespace",
+                &namespace,
+                "--set",
+                &endpoint,
+                "--command",
+                "Say hello",
+            ],
+            Some(&mock),
+            &dir,
+        )
+        .await;
+        assert_eq!(code, 0, "robotd chat failed:\n{stdout}\n{stderr}");
+        // The exporter flushes on exit: the llm.call span of the one LLM call arrived.
+        let bodies = bodies.lock().unwrap().clone();
+        assert!(!bodies.is_empty(), "no OTLP export reached the collector");
+        let names_llm_call = bodies
+            .iter()
+            .any(|b| b.windows(b"llm.call".len()).any(|w| w == b"llm.call"));
+        assert!(
+            names_llm_call,
+            "no llm.call span in {} exports",
+            bodies.len()
+        );
+    });
+    let logs: Vec<String> = std::fs::read_dir(dir.join("log"))
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(
+        logs.iter().any(|n| n.starts_with("mcp_client_")),
+        "the session log is written: {logs:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

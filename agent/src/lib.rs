@@ -38,14 +38,12 @@
 //! - [`agent`]: the system prompt and the tool-calling loop.
 //! - [`actor`]: the agent on the bus (`agent/request` → `agent/events`, `agent/cancel`).
 //! - [`mock`]: a scripted LLM server speaking the real wire formats, for tests.
-//! - [`chat_log`]: the `log/mcp_client_YYYYmmdd_HHMMSS.log` file of a chat session.
 
 pub mod config;
 pub use config::AgentSection;
 
 pub mod actor;
 pub mod agent;
-pub mod chat_log;
 pub mod llm;
 pub mod memory;
 pub mod mock;

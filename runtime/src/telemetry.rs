@@ -118,6 +118,11 @@ pub enum Mode {
     /// A short command (`robotd config check` and the like): stderr only; no log file and no
     /// export. Trace ids are still created so bus calls made by the command carry them.
     Command,
+    /// An interactive session (`robotd chat`): the terminal belongs to the conversation, so
+    /// stderr gets warnings only; everything else goes to one file per session,
+    /// `<log_dir>/mcp_client_YYYYmmdd_HHMMSS.log` (the Python client's name), and spans are
+    /// exported as in [`Mode::Service`].
+    Chat,
 }
 
 /// Setting up telemetry failed.
@@ -164,6 +169,7 @@ pub struct TelemetryGuard {
     provider: Option<SdkTracerProvider>,
     file: Option<WorkerGuard>,
     log_dir: Option<PathBuf>,
+    session_file: Option<PathBuf>,
     otlp_endpoint: Option<String>,
 }
 
@@ -180,6 +186,11 @@ impl TelemetryGuard {
     /// The directory log files go to (`None` in [`Mode::Command`]).
     pub fn log_dir(&self) -> Option<&std::path::Path> {
         self.log_dir.as_deref()
+    }
+
+    /// The session's log file ([`Mode::Chat`] only).
+    pub fn session_file(&self) -> Option<&std::path::Path> {
+        self.session_file.as_deref()
     }
 
     /// The OTLP/HTTP traces URL spans are exported to, if any.
@@ -251,22 +262,32 @@ pub fn build(
     let env = |name: &str| std::env::var(name).ok();
     let endpoint = match mode {
         Mode::Command => None,
-        Mode::Service | Mode::Stdio => otlp_endpoint(config, env),
+        Mode::Service | Mode::Stdio | Mode::Chat => otlp_endpoint(config, env),
     };
 
     let mut layers: Vec<Box<dyn Layer<Base> + Send + Sync>> = Vec::new();
 
     let ansi = mode == Mode::Service && std::io::stderr().is_terminal();
-    layers.push(Box::new(
-        tracing_subscriber::fmt::layer()
-            .with_writer(std::io::stderr)
-            .with_ansi(ansi),
-    ));
+    let stderr = tracing_subscriber::fmt::layer()
+        .with_writer(std::io::stderr)
+        .with_ansi(ansi);
+    layers.push(if mode == Mode::Chat {
+        Box::new(stderr.with_filter(tracing_subscriber::filter::LevelFilter::WARN))
+    } else {
+        Box::new(stderr)
+    });
 
     let mut file_guard = None;
     let mut log_dir = None;
+    let mut session_file = None;
     if mode != Mode::Command {
-        let (writer, guard) = log_file_writer(config)?;
+        let (writer, guard) = if mode == Mode::Chat {
+            let (writer, guard, path) = session_file_writer(config)?;
+            session_file = Some(path);
+            (writer, guard)
+        } else {
+            log_file_writer(config)?
+        };
         file_guard = Some(guard);
         log_dir = Some(config.log_dir.clone());
         let file_layer = tracing_subscriber::fmt::layer()
@@ -298,6 +319,7 @@ pub fn build(
         provider: Some(provider),
         file: file_guard,
         log_dir,
+        session_file,
         otlp_endpoint: endpoint,
     };
     Ok((Dispatch::new(subscriber), guard))
@@ -375,6 +397,39 @@ fn log_file_writer(
             .thread_name("robotd-log-writer")
             .finish(appender),
     )
+}
+
+/// A new file `<log_dir>/mcp_client_<UTC stamp>.log` for one session.
+fn session_file_writer(
+    config: &TelemetryConfig,
+) -> Result<
+    (
+        tracing_appender::non_blocking::NonBlocking,
+        WorkerGuard,
+        PathBuf,
+    ),
+    TelemetryError,
+> {
+    let dir = &config.log_dir;
+    let fail = |source: Box<dyn std::error::Error + Send + Sync>| TelemetryError::LogFile {
+        path: dir.clone(),
+        source,
+    };
+    std::fs::create_dir_all(dir).map_err(|e| fail(Box::new(e)))?;
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let path = dir.join(format!("mcp_client_{}.log", file_stamp(now)));
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&path)
+        .map_err(|e| fail(Box::new(e)))?;
+    let (writer, guard) = tracing_appender::non_blocking::NonBlockingBuilder::default()
+        .thread_name("robotd-log-writer")
+        .finish(file);
+    Ok((writer, guard, path))
 }
 
 /// The service name with anything but `[A-Za-z0-9._-]` replaced, fit for a file name.
