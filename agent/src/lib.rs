@@ -37,7 +37,7 @@
 //!   the MCP edge, `robotd_mcp::agent_tools`).
 //! - [`agent`]: the system prompt and the tool-calling loop.
 //! - [`actor`]: the agent on the bus (`agent/request` → `agent/events`, `agent/cancel`).
-//! - [`mock`]: a scripted LLM server speaking the real wire formats, for tests.
+//! - `mock` (feature `mock`, tests only): a scripted LLM server speaking the real wire formats.
 
 pub mod config;
 pub use config::AgentSection;
@@ -46,6 +46,7 @@ pub mod actor;
 pub mod agent;
 pub mod llm;
 pub mod memory;
+#[cfg(feature = "mock")]
 pub mod mock;
 pub mod providers;
 pub mod tools;

@@ -13,7 +13,7 @@
 //! - `restart`: panic-to-answering latency of a supervised actor whose safe-state hook runs
 //!   before every restart.
 
-use super::Latency;
+use crate::stats::Latency;
 use anyhow::{bail, Context, Result};
 use iceoryx2::prelude::*;
 use robotd_protocol::diagnostics::{Ping, Pong};
