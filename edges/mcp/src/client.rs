@@ -82,47 +82,16 @@ pub async fn connect(url: &str, token: Option<&str>) -> Result<McpClient, Connec
     }
 }
 
-/// One parsed server-sent event.
-#[derive(Debug, Default, PartialEq)]
-struct SseEvent {
-    event: String,
-    data: String,
-}
-
-/// Incremental parser of a `text/event-stream`.
-#[derive(Default)]
-struct SseParser {
-    buffer: String,
-    current: SseEvent,
-}
-
-impl SseParser {
-    /// Feeds bytes; returns the events they complete.
-    fn feed(&mut self, chunk: &[u8]) -> Vec<SseEvent> {
-        self.buffer.push_str(&String::from_utf8_lossy(chunk));
-        let mut events = Vec::new();
-        while let Some(end) = self.buffer.find('\n') {
-            let line: String = self.buffer.drain(..=end).collect();
-            let line = line.trim_end_matches(['\n', '\r']);
-            if line.is_empty() {
-                let event = std::mem::take(&mut self.current);
-                if !event.data.is_empty() || !event.event.is_empty() {
-                    events.push(event);
-                }
-            } else if let Some(value) = line.strip_prefix("event:") {
-                self.current.event = value.trim_start().to_owned();
-            } else if let Some(value) = line.strip_prefix("data:") {
-                if !self.current.data.is_empty() {
-                    self.current.data.push('\n');
-                }
-                self.current
-                    .data
-                    .push_str(value.strip_prefix(' ').unwrap_or(value));
-            }
-            // Comments (":…"), ids and retry fields are not needed here.
-        }
-        events
-    }
+/// The events of a `text/event-stream` body (the `sse-stream` crate: lines split across
+/// chunks, and UTF-8 characters split across chunks, are put back together before decoding).
+fn event_stream<S, E>(
+    bytes: S,
+) -> sse_stream::SseStream<sse_stream::ByteStreamBody<S, bytes::Bytes>>
+where
+    S: futures::Stream<Item = Result<bytes::Bytes, E>>,
+    E: std::error::Error,
+{
+    sse_stream::SseStream::from_bytes_stream(bytes)
 }
 
 /// Resolves the `endpoint` event's (usually relative) URL against the SSE URL.
@@ -161,36 +130,35 @@ async fn sse_transport(
     if let Some(token) = token {
         request = request.bearer_auth(token);
     }
-    let mut response = request.send().await.map_err(|e| http_error(url, e))?;
+    let response = request.send().await.map_err(|e| http_error(url, e))?;
     if !response.status().is_success() {
         let status = response.status();
         let body = response.text().await.unwrap_or_default();
         return Err(http_error(url, format!("{status}: {body}")));
     }
-    let mut parser = SseParser::default();
+    let mut events = Box::pin(event_stream(response.bytes_stream()));
     let mut pending = Vec::new();
     let endpoint = loop {
-        let chunk = tokio::time::timeout(Duration::from_secs(10), response.chunk())
+        let event = tokio::time::timeout(Duration::from_secs(10), events.next())
             .await
             .map_err(|_| http_error(url, "no endpoint event within 10 s"))?
-            .map_err(|e| http_error(url, e))?
-            .ok_or_else(|| http_error(url, "the event stream ended before the endpoint event"))?;
-        let mut events = parser.feed(&chunk).into_iter();
-        if let Some(found) = events.by_ref().find(|e| e.event == "endpoint") {
-            pending.extend(events);
-            break resolve(url, found.data.trim());
+            .ok_or_else(|| http_error(url, "the event stream ended before the endpoint event"))?
+            .map_err(|e| http_error(url, e))?;
+        if event.event.as_deref() == Some("endpoint") {
+            break resolve(url, event.data.as_deref().unwrap_or("").trim());
         }
+        pending.push(event);
     };
     let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);
     let (to_server, mut outgoing) = mpsc::channel::<ClientJsonRpcMessage>(64);
     // Reader: events → rmcp.
     let mut inbound = to_client;
     tokio::spawn(async move {
-        let deliver = |event: SseEvent| -> Option<ServerJsonRpcMessage> {
-            if event.event != "message" && !event.event.is_empty() {
+        let deliver = |event: sse_stream::Sse| -> Option<ServerJsonRpcMessage> {
+            if !matches!(event.event.as_deref(), None | Some("message")) {
                 return None;
             }
-            match serde_json::from_str(&event.data) {
+            match serde_json::from_str(event.data.as_deref()?) {
                 Ok(message) => Some(message),
                 Err(error) => {
                     tracing::warn!(%error, "unreadable SSE message from the server skipped");
@@ -205,12 +173,10 @@ async fn sse_transport(
                 }
             }
         }
-        while let Ok(Some(chunk)) = response.chunk().await {
-            for event in parser.feed(&chunk) {
-                if let Some(m) = deliver(event) {
-                    if inbound.send(m).await.is_err() {
-                        return;
-                    }
+        while let Some(Ok(event)) = events.next().await {
+            if let Some(m) = deliver(event) {
+                if inbound.send(m).await.is_err() {
+                    return;
                 }
             }
         }
@@ -242,24 +208,51 @@ async fn sse_transport(
 mod tests {
     use super::*;
 
+    /// The events of `chunks` fed to [`event_stream`] one by one.
+    fn events_of(chunks: Vec<Vec<u8>>) -> Vec<(Option<String>, Option<String>)> {
+        let bytes = futures::stream::iter(
+            chunks
+                .into_iter()
+                .map(|c| Ok::<_, std::io::Error>(bytes::Bytes::from(c))),
+        );
+        futures::executor::block_on(
+            event_stream(bytes)
+                .map(|e| e.expect("a well-formed event"))
+                .map(|e| (e.event, e.data))
+                .collect(),
+        )
+    }
+
     #[test]
     fn events_are_parsed_across_chunks() {
-        let mut p = SseParser::default();
-        assert!(p.feed(b"event: endpoint\r\nda").is_empty());
-        let events = p.feed(b"ta: /messages/?session_id=ab\r\n\r\n: ping\n\nevent: message\ndata: {\"a\":\ndata: 1}\n\n");
+        let events = events_of(vec![
+            b"event: endpoint\r\nda".to_vec(),
+            b"ta: /messages/?session_id=ab\r\n\r\n: ping\n\nevent: message\ndata: {\"a\":\ndata: 1}\n\n"
+                .to_vec(),
+        ]);
         assert_eq!(
             events,
             vec![
-                SseEvent {
-                    event: "endpoint".into(),
-                    data: "/messages/?session_id=ab".into()
-                },
-                SseEvent {
-                    event: "message".into(),
-                    data: "{\"a\":\n1}".into()
-                },
+                (
+                    Some("endpoint".into()),
+                    Some("/messages/?session_id=ab".into())
+                ),
+                (Some("message".into()), Some("{\"a\":\n1}".into())),
             ]
         );
+    }
+
+    #[test]
+    fn a_character_split_across_chunks_arrives_whole() {
+        // "✓ done" with the three bytes of ✓ split over three chunks.
+        let text = "data: ✓ done\n\n".as_bytes();
+        let at = "data: ".len();
+        let chunks = vec![
+            text[..at + 1].to_vec(),
+            text[at + 1..at + 2].to_vec(),
+            text[at + 2..].to_vec(),
+        ];
+        assert_eq!(events_of(chunks), vec![(None, Some("✓ done".into()))]);
     }
 
     #[test]

@@ -96,18 +96,12 @@ pub struct CameraSettings {
     pub instance: String,
 }
 
-/// Encodes RGB8 as JPEG at [`JPEG_QUALITY`].
+/// Encodes a `width × height` RGB8 frame as JPEG at [`JPEG_QUALITY`] (robotd's one encoder,
+/// [`robotd_render::encode_jpeg`], which checks the buffer's size).
 pub fn encode_jpeg(rgb: &[u8], width: usize, height: usize) -> Result<Vec<u8>, String> {
-    let mut out = Vec::with_capacity(width * height / 4);
-    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY)
-        .encode(
-            rgb,
-            width as u32,
-            height as u32,
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| e.to_string())?;
-    Ok(out)
+    let side = |v: usize| u32::try_from(v).map_err(|_| format!("a frame side of {v} pixels"));
+    robotd_render::encode_jpeg(rgb, side(width)?, side(height)?, JPEG_QUALITY)
+        .map_err(|e| e.to_string())
 }
 
 /// The workspace whose observation pose is nearest `tool`.
