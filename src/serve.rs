@@ -137,7 +137,6 @@ fn supervision_observer(
 ) -> impl SupervisionObserver {
     let last_safe_state_ok = std::sync::atomic::AtomicBool::new(true);
     observer_fn(move |event: &SupervisionEvent| {
-        tracing::info!(actor = event.actor(), event = %event, "supervision");
         board.apply(event);
         if let SupervisionEvent::SafeState { ok, .. } = event {
             last_safe_state_ok.store(*ok, std::sync::atomic::Ordering::Relaxed);
