@@ -7,7 +7,7 @@
 //! detector needs the height to put the object where it really stands.
 //!
 //! ```
-//! use robotd_perception::labels::{LabelTable, ShapeClass};
+//! use robotd_vision::labels::{LabelTable, ShapeClass};
 //!
 //! let table = LabelTable::builtin();
 //! let rule = table.rule_for("yellow", ShapeClass::Bar, 0.12).unwrap();

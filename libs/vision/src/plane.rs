@@ -10,7 +10,7 @@
 //! `X = C + (X₀ − C)·(C_z − z)/C_z`.
 //!
 //! ```
-//! use robotd_perception::plane::TablePlane;
+//! use robotd_vision::plane::TablePlane;
 //! use robotd_render::Intrinsics;
 //!
 //! // A camera 0.3 m above (0.25, 0), looking straight down, image x along world −y.

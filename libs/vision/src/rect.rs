@@ -4,7 +4,7 @@
 //! the smallest enclosing rectangle always has a side along a hull edge.
 //!
 //! ```
-//! use robotd_perception::rect::min_area_rect;
+//! use robotd_vision::rect::min_area_rect;
 //!
 //! let square_rotated = [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]];
 //! let r = min_area_rect(&square_rotated).unwrap();
