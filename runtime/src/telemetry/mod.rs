@@ -69,6 +69,11 @@
 //! Spans below the log filter are not created at all, so they are neither logged, exported
 //! nor propagated (keep the filter at `info` or finer to trace bus requests).
 
+mod files;
+
+pub use files::{file_stamp, utc_fields};
+use files::{log_file_writer, session_file_writer};
+
 use crate::config::{LogFormat, TelemetryConfig};
 use opentelemetry::propagation::{Extractor, Injector, TextMapPropagator};
 use opentelemetry::trace::{TraceContextExt, TracerProvider as _};
@@ -376,81 +381,6 @@ fn traces_url(base: &str) -> String {
     }
 }
 
-/// The daily rolling file, behind a non-blocking writer thread.
-fn log_file_writer(
-    config: &TelemetryConfig,
-) -> Result<(tracing_appender::non_blocking::NonBlocking, WorkerGuard), TelemetryError> {
-    let dir = &config.log_dir;
-    let fail = |source: Box<dyn std::error::Error + Send + Sync>| TelemetryError::LogFile {
-        path: dir.clone(),
-        source,
-    };
-    std::fs::create_dir_all(dir).map_err(|e| fail(Box::new(e)))?;
-    let appender = tracing_appender::rolling::Builder::new()
-        .rotation(tracing_appender::rolling::Rotation::DAILY)
-        .filename_prefix(file_prefix(config.service_name()))
-        .filename_suffix("log")
-        .build(dir)
-        .map_err(|e| fail(Box::new(e)))?;
-    Ok(
-        tracing_appender::non_blocking::NonBlockingBuilder::default()
-            .thread_name("robotd-log-writer")
-            .finish(appender),
-    )
-}
-
-/// A new file `<log_dir>/mcp_client_<UTC stamp>.log` for one session.
-fn session_file_writer(
-    config: &TelemetryConfig,
-) -> Result<
-    (
-        tracing_appender::non_blocking::NonBlocking,
-        WorkerGuard,
-        PathBuf,
-    ),
-    TelemetryError,
-> {
-    let dir = &config.log_dir;
-    let fail = |source: Box<dyn std::error::Error + Send + Sync>| TelemetryError::LogFile {
-        path: dir.clone(),
-        source,
-    };
-    std::fs::create_dir_all(dir).map_err(|e| fail(Box::new(e)))?;
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs())
-        .unwrap_or(0);
-    let path = dir.join(format!("mcp_client_{}.log", file_stamp(now)));
-    let file = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(&path)
-        .map_err(|e| fail(Box::new(e)))?;
-    let (writer, guard) = tracing_appender::non_blocking::NonBlockingBuilder::default()
-        .thread_name("robotd-log-writer")
-        .finish(file);
-    Ok((writer, guard, path))
-}
-
-/// The service name with anything but `[A-Za-z0-9._-]` replaced, fit for a file name.
-fn file_prefix(service_name: &str) -> String {
-    let prefix: String = service_name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-') {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if prefix.is_empty() || prefix.starts_with('.') {
-        format!("robotd{prefix}")
-    } else {
-        prefix
-    }
-}
-
 /// With an endpoint: sample everything (following remote parents) and batch-export.
 /// Without: a provider that never samples — ids only, nothing recorded.
 fn tracer_provider(
@@ -575,31 +505,9 @@ pub fn install_tls_provider() {
     let _ = rustls::crypto::ring::default_provider().install_default();
 }
 
-/// `(year, month, day, hour, minute, second)` in UTC of a Unix time in seconds, for the names
-/// and lines of robotd's log files (times past the year 9999 read as 9999-12-31 23:59:59).
-pub fn utc_fields(unix_s: u64) -> (i32, u8, u8, u8, u8, u8) {
-    let at = i64::try_from(unix_s)
-        .ok()
-        .and_then(|s| time::OffsetDateTime::from_unix_timestamp(s).ok())
-        .unwrap_or_else(|| time::PrimitiveDateTime::MAX.assume_utc());
-    (
-        at.year(),
-        u8::from(at.month()),
-        at.day(),
-        at.hour(),
-        at.minute(),
-        at.second(),
-    )
-}
-
-/// `YYYYmmdd_HHMMSS` (UTC) of a Unix time: the stamp in log file names.
-pub fn file_stamp(unix_s: u64) -> String {
-    let (y, mo, d, h, mi, s) = utc_fields(unix_s);
-    format!("{y:04}{mo:02}{d:02}_{h:02}{mi:02}{s:02}")
-}
-
 #[cfg(test)]
 mod tests {
+    use super::files::file_prefix;
     use super::*;
     use std::sync::atomic::{AtomicU32, Ordering};
 
