@@ -3,10 +3,12 @@
 //! This file is the command line and the wiring only; every piece lives in a crate of its own
 //! (`protocol`, `runtime`, `actors/*`, `adapters`).
 
+mod audit;
 mod bench;
 mod call;
 mod chat;
 mod doctor;
+mod estop;
 mod say;
 mod serve;
 
@@ -71,6 +73,13 @@ enum Command {
     Call(CallArgs),
     /// Talk to the robot in plain words through an LLM (in process, or `--mcp URL`).
     Chat(chat::ChatArgs),
+    /// Engage the emergency stop of the running robotd (or release it with --release).
+    Estop(EstopArgs),
+    /// The motion audit log.
+    Audit {
+        #[command(subcommand)]
+        what: AuditCommand,
+    },
     /// The other process of a two-process benchmark (started by `robotd bench`).
     #[command(hide = true)]
     BenchPeer {
@@ -102,6 +111,27 @@ struct CallArgs {
     /// Print `structuredContent` (JSON) instead of the text.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Debug, Args)]
+struct EstopArgs {
+    /// Why (shown in every refusal until release).
+    reason: Option<String>,
+    /// Release the emergency stop instead (a deliberate act: only after the cause was dealt
+    /// with).
+    #[arg(long)]
+    release: bool,
+}
+
+#[derive(Debug, Subcommand)]
+enum AuditCommand {
+    /// Check the hash chain of audit files (oldest first, e.g. audit.jsonl.1 audit.jsonl);
+    /// exit 1 names the first broken line.
+    Verify {
+        /// The files, oldest first.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+    },
 }
 
 #[derive(Debug, Args)]
@@ -138,6 +168,18 @@ enum BenchCommand {
     /// Camera frames to Redis (JPEG q85, XADD) beside the bus's own frame rate, and the
     /// running Redis edge (starts its own redis-server unless --redis names one).
     Redis(BenchRedisArgs),
+    /// What the motion policy adds to a motion command, beside planning the same command.
+    Safety(BenchSafetyArgs),
+}
+
+#[derive(Debug, Args)]
+struct BenchSafetyArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Motion commands per variant.
+    #[arg(long, default_value_t = 2000)]
+    commands: usize,
 }
 
 #[derive(Debug, Args)]
@@ -294,6 +336,24 @@ fn run() -> Result<std::process::ExitCode> {
             let config = load_config(&cli.config)?;
             chat::run(config, cli.config.config.as_deref(), args)
         }
+        Command::Estop(args) => {
+            let config = load_config(&cli.config)?;
+            let done = estop::run(&config, args.reason.as_deref(), args.release)?;
+            eprintln!("robotd: {done}");
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Audit {
+            what: AuditCommand::Verify { files },
+        } => match audit::run(&files) {
+            Ok(report) => {
+                println!("{report}");
+                Ok(std::process::ExitCode::SUCCESS)
+            }
+            Err(broken) => {
+                println!("broken: {broken}");
+                Ok(std::process::ExitCode::from(1))
+            }
+        },
         Command::Say(args) => {
             let config = load_config(&cli.config)?;
             let said = say::run(&config, &args.text, args.out.as_deref())?;
@@ -360,6 +420,12 @@ fn run() -> Result<std::process::ExitCode> {
         } => {
             let config = load_config(&cli.config)?;
             let figures = bench::redis::run(args.frames.max(10), config.redis.url.clone())?;
+            print_figures(args.json, &figures, figures.table())
+        }
+        Command::Bench {
+            what: BenchCommand::Safety(args),
+        } => {
+            let figures = bench::safety::run(args.commands.max(1))?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {

@@ -273,13 +273,20 @@ impl Runtime {
             supervision_observer(health.clone(), restarts.clone()),
         )
         .await?;
-        let skills = start_skills(&bus, robot_model, workspaces.clone())?;
+        let skills = start_skills(
+            &bus,
+            robot_model,
+            workspaces.clone(),
+            hardware.safety.clone(),
+        )?;
         let processes = start_process_actors(config, &bus, &health, &restarts).await?;
 
         let report_config = config.clone();
         let report_health = health.clone();
+        let report_safety = hardware.safety.clone();
         let health_source: HealthSource = Arc::new(move || {
             let mut report = report_health.report(&report_config, &robot, started);
+            report["safety"] = safety_report(&report_safety);
             report["redis"] = match &redis_status {
                 Some(status) => status.to_json(),
                 None => serde_json::json!({"state": "off"}),
@@ -301,18 +308,30 @@ impl Runtime {
         })
     }
 
+    /// The safety routes' state: the policy and an e-stop publisher on this runtime's bus.
+    pub fn safety_api(&self) -> Result<robotd_http::safety::SafetyApi> {
+        Ok(robotd_http::safety::SafetyApi {
+            safety: self.hardware.safety.clone(),
+            estop: Arc::new(Mutex::new(
+                self.bus.publisher(&robotd_runtime::catalog::SAFETY_ESTOP)?,
+            )),
+        })
+    }
+
     /// The tool registry over this runtime's bus.
     pub fn tool_registry(&self, config: &Config) -> Result<Registry> {
         let mut settings = ToolSettings::new(config.service.name.clone(), self.workspaces.clone());
         settings.skill_timeout = std::time::Duration::from_secs(config.mcp.skill_timeout_s);
         let health = self.health_source.clone();
-        let control = self.hardware.arm_context.control.clone();
+        let safety = self.hardware.safety.clone();
         settings.status = Arc::new(move || {
             let report = health();
+            let estop = safety.estop();
             serde_json::json!({
                 "status": report.get("status"),
                 "actors": report.get("actors"),
-                "estop_engaged": control.estop_engaged(),
+                "estop_engaged": estop.is_some(),
+                "estop_reason": estop,
                 "redis": report.get("redis"),
                 "uptime_ms": report.get("uptime_ms"),
             })
@@ -374,8 +393,12 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
         let service = mcp_service(&config, runtime.tool_registry(&config)?);
         edge = edge.with_routes(robotd_mcp::http::router(
             service,
-            guard,
+            guard.clone(),
             stop_sessions.clone(),
+        ));
+        edge = edge.with_routes(robotd_mcp::http::guarded(
+            robotd_http::safety::router(runtime.safety_api()?),
+            guard,
         ));
     }
     tracing::info!("HTTP edge on http://{address} (/health, /metrics, MCP /sse and /mcp)");
@@ -580,9 +603,26 @@ pub fn start_workspace_model(
 }
 
 /// Starts the skills actor (pick, place, push …) for the robot's workspaces.
-fn start_skills(bus: &Bus, robot: RobotModel, workspaces: Vec<WorkspaceInfo>) -> Result<Skills> {
-    let settings = SkillsSettings::new(robot, workspaces);
+fn start_skills(
+    bus: &Bus,
+    robot: RobotModel,
+    workspaces: Vec<WorkspaceInfo>,
+    safety: robotd_safety::Safety,
+) -> Result<Skills> {
+    let mut settings = SkillsSettings::new(robot, workspaces);
+    settings.safety = Some(safety);
     Ok(Skills::start(bus, settings)?)
+}
+
+/// The safety part of `/health`: e-stop, mode, approvals waiting.
+fn safety_report(safety: &robotd_safety::Safety) -> serde_json::Value {
+    let estop = safety.estop();
+    serde_json::json!({
+        "estop": {"engaged": estop.is_some(), "reason": estop},
+        "mode": safety.config().mode,
+        "approvals_waiting": safety.approvals().pending().len(),
+        "audit_log": safety.audit().path(),
+    })
 }
 
 /// Starts the perception actor on the camera's frames.

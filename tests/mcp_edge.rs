@@ -15,7 +15,7 @@ use serde_json::{json, Value};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-const TOOLS: [&str; 20] = [
+const TOOLS: [&str; 22] = [
     "pick_place_object",
     "pick_object",
     "place_object",
@@ -36,6 +36,8 @@ const TOOLS: [&str; 20] = [
     "get_system_status",
     "speak",
     "set_user_task",
+    "emergency_stop",
+    "release_emergency_stop",
 ];
 
 fn runtime() -> tokio::runtime::Runtime {

@@ -29,8 +29,10 @@
 
 use crate::agent::Agent;
 use robotd_protocol::agent::{AgentEvent, AgentEventKind, AgentRequest};
+use robotd_protocol::safety::{Origin, OriginKind};
 use robotd_protocol::validate::Validate;
 use robotd_runtime::bus::{Bus, BusError};
+use robotd_runtime::origin::with_origin;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use tokio::sync::mpsc;
@@ -160,7 +162,9 @@ pub fn spawn(bus: &Bus, mut agent: Agent) -> Result<AgentActor, BusError> {
                 }),
                 Ok(()) if token.is_cancelled() => emit(AgentEventKind::Cancelled),
                 Ok(()) => {
-                    agent.run(&request.text, token, emit).await;
+                    // Every motion of this request carries its id to the safety policy.
+                    let origin = Origin::new(OriginKind::Agent).request(request.request_id.clone());
+                    with_origin(origin, agent.run(&request.text, token, emit)).await;
                 }
             }
             tokens

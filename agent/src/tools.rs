@@ -1,5 +1,5 @@
 //! Where the agent's tools come from: one small trait, [`ToolBackend`], with two
-//! implementations — the in-process tool registry ([`RegistryTools`], robotd's own 20 tools
+//! implementations — the in-process tool registry ([`RegistryTools`], robotd's own 22 tools
 //! over the bus) and any MCP server (`robotd_mcp::agent_tools::McpTools`, SSE or streamable HTTP,
 //! in the MCP edge), so the same agent drives robotd in process, a robotd elsewhere, or
 //! another MCP robot server.
@@ -9,6 +9,8 @@
 //! which robotd's edge does the same.
 
 use crate::llm::ToolSpec;
+use robotd_protocol::safety::{Origin, OriginKind};
+use robotd_runtime::origin::{current_origin, with_origin};
 use serde_json::{Map, Value};
 use std::future::Future;
 use std::pin::Pin;
@@ -92,7 +94,13 @@ impl ToolBackend for RegistryTools {
                 progress: None,
                 cancel,
             };
-            match self.registry.call(name, Some(arguments), hooks).await {
+            // The agent's calls are an LLM's: keep the request's origin if the agent actor
+            // set one, else name the agent (`robotd chat` in process).
+            let origin = match current_origin() {
+                origin if origin.kind == OriginKind::Agent => origin,
+                _ => Origin::new(OriginKind::Agent).session("chat"),
+            };
+            match with_origin(origin, self.registry.call(name, Some(arguments), hooks)).await {
                 Ok(out) => ToolResultText {
                     ok: !out.is_failure,
                     text: out.text,

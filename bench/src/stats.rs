@@ -12,7 +12,7 @@ pub fn percentile_us(sorted: &[Duration], p: f64) -> f64 {
 }
 
 /// Summary of a latency sample.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize)]
 pub struct Latency {
     /// Median, µs.
     pub p50_us: f64,

@@ -45,6 +45,7 @@ pub use robotd_runtime::config::{
     Problem, ServiceConfig, SupervisionConfig, SupervisionOverrides, TelemetryConfig,
     ENV_CONFIG_FILE, ENV_PREFIX, ENV_SEPARATOR, MAX_FRAME_SUBSCRIBER_BUFFER, MAX_NAMESPACE_LEN,
 };
+pub use robotd_safety::SafetyConfig;
 pub use robotd_speech::TtsConfig;
 pub use robotd_workspace_model::WorkspaceConfig;
 
@@ -85,6 +86,9 @@ robotd_runtime::compose_config! {
         /// `[agent]`: the LLM agent (`robotd chat`, and the agent actor of `robotd serve`).
         #[serde(default)]
         agent: AgentSection,
+        /// `[safety]`: the motion policy (geofence, caps, rate limits, approval, audit log).
+        #[serde(default)]
+        safety: SafetyConfig,
         /// `[actors.<name>]`: per-actor settings; actors without an entry run in-process with
         /// the `[supervision]` policy.
         #[serde(default)]

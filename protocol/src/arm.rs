@@ -169,6 +169,14 @@ pub enum ArmError {
         /// Why the e-stop was engaged.
         reason: String,
     },
+    /// The safety policy refused the motion (a limit, the rate, approval, the audit log).
+    #[error("refused by the safety policy: {reason}")]
+    Refused {
+        /// The limit's short name (`floor`, `fence`, `rate`, `approval`, `estop`, …).
+        limit: String,
+        /// Why, with the values.
+        reason: String,
+    },
     /// The workspace id is not configured.
     #[error("unknown workspace '{workspace_id}'; known: {}", known.join(", "))]
     UnknownWorkspace {

@@ -71,6 +71,14 @@ pub enum GripperError {
         /// Why the e-stop was engaged.
         reason: String,
     },
+    /// The safety policy refused the motion (e-stop, rate limit, approval, audit log).
+    #[error("refused by the safety policy: {reason}")]
+    Refused {
+        /// The limit's short name.
+        limit: String,
+        /// Why.
+        reason: String,
+    },
     /// The gripper actor cannot serve commands right now.
     #[error("gripper unavailable: {reason}")]
     Unavailable {

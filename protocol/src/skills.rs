@@ -106,6 +106,20 @@ impl Skill {
             Skill::ClearCollision => "clear_collision",
         }
     }
+
+    /// The MCP tool that runs this skill (how `[safety] approval_tools` names it).
+    pub fn tool_name(&self) -> &'static str {
+        match self {
+            Skill::Pick { .. } => "pick_object",
+            Skill::Place { .. } => "place_object",
+            Skill::PickPlace { .. } => "pick_place_object",
+            Skill::Push { .. } => "push_object",
+            Skill::MoveBy { .. } => "move2by",
+            Skill::GoToObservationPose { .. } => "move2observation_pose",
+            Skill::Calibrate => "calibrate",
+            Skill::ClearCollision => "clear_collision_detected",
+        }
+    }
 }
 
 fn point(field: &str, p: &Point2) -> Result<(), ValidationError> {
@@ -285,6 +299,12 @@ pub enum SkillError {
     Perception {
         /// What went wrong.
         message: String,
+    },
+    /// The safety policy refused the skill before it started (no approval).
+    #[error("{reason}")]
+    Refused {
+        /// Why, and that nothing moved.
+        reason: String,
     },
     /// A cancel request (or a client that went away) stopped the skill; the arm is held where
     /// it stopped.

@@ -43,6 +43,7 @@ use robotd_gripper::GripperActor;
 use robotd_runtime::bus::Bus;
 use robotd_runtime::host::ActorStartError;
 use robotd_runtime::supervision::{Supervised, SupervisionObserver, Supervisor};
+use robotd_safety::Safety;
 
 /// Why the robot's actors could not start.
 #[derive(Debug, thiserror::Error)]
@@ -56,6 +57,9 @@ pub enum StartError {
     /// The simulator's scene is missing, malformed or for another robot.
     #[error(transparent)]
     Scene(#[from] robotd_driver_sim::SceneError),
+    /// The audit log could not be opened (the motion policy refuses to run without it).
+    #[error("safety.audit: {0}; fix the path or set safety.audit.enabled = false")]
+    Audit(robotd_safety::AuditError),
     /// An actor could not be put on the bus.
     #[error("starting the {actor} actor: {source}")]
     Actor {
@@ -81,6 +85,8 @@ pub struct Hardware {
     pub camera: Supervised<CameraActor>,
     /// Shared arm state (driver, kinematics, stop signals).
     pub arm_context: ArmContext,
+    /// The motion policy every arm and gripper motion passes (e-stop state, approvals).
+    pub safety: Safety,
     /// The camera's intrinsics as its driver reports them (zero distortion when the image is
     /// already an ideal pinhole image), for the perception actor.
     pub camera_intrinsics: robotd_protocol::camera::CameraIntrinsics,
@@ -132,10 +138,22 @@ impl Hardware {
         };
         let failed = |actor: &'static str| move |source| StartError::Actor { actor, source };
         let camera_intrinsics = drivers.camera.intrinsics();
+        let kinematics = robotd_kinematics::Kinematics::new(drivers.model);
+        let control = MotionControl::default();
+        let audit = Safety::open_audit(&config.safety, &config.telemetry.log_dir)
+            .map_err(StartError::Audit)?;
+        let safety = Safety::new(
+            config.safety.clone(),
+            kinematics.clone(),
+            control.clone(),
+            &config.robot.workspaces(),
+            audit,
+        );
         let context = ArmContext {
-            kinematics: robotd_kinematics::Kinematics::new(drivers.model),
+            kinematics,
             driver: drivers.arm,
-            control: MotionControl::default(),
+            control,
+            safety: safety.clone(),
             observation_poses: config
                 .robot
                 .workspaces()
@@ -157,9 +175,10 @@ impl Hardware {
         )
         .await
         .map_err(failed("arm"))?;
-        let (gripper, task) = robotd_gripper::start(bus, supervisor("gripper"), drivers.gripper)
-            .await
-            .map_err(failed("gripper"))?;
+        let (gripper, task) =
+            robotd_gripper::start(bus, supervisor("gripper"), drivers.gripper, safety.clone())
+                .await
+                .map_err(failed("gripper"))?;
         tasks.push(task);
         let (camera, task) = robotd_camera::start(
             bus,
@@ -176,6 +195,7 @@ impl Hardware {
             gripper,
             camera,
             arm_context: context,
+            safety,
             camera_intrinsics,
             tasks,
         })

@@ -35,6 +35,8 @@ fn fresh_config(time_scale: f64) -> Config {
     config.robot.control_rate_hz = 100;
     config.robot.camera.fps = 30.0;
     config.supervision.backoff_initial_ms = 5;
+    // Tests leave no audit files behind.
+    config.safety.audit.enabled = false;
     config
 }
 
@@ -174,13 +176,8 @@ async fn the_emergency_stop_halts_a_motion_within_one_control_tick() {
     let long_motion = {
         let arm = bus.client(&ARM_COMMAND).unwrap();
         tokio::spawn(async move {
-            arm.request(
-                &ArmCommand::MoveJoints {
-                    positions_rad: vec![2.5, 0.3, -0.5, 1.5, -1.0, 2.0],
-                },
-                TIMEOUT,
-            )
-            .await
+            arm.request(&ArmCommand::move_to(down(0.33, 0.08, 0.03, 0.0)), TIMEOUT)
+                .await
         })
     };
     tokio::time::sleep(Duration::from_millis(300)).await;
@@ -244,13 +241,9 @@ async fn stop_and_queries_are_answered_while_a_motion_runs() {
     let motion = {
         let arm = bus.client(&ARM_COMMAND).unwrap();
         tokio::spawn(async move {
-            arm.request(
-                &ArmCommand::MoveJoints {
-                    positions_rad: vec![-2.5, 0.3, -0.5, -1.5, 1.0, -2.0],
-                },
-                TIMEOUT,
-            )
-            .await
+            // From the rest pose to the sheet's far corner: long enough to be stopped midway.
+            arm.request(&ArmCommand::move_to(down(0.33, 0.08, 0.03, 0.0)), TIMEOUT)
+                .await
         })
     };
     tokio::time::sleep(Duration::from_millis(200)).await;
@@ -275,7 +268,10 @@ async fn stop_and_queries_are_answered_while_a_motion_runs() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn moving_into_the_table_is_a_collision_until_cleared() {
-    let config = fresh_config(0.05);
+    let mut config = fresh_config(0.05);
+    // The safety policy's floor would refuse this motion before it starts (tested in
+    // robotd-safety); lower it so the driver's own collision handling is what is tested here.
+    config.safety.floor_z_m = -0.1;
     let (bus, hardware) = start(&config).await;
     let arm = bus.client(&ARM_COMMAND).unwrap();
     // An empty spot of the sheet, then straight down through the table.

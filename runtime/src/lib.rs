@@ -44,5 +44,6 @@ pub mod catalog;
 pub mod config;
 pub mod host;
 pub mod metrics;
+pub mod origin;
 pub mod supervision;
 pub mod telemetry;

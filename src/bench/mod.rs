@@ -8,6 +8,7 @@
 pub mod mcp;
 pub mod perception;
 pub mod redis;
+pub mod safety;
 pub mod sim;
 
 pub use robotd_bench::bus;

@@ -1,6 +1,7 @@
 //! # robotd-tools: the one tool registry
 //!
-//! robotd's 20 robot tools (`docs/mcp-tools.md`) are defined here once — name, description,
+//! robotd's robot tools (`docs/mcp-tools.md`: the Python server's 20 plus `emergency_stop`
+//! and `release_emergency_stop`) are defined here once — name, description,
 //! typed parameters with their JSON Schema, validation, reply texts, and a handler that sends
 //! bus requests to the actors (skills, workspace model, arm, speech). The MCP edge serves this
 //! registry over SSE, streamable HTTP and stdio; the LLM agent calls it in process. Nothing
@@ -43,6 +44,7 @@ mod view;
 pub use definitions::ToolInfo;
 
 use robotd_protocol::arm::{ArmCommand, ArmReply, ArmState};
+use robotd_protocol::health::EmergencyStop;
 use robotd_protocol::skills::{SkillCancel, SkillProgress, SkillReply, SkillRequest};
 use robotd_protocol::speech::{SpeakRequest, TextOverlay};
 use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply};
@@ -192,6 +194,7 @@ struct Inner {
     skills: Client<SkillRequest, SkillReply>,
     arm: Client<ArmCommand, ArmReply>,
     cancel: Mutex<Publisher<SkillCancel>>,
+    estop: Mutex<Publisher<EmergencyStop>>,
     speak: Mutex<Publisher<SpeakRequest>>,
     overlay: Mutex<Publisher<TextOverlay>>,
     arm_rest: watch::Receiver<Option<ArmRest>>,
@@ -278,6 +281,7 @@ impl Registry {
                 skills: bus.client(&catalog::SKILLS_RUN)?,
                 arm: bus.client(&catalog::ARM_COMMAND)?,
                 cancel: Mutex::new(bus.publisher(&catalog::SKILLS_CANCEL)?),
+                estop: Mutex::new(bus.publisher(&catalog::SAFETY_ESTOP)?),
                 speak: Mutex::new(bus.publisher(&catalog::SPEECH_SPEAK)?),
                 overlay: Mutex::new(bus.publisher(&catalog::OVERLAY_TEXT)?),
                 arm_rest: rest_rx,

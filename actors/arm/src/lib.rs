@@ -5,11 +5,18 @@
 //! target and the reason), straight-line tool paths as dense joint waypoints, and the
 //! workspaces' observation poses. The driver only executes.
 //!
+//! Every motion passes the safety policy ([`robotd_safety::Safety`]) twice: the serving loop
+//! admits the command (e-stop, rate limit, approval, audit) before handing it to the actor,
+//! and the actor checks the planned path (geofence at every sampled tool position, joint
+//! margins, speed caps) before the driver runs it. The actor only accepts [`Admitted`]
+//! commands, which only the policy can make.
+//!
 //! [`serve_arm`] puts it on the bus (`arm/command`). Motion commands go through the
 //! supervised actor one at a time, in order. `Stop` and the queries (`GetPose`, `GetJoints`,
 //! `GetCollisionState`) are answered by the serving loop itself at once, even while a motion
-//! runs: a stop must never wait behind the motion it is meant to stop. The emergency stop
-//! arrives on `safety/estop` and halts the motion within one control tick.
+//! runs: a stop must never wait behind the motion it is meant to stop, and it cancels every
+//! motion received before it, queued or running. The emergency stop arrives on
+//! `safety/estop` and halts the motion within one control tick.
 //! [`publish_arm_state`] publishes joint states and the tool pose on `arm/state`.
 
 use kameo::prelude::*;
@@ -23,6 +30,7 @@ use robotd_protocol::validate::Validate;
 use robotd_runtime::bus::{BusError, Fault, Publisher, Server, Subscriber};
 use robotd_runtime::host::fault_from;
 use robotd_runtime::supervision::Supervised;
+use robotd_safety::{Admission, Safety};
 use std::convert::Infallible;
 use std::sync::Arc;
 use std::time::Duration;
@@ -42,6 +50,8 @@ pub struct ArmContext {
     pub control: MotionControl,
     /// Configured observation poses.
     pub observation_poses: Vec<ObservationPose>,
+    /// The motion policy.
+    pub safety: Safety,
 }
 
 impl std::fmt::Debug for ArmContext {
@@ -124,7 +134,11 @@ impl ArmActor {
         Self { context }
     }
 
-    async fn run(&mut self, command: ArmCommand) -> Result<ArmReply, ArmError> {
+    async fn run(
+        &mut self,
+        command: ArmCommand,
+        admission: &Admission,
+    ) -> Result<ArmReply, ArmError> {
         command.validate()?;
         if let Some(reply) = self.context.answer_at_once(&command) {
             return reply.into_result();
@@ -136,16 +150,16 @@ impl ArmActor {
             });
         }
         match command {
-            ArmCommand::MoveToPose { target, path } => self.move_to(target, path).await,
+            ArmCommand::MoveToPose { target, path } => self.move_to(target, path, admission).await,
             ArmCommand::ShiftPose { delta } => {
                 let target = ctx.tool_pose()?.shifted(&delta);
-                self.move_to(target, PathKind::Linear).await
+                self.move_to(target, PathKind::Linear, admission).await
             }
             ArmCommand::MoveJoints { positions_rad } => {
                 ctx.kinematics
                     .check_joints(&positions_rad)
                     .map_err(|e| joint_error(&e, &positions_rad, &ctx.kinematics))?;
-                self.execute(Motion::Joints(positions_rad)).await
+                self.execute(Motion::Joints(positions_rad), admission).await
             }
             ArmCommand::GoToObservationPose { workspace_id } => {
                 let Some(observation) = ctx
@@ -163,40 +177,54 @@ impl ArmActor {
                     });
                 };
                 let pose = observation.pose;
-                self.move_to(pose, PathKind::Joint).await
+                self.move_to(pose, PathKind::Joint, admission).await
             }
             ArmCommand::Calibrate => {
+                ctx.control
+                    .begin_motion(admission.stop_generation())
+                    .map_err(arm_error)?;
                 ctx.driver.calibrate().await.map_err(arm_error)?;
                 Ok(ArmReply::Ok {
                     pose: ctx.tool_pose()?,
                 })
             }
-            ArmCommand::ClearCollision => {
-                ctx.driver.clear_collision().map_err(arm_error)?;
-                Ok(ArmReply::Ok {
-                    pose: ctx.tool_pose()?,
-                })
-            }
-            ArmCommand::Stop
+            ArmCommand::ClearCollision
+            | ArmCommand::Stop
             | ArmCommand::GetPose
             | ArmCommand::GetJoints
             | ArmCommand::GetCollisionState => unreachable_query(),
         }
     }
 
-    async fn move_to(&mut self, target: Pose, path: PathKind) -> Result<ArmReply, ArmError> {
+    async fn move_to(
+        &mut self,
+        target: Pose,
+        path: PathKind,
+        admission: &Admission,
+    ) -> Result<ArmReply, ArmError> {
         let motion = plan(&self.context, target, path)?;
-        self.execute(motion).await
+        self.execute(motion, admission).await
     }
 
-    async fn execute(&mut self, motion: Motion) -> Result<ArmReply, ArmError> {
+    async fn execute(
+        &mut self,
+        motion: Motion,
+        admission: &Admission,
+    ) -> Result<ArmReply, ArmError> {
         let ctx = &self.context;
         if ctx.driver.flags().collision_detected {
             return Err(ArmError::Collision);
         }
-        ctx.control.clear_stop();
+        let start = ctx.driver.joints().map_err(arm_error)?;
+        let check = ctx
+            .safety
+            .check_arm_motion(admission, &start, &motion)
+            .map_err(|v| refusal(&ctx.safety, v))?;
+        ctx.control
+            .begin_motion(admission.stop_generation())
+            .map_err(arm_error)?;
         ctx.driver
-            .execute(motion, &ctx.control)
+            .execute(motion, check.speed_scale, &ctx.control)
             .await
             .map_err(|e| match e {
                 DriverError::Stopped { reason } if ctx.control.estop_engaged() => {
@@ -216,15 +244,46 @@ fn unreachable_query() -> Result<ArmReply, ArmError> {
     })
 }
 
-impl Message<ArmCommand> for ArmActor {
+/// An arm command the safety policy admitted: the only message that makes the actor move.
+#[derive(Debug, Clone)]
+pub struct Admitted {
+    /// The command.
+    pub command: ArmCommand,
+    /// The policy's admission (only [`Safety::admit`] makes one).
+    pub admission: Admission,
+}
+
+impl Message<Admitted> for ArmActor {
+    type Reply = Result<ArmReply, Infallible>;
+
+    async fn handle(&mut self, work: Admitted, _: &mut Context<Self, Self::Reply>) -> Self::Reply {
+        Ok(self
+            .run(work.command, &work.admission)
+            .await
+            .unwrap_or_else(ArmReply::from))
+    }
+}
+
+/// Clears the collision flag (not a motion: allowed while e-stopped, never rate limited).
+#[derive(Debug, Clone, Copy)]
+pub struct ClearCollisionFlag;
+
+impl Message<ClearCollisionFlag> for ArmActor {
     type Reply = Result<ArmReply, Infallible>;
 
     async fn handle(
         &mut self,
-        command: ArmCommand,
+        _: ClearCollisionFlag,
         _: &mut Context<Self, Self::Reply>,
     ) -> Self::Reply {
-        Ok(self.run(command).await.unwrap_or_else(ArmReply::from))
+        let ctx = &self.context;
+        let cleared = ctx
+            .driver
+            .clear_collision()
+            .map_err(arm_error)
+            .and_then(|()| ctx.tool_pose())
+            .map(|pose| ArmReply::Ok { pose });
+        Ok(cleared.unwrap_or_else(ArmReply::from))
     }
 }
 
@@ -328,7 +387,9 @@ pub async fn serve_arm(
     loop {
         tokio::select! {
             incoming = server.next() => {
-                let (envelope, pending) = incoming?.split();
+                let incoming = incoming?;
+                let origin = incoming.origin.clone();
+                let (envelope, pending) = incoming.split();
                 let span = tracing::info_span!("arm.command", kind = command_kind(&envelope.body));
                 robotd_runtime::telemetry::set_parent_from(&span, &envelope.trace);
                 if let Some(reply) = context.answer_at_once(&envelope.body) {
@@ -340,11 +401,9 @@ pub async fn serve_arm(
                 }
                 let actor = actor.clone();
                 let done = done_tx.clone();
+                let safety = context.safety.clone();
                 tokio::spawn(async move {
-                    let reply: Result<ArmReply, Fault> = actor
-                        .ask(envelope.body)
-                        .await
-                        .map_err(fault_from);
+                    let reply = admit_and_run(&actor, &safety, envelope.body, &origin).await;
                     let _ = done.send((pending, reply, tracing::Span::current()));
                 }.instrument(span));
             }
@@ -355,6 +414,56 @@ pub async fn serve_arm(
                 }
             }
         }
+    }
+}
+
+/// Passes `command` through the safety policy and, if admitted, has the actor run it; the
+/// outcome goes to the audit log.
+pub async fn admit_and_run(
+    actor: &Supervised<ArmActor>,
+    safety: &Safety,
+    command: ArmCommand,
+    origin: &robotd_protocol::safety::Origin,
+) -> Result<ArmReply, Fault> {
+    if let Err(error) = command.validate() {
+        return Ok(ArmError::from(error).into());
+    }
+    if !command.moves_arm() {
+        // Only ClearCollision reaches here: queries and Stop were answered at once.
+        return actor.ask(ClearCollisionFlag).await.map_err(fault_from);
+    }
+    let arguments = serde_json::to_value(&command).unwrap_or_default();
+    let admission = match safety
+        .admit(origin, "arm", command_kind(&command), arguments)
+        .await
+    {
+        Ok(admission) => admission,
+        Err(violation) => return Ok(refusal(safety, violation).into()),
+    };
+    let reply = actor
+        .ask(Admitted {
+            command,
+            admission: admission.clone(),
+        })
+        .await
+        .map_err(fault_from);
+    let outcome = match &reply {
+        Ok(ArmReply::Error { error }) => Err(error.to_string()),
+        Ok(_) => Ok(()),
+        Err(fault) => Err(fault.to_string()),
+    };
+    safety.finish(&admission, outcome);
+    reply
+}
+
+/// The arm error of a policy refusal: the e-stop keeps its own error kind.
+fn refusal(safety: &Safety, violation: robotd_safety::Violation) -> ArmError {
+    match safety.estop() {
+        Some(reason) if violation.limit == "estop" => ArmError::EStopped { reason },
+        _ => ArmError::Refused {
+            limit: violation.limit.to_owned(),
+            reason: violation.reason,
+        },
     }
 }
 

@@ -3,14 +3,22 @@
 //! Every reply carries the gripper's real state afterwards (`holding` = the fingers stopped on
 //! an object before closing fully), so a pick can report its real outcome. After every command
 //! the state is also published on `gripper/state`.
+//!
+//! Commands that move the fingers pass the safety policy first ([`robotd_safety::Safety`]):
+//! refused while the emergency stop is engaged, beyond the client's rate limit or without a
+//! required approval, and recorded in the audit log with their outcome.
 
 use kameo::prelude::*;
 use robotd_driver::{DriverError, GripperDriver, GripperStatus};
 use robotd_protocol::gripper::{GripperCommand, GripperError, GripperReply, GripperState};
 use robotd_protocol::validate::Validate;
-use robotd_runtime::bus::Publisher;
+use robotd_runtime::bus::{BusError, Publisher, Server};
+use robotd_runtime::host::fault_from;
+use robotd_runtime::supervision::Supervised;
+use robotd_safety::Safety;
 use std::convert::Infallible;
 use std::sync::Arc;
+use tracing::Instrument;
 
 /// The supervised gripper actor.
 #[derive(Actor)]
@@ -85,13 +93,72 @@ pub fn gripper_error(error: DriverError) -> GripperError {
     }
 }
 
+/// Serves `gripper/command` until the bus fails: `GetState` at once through the actor, finger
+/// motions only once the safety policy admitted them.
+pub async fn serve_gripper(
+    mut server: Server<GripperCommand, GripperReply>,
+    actor: Supervised<GripperActor>,
+    safety: Safety,
+) -> Result<(), BusError> {
+    loop {
+        let incoming = server.next().await?;
+        let origin = incoming.origin.clone();
+        let (envelope, pending) = incoming.split();
+        let span = tracing::info_span!("actor.handle", actor = actor.name());
+        robotd_runtime::telemetry::set_parent_from(&span, &envelope.trace);
+        let command = envelope.body;
+        let reply = async {
+            if matches!(command, GripperCommand::GetState) {
+                return actor.ask(command).await.map_err(fault_from);
+            }
+            let action = match command {
+                GripperCommand::Open => "open",
+                GripperCommand::Close => "close",
+                GripperCommand::SetWidth { .. } => "set_width",
+                GripperCommand::GetState => "get_state",
+            };
+            let arguments = serde_json::to_value(&command).unwrap_or_default();
+            let admission = match safety.admit(&origin, "gripper", action, arguments).await {
+                Ok(admission) => admission,
+                Err(violation) => {
+                    let error = match safety.estop() {
+                        Some(reason) if violation.limit == "estop" => {
+                            GripperError::EStopped { reason }
+                        }
+                        _ => GripperError::Refused {
+                            limit: violation.limit.to_owned(),
+                            reason: violation.reason,
+                        },
+                    };
+                    return Ok(GripperReply::from(error));
+                }
+            };
+            let reply = actor.ask(command).await.map_err(fault_from);
+            let outcome = match &reply {
+                Ok(GripperReply::Error { error }) => Err(error.to_string()),
+                Ok(_) => Ok(()),
+                Err(fault) => Err(fault.to_string()),
+            };
+            safety.finish(&admission, outcome);
+            reply
+        }
+        .instrument(span.clone())
+        .await;
+        let _in_span = span.enter();
+        if let Err(error) = server.respond(pending, reply) {
+            tracing::warn!(%error, "could not send a gripper reply");
+        }
+    }
+}
+
 /// Puts the gripper on the bus: the actor under `supervisor` (its safe state is to hold
-/// still: a real gripper keeps its grip), `gripper/command` and `gripper/state`. Returns the
-/// actor and its serving task.
+/// still: a real gripper keeps its grip), `gripper/command` behind the safety policy, and
+/// `gripper/state`. Returns the actor and its serving task.
 pub async fn start(
     bus: &robotd_runtime::bus::Bus,
     supervisor: robotd_runtime::supervision::Supervisor,
     driver: Arc<dyn GripperDriver>,
+    safety: Safety,
 ) -> Result<
     (
         robotd_runtime::supervision::Supervised<GripperActor>,
@@ -107,7 +174,7 @@ pub async fn start(
     let server = bus.server(&GRIPPER_COMMAND)?;
     let serving = actor.clone();
     let task = tokio::spawn(async move {
-        if let Err(error) = robotd_runtime::host::serve_supervised(server, serving).await {
+        if let Err(error) = serve_gripper(server, serving, safety).await {
             tracing::error!(%error, "gripper/command stopped serving");
         }
     });

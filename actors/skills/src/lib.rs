@@ -42,10 +42,13 @@ pub mod geometry;
 mod runner;
 
 use robotd_protocol::arm::ArmCommand;
+use robotd_protocol::skills::{SkillError, SkillReply};
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_protocol::RobotModel;
 use robotd_runtime::bus::{Bus, BusError};
 use robotd_runtime::catalog;
+use robotd_runtime::origin::{current_origin, with_origin};
+use robotd_safety::Safety;
 use runner::{CancelFlag, Runner};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
@@ -85,6 +88,9 @@ pub struct SkillsSettings {
     pub push_z_m: f64,
     /// Longest one arm or gripper command may take.
     pub command_timeout: Duration,
+    /// The motion policy, for skills that need a human's approval before they start (`None`:
+    /// none do; the arm and gripper still check every motion).
+    pub safety: Option<Safety>,
 }
 
 impl SkillsSettings {
@@ -118,6 +124,7 @@ impl SkillsSettings {
             push_gap_m: 0.010,
             push_z_m: 0.012,
             command_timeout: Duration::from_secs(60),
+            safety: None,
         }
     }
 }
@@ -147,6 +154,7 @@ impl Skills {
             return Err(SkillsError::NoWorkspace);
         }
         let cancel = Arc::new(CancelFlag::default());
+        let safety = settings.safety.clone();
         let runner = Runner::new(
             settings,
             bus.client(&catalog::ARM_COMMAND)?,
@@ -161,9 +169,40 @@ impl Skills {
             let served = server
                 .serve(move |request| {
                     let runner = runner.clone();
+                    let safety = safety.clone();
                     async move {
-                        let mut runner = runner.lock().await;
-                        Ok(runner.run(request.run_id, request.skill).await)
+                        // Approval first, outside the one-skill-at-a-time lock: nothing moves
+                        // before a human said yes.
+                        let mut origin = current_origin();
+                        let mut approval = None;
+                        if let Some(safety) = &safety {
+                            let summary = serde_json::to_string(&request.skill).unwrap_or_default();
+                            match safety
+                                .approve_tool(&origin, request.skill.tool_name(), &summary)
+                                .await
+                            {
+                                Ok(id) => approval = id,
+                                Err(violation) => {
+                                    return Ok(SkillReply::Failed {
+                                        error: SkillError::Refused {
+                                            reason: violation.reason,
+                                        },
+                                    })
+                                }
+                            }
+                        }
+                        if let Some(id) = approval {
+                            origin.approval_id = id;
+                        }
+                        let reply = with_origin(origin, async {
+                            let mut runner = runner.lock().await;
+                            runner.run(request.run_id, request.skill).await
+                        })
+                        .await;
+                        if let (Some(safety), Some(id)) = (&safety, approval) {
+                            safety.approvals().finish(id);
+                        }
+                        Ok(reply)
                     }
                 })
                 .await;
@@ -176,8 +215,16 @@ impl Skills {
         let canceller = tokio::spawn(async move {
             while let Ok(envelope) = cancels.recv().await {
                 let run_id = envelope.body.run_id;
-                if run_id == 0 || cancel.run_id.load(Ordering::SeqCst) != run_id {
-                    tracing::debug!(run_id, "cancel for a skill that is not running");
+                if run_id == 0 {
+                    continue;
+                }
+                if cancel.run_id.load(Ordering::SeqCst) != run_id {
+                    // Waiting for approval or behind another skill: it must never start.
+                    tracing::info!(
+                        run_id,
+                        "cancel for a skill that has not started: it will not run"
+                    );
+                    cancel.cancel_early(run_id);
                     continue;
                 }
                 cancel.cancelled.store(true, Ordering::SeqCst);

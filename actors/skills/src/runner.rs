@@ -17,11 +17,39 @@ use std::f64::consts::FRAC_PI_2;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 
-/// Which run may be cancelled, and whether it was.
+/// Which run may be cancelled, and whether it was; and cancels of runs that have not started
+/// yet (waiting for approval or behind another skill), so they never start.
 #[derive(Debug, Default)]
 pub(crate) struct CancelFlag {
     pub(crate) run_id: AtomicU64,
     pub(crate) cancelled: AtomicBool,
+    early: std::sync::Mutex<std::collections::VecDeque<u64>>,
+}
+
+/// Cancels of not-yet-started runs remembered (older ones are forgotten first).
+const EARLY_CANCELS: usize = 1024;
+
+impl CancelFlag {
+    /// Remembers a cancel of `run_id`, which has not started.
+    pub(crate) fn cancel_early(&self, run_id: u64) {
+        let mut early = self.early.lock().unwrap_or_else(|e| e.into_inner());
+        if early.len() >= EARLY_CANCELS {
+            early.pop_front();
+        }
+        early.push_back(run_id);
+    }
+
+    /// Whether `run_id` was cancelled before it started (forgetting the cancel).
+    pub(crate) fn take_early(&self, run_id: u64) -> bool {
+        let mut early = self.early.lock().unwrap_or_else(|e| e.into_inner());
+        match early.iter().position(|id| *id == run_id) {
+            Some(i) => {
+                early.remove(i);
+                true
+            }
+            None => false,
+        }
+    }
 }
 
 /// The object in the gripper.
@@ -81,8 +109,21 @@ impl Runner {
 
     /// Runs `skill`; always answers.
     pub(crate) async fn run(&mut self, run_id: u64, skill: Skill) -> SkillReply {
+        // Publish the run id before looking for an early cancel: a cancel that comes in
+        // between is then either seen here or sets `cancelled`.
         self.cancel.cancelled.store(false, Ordering::SeqCst);
         self.cancel.run_id.store(run_id, Ordering::SeqCst);
+        if self.cancel.take_early(run_id) {
+            self.cancel.run_id.store(0, Ordering::SeqCst);
+            tracing::info!(
+                skill = skill.name(),
+                run_id,
+                "skill cancelled before it started; nothing moved"
+            );
+            return SkillReply::Failed {
+                error: SkillError::Cancelled,
+            };
+        }
         let mut run = Run {
             run_id,
             step: 0,

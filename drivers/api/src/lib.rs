@@ -25,7 +25,7 @@ use nalgebra::Isometry3;
 use robotd_protocol::geometry::{Pose, RobotModel};
 use std::future::Future;
 use std::pin::Pin;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 
 /// A driver's answer that arrives later (a motion, a calibration).
@@ -70,19 +70,36 @@ pub struct MotionControl {
 #[derive(Debug, Default)]
 struct ControlFlags {
     stop: AtomicBool,
+    stop_generation: AtomicU64,
     estop: AtomicBool,
     estop_reason: std::sync::Mutex<String>,
 }
 
 impl MotionControl {
     /// Asks the running motion (if any) to stop at its next control tick.
+    ///
+    /// Every motion received before the stop is cancelled too: see [`Self::begin_motion`].
     pub fn request_stop(&self) {
+        self.inner.stop_generation.fetch_add(1, Ordering::SeqCst);
         self.inner.stop.store(true, Ordering::SeqCst);
     }
 
-    /// Clears a stop request; called when a new motion starts.
-    pub fn clear_stop(&self) {
+    /// How many stops were requested so far; a motion notes it when it is received.
+    pub fn stop_generation(&self) -> u64 {
+        self.inner.stop_generation.load(Ordering::SeqCst)
+    }
+
+    /// Starts a motion received at stop generation `received_at`: refused with
+    /// [`DriverError::Stopped`] when a stop came in since (a motion queued behind the one a
+    /// stop interrupted never runs later), else clears the stop flag for it.
+    pub fn begin_motion(&self, received_at: u64) -> Result<(), DriverError> {
+        if self.stop_generation() != received_at {
+            return Err(DriverError::Stopped {
+                reason: "a stop command came after the motion was requested".into(),
+            });
+        }
         self.inner.stop.store(false, Ordering::SeqCst);
+        Ok(())
     }
 
     /// Engages (`true`) or releases the emergency stop.
@@ -134,6 +151,19 @@ pub enum Motion {
     JointPath(Vec<Vec<f64>>),
 }
 
+/// Nominal time, seconds, to travel from joints `a` to `b` at full speed: the slowest joint
+/// at its velocity limit (`max_velocity_rad_s`, one per joint), times 1.5 for a smooth start
+/// and stop (a cubic profile peaks at 1.5 × its average speed). Drivers time a motion run at
+/// `speed_scale` as this divided by the scale; the safety policy predicts tool speeds with it.
+pub fn nominal_travel_time_s(a: &[f64], b: &[f64], max_velocity_rad_s: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .zip(max_velocity_rad_s)
+        .map(|((from, to), limit)| (to - from).abs() / limit.max(1e-6))
+        .fold(0.0, f64::max)
+        * 1.5
+}
+
 /// What an arm driver reports besides joints.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ArmFlags {
@@ -153,9 +183,16 @@ pub trait ArmDriver: Send + Sync + 'static {
     fn joints(&self) -> Result<Vec<f64>, DriverError>;
     /// Moving / collision / calibration flags.
     fn flags(&self) -> ArmFlags;
-    /// Executes `motion`; returns when it has ended. Checks `control` at every control tick
-    /// and returns [`DriverError::Stopped`] when asked to stop.
-    fn execute<'a>(&'a self, motion: Motion, control: &'a MotionControl) -> DriverFuture<'a, ()>;
+    /// Executes `motion` at `speed_scale` (0 < scale ≤ 1: the fraction of the joint velocity
+    /// limits, so every segment takes [`nominal_travel_time_s`] / scale); returns when it has
+    /// ended. Checks `control` at every control tick and returns [`DriverError::Stopped`] when
+    /// asked to stop. The scale comes from the safety policy's speed caps.
+    fn execute<'a>(
+        &'a self,
+        motion: Motion,
+        speed_scale: f64,
+        control: &'a MotionControl,
+    ) -> DriverFuture<'a, ()>;
     /// Runs the calibration (Ned2) or homing.
     fn calibrate(&self) -> DriverFuture<'_, ()>;
     /// Clears the collision flag.

@@ -191,13 +191,13 @@ impl SimRobot {
     /// Nominal time to travel from `a` to `b` at the joint velocity limits, with a smooth
     /// (cubic) start and stop whose peak speed is 1.5 × the average.
     fn joint_travel_time(&self, a: &[f64], b: &[f64]) -> f64 {
-        let limits = self.kinematics.joint_limits();
-        a.iter()
-            .zip(b)
-            .zip(limits)
-            .map(|((from, to), limit)| (to - from).abs() / limit.max_velocity_rad_s.max(1e-6))
-            .fold(0.0, f64::max)
-            * 1.5
+        let velocities: Vec<f64> = self
+            .kinematics
+            .joint_limits()
+            .iter()
+            .map(|l| l.max_velocity_rad_s)
+            .collect();
+        robotd_driver::nominal_travel_time_s(a, b, &velocities)
     }
 
     /// Moves the arm to `q` for one control tick: the tool goes through the world.
@@ -227,8 +227,14 @@ impl SimRobot {
         &self,
         waypoints: Vec<Vec<f64>>,
         smooth: bool,
+        speed_scale: f64,
         control: &MotionControl,
     ) -> Result<(), DriverError> {
+        if !(speed_scale > 0.0 && speed_scale <= 1.0) {
+            return Err(DriverError::OutOfRange(format!(
+                "speed scale must be in (0, 1], got {speed_scale}"
+            )));
+        }
         let halts_at_start = self.halts.load(Ordering::SeqCst);
         {
             let mut state = self.lock();
@@ -242,7 +248,7 @@ impl SimRobot {
             state.moving = true;
         }
         let result = self
-            .run_path_inner(waypoints, smooth, control, halts_at_start)
+            .run_path_inner(waypoints, smooth, speed_scale, control, halts_at_start)
             .await;
         self.lock().moving = false;
         result
@@ -252,6 +258,7 @@ impl SimRobot {
         &self,
         waypoints: Vec<Vec<f64>>,
         smooth: bool,
+        speed_scale: f64,
         control: &MotionControl,
         halts_at_start: u64,
     ) -> Result<(), DriverError> {
@@ -260,7 +267,7 @@ impl SimRobot {
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut from = self.joints();
         for to in waypoints {
-            let duration = self.scaled(self.joint_travel_time(&from, &to));
+            let duration = self.scaled(self.joint_travel_time(&from, &to) / speed_scale);
             let started = tokio::time::Instant::now();
             loop {
                 ticker.tick().await;
@@ -332,12 +339,23 @@ impl ArmDriver for SimArm {
         }
     }
 
-    fn execute<'a>(&'a self, motion: Motion, control: &'a MotionControl) -> DriverFuture<'a, ()> {
+    fn execute<'a>(
+        &'a self,
+        motion: Motion,
+        speed_scale: f64,
+        control: &'a MotionControl,
+    ) -> DriverFuture<'a, ()> {
         Box::pin(async move {
             self.faults.maybe_fail("move").await;
             match motion {
-                Motion::Joints(target) => self.robot.run_path(vec![target], true, control).await,
-                Motion::JointPath(path) => self.robot.run_path(path, false, control).await,
+                Motion::Joints(target) => {
+                    self.robot
+                        .run_path(vec![target], true, speed_scale, control)
+                        .await
+                }
+                Motion::JointPath(path) => {
+                    self.robot.run_path(path, false, speed_scale, control).await
+                }
             }
         })
     }

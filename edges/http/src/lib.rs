@@ -13,6 +13,7 @@
 //! ```
 
 pub mod config;
+pub mod safety;
 pub use config::HttpConfig;
 
 use axum::extract::State;

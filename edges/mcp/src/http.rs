@@ -14,6 +14,7 @@
 //!   and a request-body limit (413).
 
 use crate::service::McpService;
+use crate::sessions::{CallScopes, ClosingSessions};
 use axum::body::Bytes;
 use axum::extract::{DefaultBodyLimit, Query, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
@@ -25,7 +26,6 @@ use axum::Router;
 use futures::channel::mpsc;
 use futures::{SinkExt, Stream, StreamExt};
 use rmcp::model::{ClientJsonRpcMessage, ServerJsonRpcMessage};
-use rmcp::transport::streamable_http_server::session::local::LocalSessionManager;
 use rmcp::transport::streamable_http_server::{StreamableHttpServerConfig, StreamableHttpService};
 use rmcp::ServiceExt;
 use std::collections::HashMap;
@@ -160,6 +160,7 @@ struct SseState {
 struct SessionStream {
     id: String,
     sessions: SessionMap,
+    scopes: Arc<CallScopes>,
     inner: Pin<Box<dyn Stream<Item = Result<Event, std::convert::Infallible>> + Send>>,
 }
 
@@ -172,6 +173,8 @@ impl Stream for SessionStream {
 
 impl Drop for SessionStream {
     fn drop(&mut self) {
+        // The client went away: whatever its calls started must stop.
+        self.scopes.close_session(&self.id);
         self.sessions
             .lock()
             .unwrap_or_else(|e| e.into_inner())
@@ -196,7 +199,7 @@ async fn open_sse(State(state): State<SseState>) -> Response {
         .lock()
         .unwrap_or_else(|e| e.into_inner())
         .insert(id.clone(), to_server);
-    let service = state.service.for_transport("sse");
+    let service = state.service.for_sse_session(&id);
     let session = id.clone();
     let shutdown = state.shutdown.clone();
     tokio::spawn(async move {
@@ -224,6 +227,7 @@ async fn open_sse(State(state): State<SseState>) -> Response {
     let stream = SessionStream {
         id,
         sessions: state.sessions.clone(),
+        scopes: state.service.scopes(),
         inner: Box::pin(futures::stream::once(async move { Ok(endpoint) }).chain(messages)),
     };
     Sse::new(stream)
@@ -281,6 +285,18 @@ async fn post_message(
     }
 }
 
+/// `routes` behind the MCP edge's guard (bearer token off loopback, Origin checks, body
+/// limit), for other APIs on the same port.
+pub fn guarded(routes: Router, guard_settings: HttpGuard) -> Router {
+    let limit = guard_settings.max_body_bytes;
+    routes
+        .layer(DefaultBodyLimit::max(limit))
+        .layer(middleware::from_fn_with_state(
+            Arc::new(guard_settings),
+            guard,
+        ))
+}
+
 /// The MCP routes (`/sse`, `/messages/`, `/mcp`) behind the guard. `shutdown` ends every
 /// session.
 pub fn router(
@@ -298,7 +314,7 @@ pub fn router(
     let streamable_service = service.for_transport("streamable_http");
     let streamable = StreamableHttpService::new(
         move || Ok(streamable_service.clone()),
-        Arc::new(LocalSessionManager::default()),
+        Arc::new(ClosingSessions::new(service.scopes())),
         config,
     );
     let state = SseState {

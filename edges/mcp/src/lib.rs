@@ -32,6 +32,7 @@ pub mod call_log;
 pub mod client;
 pub mod http;
 mod service;
+pub mod sessions;
 
 pub use service::McpService;
 

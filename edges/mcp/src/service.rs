@@ -8,6 +8,7 @@
 //! arm. Failures are ordinary results unless `strict_errors` sets `isError` on them.
 
 use crate::call_log::{CallLog, CallRecord};
+use crate::sessions::CallScopes;
 use rmcp::model::{
     CallToolRequestParams, CallToolResponse, CallToolResult, ContentBlock, Implementation,
     ListToolsResult, PaginatedRequestParams, ProgressNotificationParam, ServerCapabilities,
@@ -15,9 +16,12 @@ use rmcp::model::{
 };
 use rmcp::service::RequestContext;
 use rmcp::{ErrorData as McpError, RoleServer, ServerHandler};
+use robotd_protocol::safety::{Origin, OriginKind};
+use robotd_runtime::origin::with_origin;
 use robotd_tools::{CallError, CallHooks, Progress, Registry};
 use std::sync::Arc;
 use std::time::Instant;
+use tokio_util::sync::CancellationToken;
 use tracing::Instrument;
 
 /// What the MCP edge serves and how.
@@ -28,6 +32,9 @@ pub struct McpService {
     strict_errors: bool,
     log: Arc<CallLog>,
     transport: &'static str,
+    scopes: Arc<CallScopes>,
+    /// The legacy SSE session this clone serves (streamable HTTP names it per request).
+    sse_session: Option<String>,
 }
 
 impl std::fmt::Debug for McpService {
@@ -57,7 +64,74 @@ impl McpService {
             strict_errors,
             log,
             transport: "unknown",
+            scopes: Arc::default(),
+            sse_session: None,
         }
+    }
+
+    /// The session and request tokens this service's calls are cancelled by.
+    pub fn scopes(&self) -> Arc<CallScopes> {
+        self.scopes.clone()
+    }
+
+    /// The same service for legacy SSE session `id` (its calls stop when the stream closes).
+    pub fn for_sse_session(&self, id: &str) -> Self {
+        self.scopes.session(id);
+        Self {
+            transport: "sse",
+            sse_session: Some(id.to_owned()),
+            ..self.clone()
+        }
+    }
+
+    /// The session a call belongs to: the SSE session, or streamable HTTP's
+    /// `Mcp-Session-Id` header.
+    fn session_of(&self, context: &RequestContext<RoleServer>) -> Option<String> {
+        if let Some(id) = &self.sse_session {
+            return Some(id.clone());
+        }
+        context
+            .extensions
+            .get::<axum::http::request::Parts>()
+            .and_then(|parts| parts.headers.get("mcp-session-id"))
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_owned)
+    }
+
+    /// A token cancelled when the call is cancelled (`notifications/cancelled`), its session
+    /// closes or its connection drops; and the watcher task to abort once the call is over.
+    fn call_cancel(
+        &self,
+        context: &RequestContext<RoleServer>,
+        session: Option<&str>,
+        request: &str,
+    ) -> (CancellationToken, tokio::task::JoinHandle<()>) {
+        let cancel = CancellationToken::new();
+        let by_client = context.ct.clone();
+        let by_session = session.and_then(|s| self.scopes.find_session(s));
+        let by_connection = session.and_then(|s| self.scopes.find_request(s, request));
+        let fire = cancel.clone();
+        let watcher = tokio::spawn(async move {
+            let session_closed = async {
+                match by_session {
+                    Some(t) => t.cancelled().await,
+                    None => std::future::pending().await,
+                }
+            };
+            let connection_dropped = async {
+                match by_connection {
+                    Some(t) => t.cancelled().await,
+                    None => std::future::pending().await,
+                }
+            };
+            tokio::select! {
+                _ = by_client.cancelled() => {}
+                _ = session_closed => tracing::info!("the MCP session closed: cancelling its call"),
+                _ = connection_dropped => {}
+            }
+            fire.cancel();
+        });
+        (cancel, watcher)
     }
 
     /// The same service, naming `transport` (`sse`, `streamable_http`, `stdio`) in spans and
@@ -123,10 +197,13 @@ impl ServerHandler for McpService {
             };
             Box::new(report) as Box<dyn Fn(Progress) + Send + Sync>
         });
-        let hooks = CallHooks {
-            progress,
-            cancel: context.ct.clone(),
-        };
+        let session = self.session_of(&context);
+        let request_id = context.id.to_string();
+        let (cancel, watcher) = self.call_cancel(&context, session.as_deref(), &request_id);
+        let hooks = CallHooks { progress, cancel };
+        let origin = Origin::new(OriginKind::Mcp)
+            .session(session.unwrap_or_else(|| self.transport.to_owned()))
+            .request(request_id);
         let arguments = request.arguments.clone();
         // The call's trace id, for the call log: the actors' spans of this call share it.
         let trace_id = span
@@ -134,11 +211,14 @@ impl ServerHandler for McpService {
             .traceparent
             .and_then(|tp| tp.split('-').nth(1).map(str::to_owned));
         let started = Instant::now();
-        let outcome = self
-            .registry
-            .call(&name, arguments.clone(), hooks)
-            .instrument(span.clone())
-            .await;
+        let outcome = with_origin(
+            origin,
+            self.registry
+                .call(&name, arguments.clone(), hooks)
+                .instrument(span.clone()),
+        )
+        .await;
+        watcher.abort();
         let elapsed = started.elapsed();
         match outcome {
             Ok(output) => {

@@ -17,6 +17,7 @@ use super::pubsub::{Publisher, Subscriber, TopicSpec};
 use super::wake::{subscribed_event, Wake};
 use super::{Bus, BusError, Overflow};
 use robotd_protocol::envelope::{self, Envelope, Message, TraceContext};
+use robotd_protocol::safety::Origin;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::future::Future;
@@ -150,6 +151,9 @@ struct RequestFrame<Req> {
     request_id: u64,
     /// After this time (Unix ns) the caller has given up: the server must not execute it.
     deadline_unix_ns: u64,
+    /// Who the work belongs to (absent from older or other-language senders: an unnamed client).
+    #[serde(default)]
+    origin: Origin,
     body: Req,
 }
 
@@ -408,13 +412,16 @@ impl<Req: Message> Publisher<RequestFrame<Req>> {
             client_id: u64,
             request_id: u64,
             deadline_unix_ns: u64,
+            origin: &'a Origin,
             body: &'a Req,
         }
+        let origin = crate::origin::current_origin();
         self.publish_serializable::<RequestRef<'_, Req>>(
             &RequestRef {
                 client_id,
                 request_id,
                 deadline_unix_ns,
+                origin: &origin,
                 body,
             },
             Req::TYPE,
@@ -427,6 +434,8 @@ impl<Req: Message> Publisher<RequestFrame<Req>> {
 pub struct Incoming<Req> {
     /// The request and its trace context.
     pub envelope: Envelope<Req>,
+    /// Who the work belongs to, as the sender stated it (see [`crate::origin`]).
+    pub origin: Origin,
     pending: PendingReply,
 }
 
@@ -548,6 +557,7 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
                             sent_at_unix_ns: envelope.sent_at_unix_ns,
                             body: frame.body,
                         },
+                        origin: frame.origin,
                         pending: PendingReply {
                             client_id: frame.client_id,
                             request_id: frame.request_id,
@@ -658,11 +668,14 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
         Fut: Future<Output = Result<Resp, Fault>> + Send + 'static,
     {
         loop {
-            let (envelope, pending) = self.next().await?.split();
+            let incoming = self.next().await?;
+            let origin = incoming.origin.clone();
+            let (envelope, pending) = incoming.split();
             let span = tracing::info_span!("bus.handle", service = self.service.name);
             crate::telemetry::set_parent_from(&span, &envelope.trace);
+            // The handler's own requests carry the origin of the request it serves.
             let mut task = AbortOnDrop(tokio::spawn(tracing::Instrument::instrument(
-                handler(envelope.body),
+                crate::origin::with_origin(origin, handler(envelope.body)),
                 span.clone(),
             )));
             let reply = match (&mut task.0).await {

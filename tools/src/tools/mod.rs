@@ -1,4 +1,4 @@
-//! The 20 tools, one module each, and the table that dispatches calls to them.
+//! The tools (the Python server's 20 and robotd's e-stop pair), one module each, and the table that dispatches calls to them.
 //!
 //! A tool is one unit: its module defines a type implementing [`Tool`] that ties together
 //! the tool's name, description, argument struct (whose derived schema is the `inputSchema`
@@ -22,6 +22,7 @@ use std::pin::Pin;
 mod add_object_name2object_labels;
 mod calibrate;
 mod clear_collision_detected;
+mod emergency_stop;
 mod get_detected_object;
 mod get_detected_objects;
 mod get_detected_objects_sorted;
@@ -37,10 +38,11 @@ mod pick_object;
 mod pick_place_object;
 mod place_object;
 mod push_object;
+mod release_emergency_stop;
 mod set_user_task;
 mod speak;
 
-/// Every tool, in the order of the contract (and of `tools/list`).
+/// Every tool, in the order of the contract (and of `tools/list`), robotd's own last.
 pub(crate) static TOOLS: &[Entry] = &[
     Entry::of::<pick_place_object::PickPlaceObject>(),
     Entry::of::<pick_object::PickObject>(),
@@ -62,6 +64,8 @@ pub(crate) static TOOLS: &[Entry] = &[
     Entry::of::<get_system_status::GetSystemStatus>(),
     Entry::of::<speak::Speak>(),
     Entry::of::<set_user_task::SetUserTask>(),
+    Entry::of::<emergency_stop::EmergencyStopTool>(),
+    Entry::of::<release_emergency_stop::ReleaseEmergencyStop>(),
 ];
 
 /// The tool called `name`, if there is one.

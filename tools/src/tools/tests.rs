@@ -15,8 +15,11 @@ fn props(entry: &Entry) -> Map<String, Value> {
 }
 
 #[test]
-fn twenty_tools_with_unique_names() {
-    assert_eq!(TOOLS.len(), 20);
+fn the_python_servers_twenty_tools_then_the_estop_pair_with_unique_names() {
+    assert_eq!(TOOLS.len(), 22);
+    assert_eq!(TOOLS[19].name, "set_user_task");
+    assert_eq!(TOOLS[20].name, "emergency_stop");
+    assert_eq!(TOOLS[21].name, "release_emergency_stop");
     let names: HashSet<&str> = TOOLS.iter().map(|t| t.name).collect();
     assert_eq!(names.len(), TOOLS.len(), "a tool name is used twice");
     for t in TOOLS {
@@ -136,9 +139,11 @@ fn fixture() -> Vec<Value> {
 
 #[test]
 fn names_descriptions_and_input_schemas_are_unchanged() {
+    // The fixture holds the Python server's 20 tools; robotd's own follow them.
     let old = fixture();
     let new = crate::definitions::all();
-    assert_eq!(old.len(), new.len());
+    assert_eq!(old.len(), 20);
+    assert_eq!(new.len(), 22);
     for (old, new) in old.iter().zip(&new) {
         assert_eq!(old["name"], new.name);
         assert_eq!(old["description"], new.description, "{}", new.name);

@@ -1,0 +1,800 @@
+//! The tamper-evident audit log of motion requests.
+//!
+//! Every motion request robotd handles (who asked, the arguments, the policy's decision and
+//! reason, the outcome) is appended to a file such as `log/audit.jsonl` as one JSON line. Each
+//! line carries the SHA-256 hash of the line before it, so the lines form a hash chain: a line
+//! that is edited, deleted or moved breaks the chain at a place [`verify`] names.
+//!
+//! # Line format
+//!
+//! The *body* is written by serde_json with its fields in this order:
+//! `{"seq":7,"time":"2026-11-25T13:40:00.123456Z","prev":"<64 hex>","event":{…}}`.
+//! `seq` counts from 1 and grows by exactly 1; `time` is UTC with microseconds; `prev` is the
+//! previous line's hash (64 zeros, "genesis", for the first entry ever); `event` is the caller's
+//! JSON. The hash is the lowercase hex SHA-256 of the body's *bytes*, and the line is the body
+//! with `,"hash":"<64 hex>"` inserted before its final `}`. To check a line, strip the trailing
+//! `,"hash":"…"}`, put back the `}` and hash: no JSON re-serialisation is involved. Control
+//! characters in events (CR, LF, ESC, NUL) are JSON-escaped, so an entry is always one line.
+//!
+//! # Never blocking, and refusing instead
+//!
+//! [`AuditLog::record`] puts the event in a bounded queue and returns at once; a thread named
+//! `robotd-audit` appends it. When the queue is full, or the writer has failed (disk full,
+//! permissions), `record` returns an error and robotd **refuses the motion**. An unattended,
+//! LLM-driven arm must not move without a trace: a refused motion is safe and can be retried, a
+//! lost record cannot be recovered. The writer flushes its buffer to the OS after each batch it
+//! drains from the queue, but does not `fsync` each line (that would cost a disk round trip per
+//! motion): a crash of robotd loses nothing flushed, a power cut may lose the last batch.
+//!
+//! # Rotation and restarts
+//!
+//! Before a line would make the active file exceed `max_file_bytes`, the file becomes
+//! `audit.jsonl.1`, `.1` becomes `.2`, … up to `keep_files`; older files are deleted. The chain
+//! continues across files. On start the log reads the last line of the active file (or of `.1`
+//! if the active file is empty) and continues its `seq` and hash; a last line that is not a valid
+//! entry stops the start with [`AuditError::CorruptTail`] instead of silently starting a new chain.
+//!
+//! # Verifying
+//!
+//! `robotd audit verify log/audit.jsonl.2 log/audit.jsonl.1 log/audit.jsonl` (oldest first)
+//! calls [`verify`], which recomputes every hash and checks `seq` and `prev` across the files.
+//! If the first entry is not `seq` 1, the files are a suffix of the log (older files were
+//! rotated away) and the report says `starts_at_genesis: false`: what came before cannot be
+//! checked. Nor can a chain reveal lines cut off its *end*; to detect that, keep
+//! [`VerifyReport::last_hash`] somewhere else and compare later.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+
+/// `prev` of the first entry ever.
+const GENESIS: &str = "0000000000000000000000000000000000000000000000000000000000000000";
+/// Inserted before the body's final `}`, followed by the hash and `"}`.
+const HASH_KEY: &str = ",\"hash\":\"";
+/// Length of `,"hash":"<64 hex>"}` at the end of every line.
+const TAIL_LEN: usize = HASH_KEY.len() + 64 + 2;
+
+/// Where and how to write the audit log; built by the caller from its config.
+#[derive(Clone, Debug)]
+pub struct AuditConfig {
+    /// The active file, e.g. `log/audit.jsonl`; missing parent directories are created.
+    pub path: PathBuf,
+    /// Rotate before a line would make the active file exceed this many bytes.
+    pub max_file_bytes: u64,
+    /// Rotated files kept: `<path>.1` (newest) to `<path>.N`; older ones are deleted.
+    pub keep_files: u32,
+    /// Length of the bounded queue between [`AuditLog::record`] and the writer (>= 1).
+    pub queue: usize,
+}
+
+/// Why the audit log could not start or take a record. When recording, any of these refuses
+/// the motion.
+#[derive(Debug, thiserror::Error)]
+pub enum AuditError {
+    /// The writer is behind; the record was not taken.
+    #[error(
+        "audit log queue full ({capacity} records waiting): motion refused so that no motion \
+         goes unrecorded"
+    )]
+    QueueFull { capacity: usize },
+    /// The writer stopped after an error; nothing more will be written.
+    #[error(
+        "audit log writer failed: {reason}; motion refused so that no motion goes unrecorded \
+         (fix the cause and restart robotd)"
+    )]
+    WriterFailed { reason: String },
+    /// A file or directory could not be created, opened or read at start.
+    #[error("audit log {}: {source}", path.display())]
+    Io { path: PathBuf, source: io::Error },
+    /// The log ends in a line (1-based) that is not a valid entry, so its chain cannot go on.
+    #[error(
+        "audit log {}: line {line}: {reason}; refusing to start a new chain on top of it \
+         (inspect the file, or move it aside to start a new log)",
+        path.display()
+    )]
+    CorruptTail {
+        path: PathBuf,
+        line: u64,
+        reason: Break,
+    },
+    /// The configuration cannot work.
+    #[error("invalid audit log configuration: {reason}")]
+    InvalidConfig { reason: String },
+    /// [`AuditLog::flush`] gave up before everything was written.
+    #[error("audit log flush timed out after {timeout:?} ({pending} records not yet written)")]
+    FlushTimeout { timeout: Duration, pending: u64 },
+}
+
+/// Handle to the audit log; `Clone` is cheap. All clones share one writer thread, which writes
+/// what is queued and stops when the last clone is dropped (that drop waits for it).
+#[derive(Clone)]
+pub struct AuditLog {
+    inner: Option<Arc<Inner>>,
+}
+
+/// Fields drop in declaration order: `tx` closes the queue, then `_writer` waits for the
+/// writer thread to drain it.
+struct Inner {
+    tx: SyncSender<Value>,
+    shared: Arc<Shared>,
+    path: PathBuf,
+    capacity: usize,
+    _writer: Joiner,
+}
+
+/// Joins the writer thread when dropped.
+struct Joiner(Option<JoinHandle<()>>);
+
+impl Drop for Joiner {
+    fn drop(&mut self) {
+        if let Some(handle) = self.0.take() {
+            let _ = handle.join();
+        }
+    }
+}
+
+/// What the handles and the writer thread share.
+#[derive(Default)]
+struct Shared {
+    state: Mutex<State>,
+    changed: Condvar,
+}
+
+#[derive(Default)]
+struct State {
+    sent: u64,
+    written: u64,
+    failed: Option<String>,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+impl State {
+    /// `WriterFailed` once the writer has stopped.
+    fn check(&self) -> Result<(), AuditError> {
+        let failed = self.failed.clone();
+        failed.map_or(Ok(()), |reason| Err(AuditError::WriterFailed { reason }))
+    }
+}
+
+impl AuditLog {
+    /// Opens or creates `config.path`, continues the chain from its last line and starts the
+    /// writer thread `robotd-audit`.
+    pub fn start(config: &AuditConfig) -> Result<AuditLog, AuditError> {
+        Self::start_gated(config, None)
+    }
+
+    /// [`start`](Self::start), with a writer that first waits for `gate` (tests hold it shut).
+    fn start_gated(config: &AuditConfig, gate: Option<Receiver<()>>) -> Result<Self, AuditError> {
+        if config.queue == 0 {
+            let reason = "queue must be at least 1".into();
+            return Err(AuditError::InvalidConfig { reason });
+        }
+        let path = &config.path;
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            fs::create_dir_all(dir).map_err(io_err(dir))?;
+        }
+        let mut tail = read_tail(path)?;
+        if tail.is_none() {
+            // Only `.1` has entries (stopped right after a rotation): continue from it.
+            tail = read_tail(&rotated(path, 1))?.map(|(entry, _)| (entry, true));
+        }
+        let mut out = BufWriter::new(open_append(path).map_err(io_err(path))?);
+        if let Some((_, false)) = tail {
+            // The last entry is valid but its line end was cut off: end the line, keep the chain.
+            let ended = out.write_all(b"\n").and_then(|()| out.flush());
+            ended.map_err(io_err(path))?;
+        }
+        let len = out.get_ref().metadata().map_err(io_err(path))?.len();
+        let (seq, prev) = tail.map_or((0, GENESIS.into()), |(last, _)| (last.seq, last.hash));
+        let shared = Arc::new(Shared::default());
+        let writer = Writer {
+            cfg: config.clone(),
+            out,
+            len,
+            seq,
+            prev,
+            shared: shared.clone(),
+        };
+        let (tx, rx) = mpsc::sync_channel(config.queue);
+        let thread = std::thread::Builder::new().name("robotd-audit".into());
+        let handle = thread.spawn(move || writer.run(rx, gate)).map_err(|e| {
+            let reason = format!("cannot start the writer thread: {e}");
+            AuditError::WriterFailed { reason }
+        })?;
+        let inner = Inner {
+            tx,
+            shared,
+            path: path.clone(),
+            capacity: config.queue,
+            _writer: Joiner(Some(handle)),
+        };
+        let inner = Some(Arc::new(inner));
+        Ok(AuditLog { inner })
+    }
+
+    /// A log that records nothing; [`record`](Self::record) always returns `Ok`. For tests and
+    /// benches that turn auditing off.
+    pub fn disabled() -> AuditLog {
+        AuditLog { inner: None }
+    }
+
+    /// Queues `event` for writing without blocking. An error means the event will not be
+    /// written, and the motion must be refused. `Ok` means queued: if the writer fails later,
+    /// the next `record` (and [`flush`](Self::flush)) says so.
+    pub fn record(&self, event: Value) -> Result<(), AuditError> {
+        let Some(inner) = &self.inner else {
+            return Ok(());
+        };
+        let mut state = inner.shared.lock();
+        state.check()?;
+        let capacity = inner.capacity;
+        inner.tx.try_send(event).map_err(|e| match e {
+            TrySendError::Full(_) => AuditError::QueueFull { capacity },
+            TrySendError::Disconnected(_) => {
+                let reason = "the writer thread stopped".into();
+                AuditError::WriterFailed { reason }
+            }
+        })?;
+        state.sent += 1;
+        Ok(())
+    }
+
+    /// Waits up to `timeout` until everything queued before this call is written and flushed
+    /// to the OS (not fsynced). For tests and shutdown.
+    pub fn flush(&self, timeout: Duration) -> Result<(), AuditError> {
+        let Some(inner) = &self.inner else {
+            return Ok(());
+        };
+        let deadline = Instant::now() + timeout;
+        let mut state = inner.shared.lock();
+        let target = state.sent;
+        loop {
+            state.check()?;
+            if state.written >= target {
+                return Ok(());
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                let pending = target - state.written;
+                return Err(AuditError::FlushTimeout { timeout, pending });
+            }
+            let waited = inner.shared.changed.wait_timeout(state, left);
+            state = waited.unwrap_or_else(PoisonError::into_inner).0;
+        }
+    }
+
+    /// The active file, or `None` for a [`disabled`](Self::disabled) log.
+    pub fn path(&self) -> Option<&Path> {
+        self.inner.as_ref().map(|i| i.path.as_path())
+    }
+}
+
+/// The writer thread: the open file and the end of the chain.
+struct Writer {
+    cfg: AuditConfig,
+    out: BufWriter<File>,
+    len: u64,
+    seq: u64,
+    prev: String,
+    shared: Arc<Shared>,
+}
+
+/// The body of a line, serialised with its fields in this order.
+#[derive(Serialize)]
+struct Body<'a> {
+    seq: u64,
+    time: &'a str,
+    prev: &'a str,
+    event: &'a Value,
+}
+
+impl Writer {
+    fn run(mut self, rx: Receiver<Value>, gate: Option<Receiver<()>>) {
+        if let Some(gate) = gate {
+            let _ = gate.recv();
+        }
+        while let Ok(first) = rx.recv() {
+            let more = rx.try_iter().take(self.cfg.queue);
+            let batch: Vec<Value> = std::iter::once(first).chain(more).collect();
+            let result = (batch.iter().try_for_each(|event| self.append(event)))
+                .and_then(|()| self.out.flush().map_err(|e| self.reason("write", e)));
+            let mut state = self.shared.lock();
+            match result {
+                Ok(()) => state.written += batch.len() as u64,
+                Err(reason) => state.failed = Some(reason),
+            }
+            let failed = state.failed.is_some();
+            drop(state);
+            self.shared.changed.notify_all();
+            if failed {
+                return; // dropping `rx` makes later records fail
+            }
+        }
+    }
+
+    fn reason(&self, what: &str, e: io::Error) -> String {
+        format!("cannot {what} {}: {e}", self.cfg.path.display())
+    }
+
+    fn append(&mut self, event: &Value) -> Result<(), String> {
+        let (seq, time) = (self.seq + 1, now_utc());
+        let body = Body {
+            seq,
+            time: &time,
+            prev: &self.prev,
+            event,
+        };
+        let body = serde_json::to_string(&body).map_err(|e| format!("cannot serialise: {e}"))?;
+        let hash = sha256_hex(body.as_bytes());
+        let open = body.strip_suffix('}').ok_or("serialised body lacks '}'")?;
+        let line = format!("{open}{HASH_KEY}{hash}\"}}\n");
+        let bytes = line.len() as u64;
+        if self.len > 0 && self.len.saturating_add(bytes) > self.cfg.max_file_bytes {
+            self.rotate()?;
+        }
+        let written = self.out.write_all(line.as_bytes());
+        written.map_err(|e| self.reason("write", e))?;
+        (self.len, self.seq, self.prev) = (self.len + bytes, seq, hash);
+        Ok(())
+    }
+
+    /// `path.(k)` → `path.(k+1)` for k = keep_files-1 … 1, `path` → `path.1`, new `path`.
+    fn rotate(&mut self) -> Result<(), String> {
+        self.out.flush().map_err(|e| self.reason("write", e))?;
+        let (path, keep) = (&self.cfg.path, self.cfg.keep_files);
+        let fail = |p: &Path, e: io::Error| format!("cannot rotate {}: {e}", p.display());
+        let oldest = rotated(path, keep.max(1));
+        match fs::remove_file(&oldest) {
+            Err(e) if e.kind() != io::ErrorKind::NotFound => return Err(fail(&oldest, e)),
+            _ => {}
+        }
+        for k in (1..keep).rev() {
+            let from = rotated(path, k);
+            if from.exists() {
+                fs::rename(&from, rotated(path, k + 1)).map_err(|e| fail(&from, e))?;
+            }
+        }
+        let moved = match keep {
+            0 => fs::remove_file(path),
+            _ => fs::rename(path, rotated(path, 1)),
+        };
+        moved.map_err(|e| fail(path, e))?;
+        self.out = BufWriter::new(open_append(path).map_err(|e| self.reason("open", e))?);
+        self.len = 0;
+        Ok(())
+    }
+}
+
+fn io_err(path: &Path) -> impl FnOnce(io::Error) -> AuditError {
+    let path = path.to_path_buf();
+    move |source| AuditError::Io { path, source }
+}
+
+fn open_append(path: &Path) -> io::Result<File> {
+    OpenOptions::new().create(true).append(true).open(path)
+}
+
+/// `<path>.<k>`, the k-th newest rotated file.
+fn rotated(path: &Path, k: u32) -> PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(format!(".{k}"));
+    PathBuf::from(name)
+}
+
+/// UTC now as RFC 3339 with microseconds, e.g. `2026-11-25T13:40:00.123456Z`.
+fn now_utc() -> String {
+    let t = time::OffsetDateTime::now_utc();
+    let (y, mo, d) = (t.year(), u8::from(t.month()), t.day());
+    let (h, mi, s, us) = (t.hour(), t.minute(), t.second(), t.microsecond());
+    format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{us:06}Z")
+}
+
+/// Lowercase hex SHA-256, written by hand (the digest type need not implement `LowerHex`).
+fn sha256_hex(bytes: &[u8]) -> String {
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    let digest = Sha256::digest(bytes);
+    let hex = digest.iter().flat_map(|b| [b >> 4, b & 15]);
+    hex.map(|nibble| char::from(DIGITS[usize::from(nibble)]))
+        .collect()
+}
+
+fn is_hash(s: &str) -> bool {
+    s.len() == 64 && s.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'))
+}
+
+/// What one line says about the chain.
+struct Entry {
+    seq: u64,
+    prev: String,
+    hash: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(dead_code)] // `time` and `event` are only checked for presence and type
+struct ParsedBody {
+    seq: u64,
+    time: String,
+    prev: String,
+    event: Value,
+}
+
+/// Parses one line (without its `\n`) and checks it against its own hash.
+fn parse_line(bytes: &[u8]) -> Result<Entry, Break> {
+    let bad = |s: &str| Break::NotEntry(s.to_string());
+    let line = std::str::from_utf8(bytes).map_err(|_| bad("not UTF-8"))?;
+    let cut = line.len().saturating_sub(TAIL_LEN);
+    let hash = (line.get(cut..))
+        .and_then(|t| t.strip_prefix(HASH_KEY)?.strip_suffix("\"}"))
+        .filter(|h| is_hash(h))
+        .ok_or_else(|| bad("does not end in ,\"hash\":\"<64 lowercase hex>\"}"))?;
+    let body = format!("{}}}", line.get(..cut).unwrap_or_default());
+    let parsed: ParsedBody = serde_json::from_str(&body).map_err(|e| bad(&e.to_string()))?;
+    let (seq, prev, hash) = (parsed.seq, parsed.prev, hash.to_string());
+    if !is_hash(&prev) {
+        return Err(bad("prev is not 64 lowercase hex digits"));
+    }
+    if sha256_hex(body.as_bytes()) != hash {
+        return Err(Break::Edited);
+    }
+    Ok(Entry { seq, prev, hash })
+}
+
+/// The last line of `path` and whether it ends in `\n`; `None` if the file is missing or empty.
+fn read_tail(path: &Path) -> Result<Option<(Entry, bool)>, AuditError> {
+    let file = match File::open(path) {
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+        other => other.map_err(io_err(path))?,
+    };
+    let mut reader = BufReader::new(file);
+    let (mut buf, mut last, mut line) = (Vec::new(), Vec::new(), 0u64);
+    while reader.read_until(b'\n', &mut buf).map_err(io_err(path))? > 0 {
+        (line, last) = (line + 1, std::mem::take(&mut buf));
+    }
+    if line == 0 {
+        return Ok(None);
+    }
+    let complete = last.ends_with(b"\n");
+    let path = path.to_path_buf();
+    match parse_line(last.strip_suffix(b"\n").unwrap_or(&last)) {
+        Ok(entry) => Ok(Some((entry, complete))),
+        Err(reason) => Err(AuditError::CorruptTail { path, line, reason }),
+    }
+}
+
+/// What [`verify`] found in an unbroken chain.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct VerifyReport {
+    /// Files read.
+    pub files: usize,
+    /// Entries checked.
+    pub entries: u64,
+    /// `seq` of the first entry (0 if there are none).
+    pub first_seq: u64,
+    /// `seq` of the last entry (0 if there are none).
+    pub last_seq: u64,
+    /// The first entry is `seq` 1 with the genesis `prev`. If false the files are a suffix of
+    /// the log, and nothing before their first entry could be checked.
+    pub starts_at_genesis: bool,
+    /// Hash of the last entry (genesis if none); keep it elsewhere to detect truncation later.
+    pub last_hash: String,
+}
+
+/// Why [`verify`] rejects the files.
+#[derive(Debug, thiserror::Error)]
+pub enum VerifyError {
+    /// No files were given.
+    #[error("no audit files given")]
+    NoFiles,
+    /// A file could not be opened or read.
+    #[error("{}: {source}", path.display())]
+    Io { path: PathBuf, source: io::Error },
+    /// The chain is broken at this line (1-based) of this file.
+    #[error("{}: line {line}: {problem}", path.display())]
+    Broken {
+        path: PathBuf,
+        line: u64,
+        problem: Break,
+    },
+}
+
+/// What is wrong with one line of the log.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum Break {
+    /// Not UTF-8, not JSON, or not shaped like an entry.
+    #[error("not a JSON audit entry: {0}")]
+    NotEntry(String),
+    /// The line's bytes do not hash to its `hash`.
+    #[error("hash does not match its content (the line was edited)")]
+    Edited,
+    /// `seq` skips entries.
+    #[error("seq {seq} follows seq {prev_seq} ({} missing)", entries(seq - prev_seq - 1))]
+    Missing { seq: u64, prev_seq: u64 },
+    /// `seq` does not grow.
+    #[error("seq {seq} follows seq {prev_seq} (lines or files reordered or repeated)")]
+    Reordered { seq: u64, prev_seq: u64 },
+    /// `prev` is not the hash of the entry before.
+    #[error("prev hash does not match the previous line's hash (a line was removed or reordered)")]
+    PrevMismatch,
+    /// The first entry has `seq` 0, or `seq` 1 without the genesis `prev`.
+    #[error("seq {seq} cannot start a chain (seq starts at 1, with prev = 64 zeros)")]
+    BadGenesis { seq: u64 },
+}
+
+fn entries(n: u64) -> String {
+    format!("{n} {}", if n == 1 { "entry" } else { "entries" })
+}
+
+/// Checks the hash chain across `paths`, given oldest first (e.g. `audit.jsonl.2
+/// audit.jsonl.1 audit.jsonl`): each line's hash, `seq` growing by exactly 1, and `prev`
+/// linking to the entry before it, also across files.
+pub fn verify(paths: &[PathBuf]) -> Result<VerifyReport, VerifyError> {
+    if paths.is_empty() {
+        return Err(VerifyError::NoFiles);
+    }
+    let mut report = VerifyReport {
+        files: paths.len(),
+        entries: 0,
+        first_seq: 0,
+        last_seq: 0,
+        starts_at_genesis: true,
+        last_hash: GENESIS.into(),
+    };
+    for path in paths {
+        let io = |source| VerifyError::Io {
+            path: path.clone(),
+            source,
+        };
+        let lines = BufReader::new(File::open(path).map_err(io)?).split(b'\n');
+        for (line, bytes) in (1..).zip(lines) {
+            let broken = |problem| VerifyError::Broken {
+                path: path.clone(),
+                line,
+                problem,
+            };
+            let entry = parse_line(&bytes.map_err(io)?).map_err(broken)?;
+            let (seq, prev_seq) = (entry.seq, report.last_seq);
+            let problem = if report.entries == 0 {
+                (report.first_seq, report.starts_at_genesis) = (seq, seq == 1);
+                let bad = seq == 0 || (seq == 1 && entry.prev != GENESIS);
+                bad.then_some(Break::BadGenesis { seq })
+            } else if seq <= prev_seq {
+                Some(Break::Reordered { seq, prev_seq })
+            } else if seq > prev_seq + 1 {
+                Some(Break::Missing { seq, prev_seq })
+            } else {
+                (entry.prev != report.last_hash).then_some(Break::PrevMismatch)
+            };
+            if let Some(problem) = problem {
+                return Err(broken(problem));
+            }
+            (report.entries, report.last_seq) = (report.entries + 1, seq);
+            report.last_hash = entry.hash;
+        }
+    }
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    type Res = Result<(), Box<dyn std::error::Error>>;
+    const WAIT: Duration = Duration::from_secs(10);
+
+    fn config(dir: &tempfile::TempDir, max_file_bytes: u64, queue: usize) -> AuditConfig {
+        let (path, keep_files) = (dir.path().join("log/audit.jsonl"), 3);
+        AuditConfig {
+            path,
+            max_file_bytes,
+            keep_files,
+            queue,
+        }
+    }
+
+    /// Starts a log, records `n` events (waiting when the queue is full) and drops it.
+    fn write_log(cfg: &AuditConfig, n: u64) -> Result<(), AuditError> {
+        let log = AuditLog::start(cfg)?;
+        for i in 0..n {
+            let event = json!({"who": "agent", "tool": "move_to", "args": {"x": i}});
+            if let Err(AuditError::QueueFull { .. }) = log.record(event.clone()) {
+                log.flush(WAIT)?;
+                log.record(event)?;
+            }
+        }
+        log.flush(WAIT)
+    }
+
+    /// Line and problem where verifying `paths` fails.
+    fn broken(paths: &[PathBuf]) -> Option<(u64, Break)> {
+        match verify(paths) {
+            Err(VerifyError::Broken { line, problem, .. }) => Some((line, problem)),
+            _ => None,
+        }
+    }
+
+    #[test]
+    fn entries_verify_from_genesis() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1 << 20, 8);
+        write_log(&cfg, 25)?;
+        let r = verify(std::slice::from_ref(&cfg.path))?;
+        assert_eq!((r.files, r.entries, r.first_seq), (1, 25, 1));
+        assert!(r.starts_at_genesis && r.last_seq == 25);
+        let text = fs::read_to_string(&cfg.path)?;
+        assert!(text.starts_with("{\"seq\":1,\"time\":\"") && text.contains(GENESIS));
+        assert_eq!(AuditLog::start(&cfg)?.path(), Some(cfg.path.as_path()));
+        Ok(())
+    }
+
+    #[test]
+    fn tampering_is_named_by_line() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1 << 20, 8);
+        write_log(&cfg, 10)?;
+        let original = fs::read_to_string(&cfg.path)?;
+        let one = std::slice::from_ref(&cfg.path);
+        let tamper = |edit: &dyn Fn(&mut Vec<String>)| {
+            let mut lines: Vec<String> = original.lines().map(String::from).collect();
+            edit(&mut lines);
+            let text: String = lines.iter().map(|l| format!("{l}\n")).collect();
+            fs::write(&cfg.path, text).map(|()| broken(one))
+        };
+        let (seq, prev_seq) = (6, 4);
+        let deleted = tamper(&|l| drop(l.remove(4)))?;
+        assert_eq!(deleted, Some((5, Break::Missing { seq, prev_seq })));
+        let edited = tamper(&|l| l[6] = l[6].replacen("move_to", "move_tO", 1))?;
+        assert_eq!(edited, Some((7, Break::Edited)));
+        let (seq, prev_seq) = (4, 2);
+        let swapped = tamper(&|l| l.swap(2, 3))?;
+        assert_eq!(swapped, Some((3, Break::Missing { seq, prev_seq })));
+        let garbled = tamper(&|l| l[1] = "{\"seq\": 2".into())?;
+        assert!(matches!(garbled, Some((2, Break::NotEntry(_)))));
+        // Line 2 replaced by one with a correct seq and its own valid hash, but a wrong prev.
+        let prev = "a".repeat(64);
+        let body = format!(r#"{{"seq":2,"time":"t","prev":"{prev}","event":1}}"#);
+        let hash = sha256_hex(body.as_bytes());
+        let forged = format!("{}{HASH_KEY}{hash}\"}}", &body[..body.len() - 1]);
+        let relinked = tamper(&|l| l[1] = forged.clone())?;
+        assert_eq!(relinked, Some((2, Break::PrevMismatch)));
+        let err = verify(one).err().map(|e| e.to_string()).unwrap_or_default();
+        let want = "line 2: prev hash does not match the previous line's hash";
+        assert!(err.contains("audit.jsonl: ") && err.contains(want), "{err}");
+        Ok(())
+    }
+
+    #[test]
+    fn restart_continues_the_chain() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1 << 20, 8);
+        write_log(&cfg, 3)?;
+        write_log(&cfg, 2)?;
+        let r = verify(std::slice::from_ref(&cfg.path))?;
+        assert_eq!((r.entries, r.first_seq, r.last_seq), (5, 1, 5));
+        assert!(r.starts_at_genesis);
+        Ok(())
+    }
+
+    #[test]
+    fn rotation_keeps_a_bounded_number_of_chained_files() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1000, 8);
+        write_log(&cfg, 60)?;
+        assert_eq!(fs::read_dir(dir.path().join("log"))?.count(), 3 + 1);
+        let mut files: Vec<PathBuf> = (1..=3).rev().map(|k| rotated(&cfg.path, k)).collect();
+        files.push(cfg.path.clone());
+        for file in &files {
+            assert!(fs::metadata(file)?.len() <= 1000, "{}", file.display());
+        }
+        let r = verify(&files)?;
+        assert_eq!((r.files, r.last_seq, r.entries), (4, 60, 61 - r.first_seq));
+        assert!(!r.starts_at_genesis, "the oldest entries were rotated away");
+        let newest_first: Vec<PathBuf> = files.iter().rev().cloned().collect();
+        let wrong_order = broken(&newest_first);
+        assert!(matches!(wrong_order, Some((1, Break::Reordered { .. }))));
+        write_log(&cfg, 1)?; // a restart continues from the files on disk
+        assert_eq!(verify(&files[1..])?.last_seq, 61);
+        Ok(())
+    }
+
+    #[test]
+    fn full_queue_refuses_without_blocking() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1 << 20, 2);
+        let (open_gate, gate) = mpsc::channel();
+        let log = AuditLog::start_gated(&cfg, Some(gate))?; // the writer waits for the gate
+        log.record(json!(1))?;
+        log.record(json!(2))?;
+        let err = log.record(json!(3)).err().ok_or("third record accepted")?;
+        assert!(matches!(err, AuditError::QueueFull { capacity: 2 }));
+        let text = "audit log queue full (2 records waiting): motion refused so that";
+        assert!(err.to_string().starts_with(text), "{err}");
+        let late = log.flush(Duration::from_millis(20));
+        assert!(matches!(late, Err(AuditError::FlushTimeout { .. })));
+        open_gate.send(())?;
+        log.flush(WAIT)?;
+        log.record(json!(4))?;
+        log.flush(WAIT)?;
+        assert_eq!(verify(std::slice::from_ref(&cfg.path))?.entries, 3);
+        Ok(())
+    }
+
+    #[test]
+    fn writer_failure_refuses_later_records() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = AuditConfig {
+            keep_files: 1,
+            ..config(&dir, 300, 8)
+        };
+        let log = AuditLog::start(&cfg)?;
+        // A non-empty directory where rotation must delete a file: rotation fails.
+        fs::create_dir_all(rotated(&cfg.path, 1).join("x"))?;
+        for i in 0..5 {
+            let _ = log.record(json!({"i": i, "pad": "x".repeat(100)}));
+        }
+        let err = log.flush(WAIT).err().ok_or("flush succeeded")?;
+        let text = "audit log writer failed: cannot rotate";
+        assert!(err.to_string().starts_with(text), "{err}");
+        let later = log.record(json!(0));
+        assert!(matches!(later, Err(AuditError::WriterFailed { .. })));
+        Ok(())
+    }
+
+    #[test]
+    fn corrupt_last_line_stops_start() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1 << 20, 8);
+        write_log(&cfg, 3)?;
+        let mut file = OpenOptions::new().append(true).open(&cfg.path)?;
+        file.write_all(b"{\"seq\":4,\"garbage\n")?;
+        let err = AuditLog::start(&cfg).err().ok_or("started")?;
+        assert!(matches!(err, AuditError::CorruptTail { line: 4, .. }));
+        let text = "audit.jsonl: line 4: not a JSON audit entry";
+        assert!(err.to_string().contains(text), "{err}");
+        Ok(())
+    }
+
+    #[test]
+    fn control_characters_stay_on_one_line() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1 << 20, 8);
+        let nasty = "a\r\nb\n\u{1b}[2Jc\u{0}d\u{7}";
+        let log = AuditLog::start(&cfg)?;
+        log.record(json!({"reason": nasty}))?;
+        log.record(json!({"ok": true}))?;
+        log.flush(WAIT)?;
+        let text = fs::read_to_string(&cfg.path)?;
+        assert_eq!(text.matches('\n').count(), 2);
+        assert!(!text.contains(['\r', '\u{1b}', '\u{0}', '\u{7}']));
+        let first: Value = serde_json::from_str(text.lines().next().unwrap_or_default())?;
+        assert_eq!(first["event"]["reason"], nasty);
+        assert_eq!(verify(std::slice::from_ref(&cfg.path))?.entries, 2);
+        Ok(())
+    }
+
+    #[test]
+    fn disabled_log_and_bad_config() -> Res {
+        let log = AuditLog::disabled();
+        assert!(log.record(json!({})).is_ok() && log.flush(WAIT).is_ok() && log.path().is_none());
+        let dir = tempfile::tempdir()?;
+        let started = AuditLog::start(&config(&dir, 1000, 0));
+        assert!(matches!(started, Err(AuditError::InvalidConfig { .. })));
+        fn send_sync_clone<T: Send + Sync + Clone>() {}
+        send_sync_clone::<AuditLog>();
+        Ok(())
+    }
+}

@@ -1,0 +1,366 @@
+//! # robotd-safety: the one policy every motion passes
+//!
+//! Whatever asks for a motion — a skill run by an MCP tool, the agent, the Redis edge, an
+//! external actor talking to `arm/command` directly — the arm and gripper actors admit it only
+//! through [`Safety`]:
+//!
+//! 1. **Admission** ([`Safety::admit`]), when the command arrives on the bus: refused while the
+//!    emergency stop is engaged (with its reason), beyond the client's rate limit
+//!    ([`rate`]), or without a human's approval where one is required ([`approval`]). The
+//!    decision is written to the audit log ([`audit`]) before anything moves; if the log
+//!    cannot take the record, the motion is refused.
+//! 2. **Plan check** ([`Safety::check_arm_motion`]), after the arm actor planned the motion:
+//!    every sampled tool position inside the geofence ([`fence`]: workspaces plus a margin,
+//!    table floor, ceiling, reach, keep-out boxes), every joint target inside its limits
+//!    minus a margin, and the speed scale that keeps the tool under the origin's speed and
+//!    acceleration caps ([`path`]). LLM origins get lower caps.
+//! 3. **Outcome** ([`Safety::finish`]): what happened, to the audit log.
+//!
+//! The arm actor accepts only [`Admission`]s, which only this crate can make, so no code path
+//! reaches the arm's driver without passing here. Refusals are [`Violation`]s: the limit's name
+//! and a reason with the values, e.g. "the tool centre would go to z -0.030 m, below the table
+//! floor 0.000 m".
+//!
+//! The emergency stop itself lives in the arm's [`MotionControl`]: engaged from any entry
+//! point through the `safety/estop` topic, it halts the arm within one control tick, survives
+//! restarts of the actors (the control outlives them) and is released only by a release
+//! message, never by a new command.
+
+pub mod approval;
+pub mod audit;
+pub mod config;
+pub mod fence;
+pub mod path;
+pub mod rate;
+
+pub use approval::{ApprovalRequest, Approvals, NotApproved};
+pub use audit::{AuditConfig, AuditError, AuditLog};
+pub use config::{SafetyConfig, SafetyMode};
+pub use fence::{Fence, Violation};
+pub use path::{Caps, MotionCheck};
+
+use robotd_driver::{Motion, MotionControl};
+use robotd_kinematics::Kinematics;
+use robotd_protocol::safety::Origin;
+use robotd_protocol::workspace::WorkspaceSpec;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// A motion the policy let through, carried to the actor that executes it. Only
+/// [`Safety::admit`] makes one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Admission {
+    motion_id: u64,
+    origin: Origin,
+    stop_generation: u64,
+}
+
+impl Admission {
+    /// The motion's number in the audit log.
+    pub fn motion_id(&self) -> u64 {
+        self.motion_id
+    }
+
+    /// Who asked.
+    pub fn origin(&self) -> &Origin {
+        &self.origin
+    }
+
+    /// The arm's stop generation when the command arrived: a stop after that cancels it
+    /// ([`MotionControl::begin_motion`]).
+    pub fn stop_generation(&self) -> u64 {
+        self.stop_generation
+    }
+}
+
+/// The motion policy of one robot. Cheap to clone.
+#[derive(Clone)]
+pub struct Safety {
+    inner: Arc<Inner>,
+}
+
+struct Inner {
+    config: SafetyConfig,
+    fence: Fence,
+    kinematics: Kinematics,
+    control: MotionControl,
+    rates: Mutex<rate::RateLimiter>,
+    approvals: Approvals,
+    audit: AuditLog,
+    next_motion: AtomicU64,
+}
+
+impl std::fmt::Debug for Safety {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Safety")
+            .field("mode", &self.inner.config.mode)
+            .field("fence", &self.inner.fence)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Safety {
+    /// The policy `config` sets, fencing `workspaces` (their rectangles and observation
+    /// poses) and the arm's rest pose, writing to `audit`. `control` is the arm's stop and
+    /// e-stop signals.
+    pub fn new(
+        config: SafetyConfig,
+        kinematics: Kinematics,
+        control: MotionControl,
+        workspaces: &[WorkspaceSpec],
+        audit: AuditLog,
+    ) -> Self {
+        let mut points: Vec<[f64; 2]> = Vec::new();
+        for w in workspaces {
+            points.push(w.upper_left);
+            points.push(w.lower_right);
+            points.push([w.observation_pose[0], w.observation_pose[1]]);
+        }
+        if let Ok(home) = kinematics.tool_pose(&kinematics.home_joints()) {
+            points.push([home.translation.x, home.translation.y]);
+        }
+        let fence = Fence::around(&points, &config, model_reach_m(&kinematics));
+        Self {
+            inner: Arc::new(Inner {
+                config,
+                fence,
+                kinematics,
+                control,
+                rates: Mutex::default(),
+                approvals: Approvals::default(),
+                audit,
+                next_motion: AtomicU64::new(1),
+            }),
+        }
+    }
+
+    /// Opens the audit log `config.audit` names (or none when disabled); an empty path means
+    /// `audit.jsonl` in `log_dir` (robotd's log directory).
+    pub fn open_audit(
+        config: &SafetyConfig,
+        log_dir: &std::path::Path,
+    ) -> Result<AuditLog, AuditError> {
+        if !config.audit.enabled {
+            return Ok(AuditLog::disabled());
+        }
+        let path = match config.audit.path.trim() {
+            "" => log_dir.join("audit.jsonl"),
+            path => path.into(),
+        };
+        AuditLog::start(&AuditConfig {
+            path,
+            max_file_bytes: config.audit.max_file_bytes,
+            keep_files: config.audit.keep_files,
+            queue: config.audit.queue,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SafetyConfig {
+        &self.inner.config
+    }
+
+    /// The geofence.
+    pub fn fence(&self) -> &Fence {
+        &self.inner.fence
+    }
+
+    /// The approval queue.
+    pub fn approvals(&self) -> &Approvals {
+        &self.inner.approvals
+    }
+
+    /// The audit log.
+    pub fn audit(&self) -> &AuditLog {
+        &self.inner.audit
+    }
+
+    /// The e-stop's reason while it is engaged.
+    pub fn estop(&self) -> Option<String> {
+        let control = &self.inner.control;
+        control.estop_engaged().then(|| control.estop_reason())
+    }
+
+    /// The speed and acceleration caps of `origin`.
+    pub fn caps(&self, origin: &Origin) -> Caps {
+        let c = &self.inner.config;
+        if origin.is_llm() {
+            Caps {
+                speed_m_s: c.llm_max_tcp_speed_m_s,
+                acceleration_m_s2: c.llm_max_tcp_acceleration_m_s2,
+            }
+        } else {
+            Caps {
+                speed_m_s: c.max_tcp_speed_m_s,
+                acceleration_m_s2: c.max_tcp_acceleration_m_s2,
+            }
+        }
+    }
+
+    /// Whether `tool` must wait for a human's approval.
+    pub fn needs_approval(&self, tool: &str) -> bool {
+        self.inner.config.mode == SafetyMode::Supervised
+            || self.inner.config.approval_tools.iter().any(|t| t == tool)
+    }
+
+    /// For a motion tool: waits for a human's approval when `tool` needs one. `Ok(Some(id))`
+    /// once approved (put the id in the work's origin, and [`Approvals::finish`] it when the
+    /// work ends), `Ok(None)` when no approval is needed.
+    pub async fn approve_tool(
+        &self,
+        origin: &Origin,
+        tool: &str,
+        summary: &str,
+    ) -> Result<Option<u64>, Violation> {
+        if !self.needs_approval(tool) {
+            return Ok(None);
+        }
+        self.ask_approval(origin, tool, summary).await.map(Some)
+    }
+
+    async fn ask_approval(
+        &self,
+        origin: &Origin,
+        action: &str,
+        summary: &str,
+    ) -> Result<u64, Violation> {
+        let timeout = Duration::from_secs(self.inner.config.approval_timeout_s);
+        self.inner
+            .approvals
+            .ask(origin, action, summary, timeout)
+            .await
+            .map_err(|e| Violation {
+                limit: "approval",
+                reason: format!("{action} needs a human's approval: {e}; nothing moved"),
+            })
+    }
+
+    /// Admits a motion command of `actor` (`"arm"`, `"gripper"`) from `origin`, or refuses it.
+    /// `action` names the command, `arguments` are recorded in the audit log.
+    pub async fn admit(
+        &self,
+        origin: &Origin,
+        actor: &'static str,
+        action: &str,
+        arguments: serde_json::Value,
+    ) -> Result<Admission, Violation> {
+        let motion_id = self.inner.next_motion.fetch_add(1, Ordering::Relaxed);
+        let stop_generation = self.inner.control.stop_generation();
+        let decision = self.decide(origin, action).await;
+        let mut record = serde_json::json!({
+            "event": "admission",
+            "motion": motion_id,
+            "actor": actor,
+            "action": action,
+            "origin": origin,
+            "arguments": arguments,
+        });
+        match decision {
+            Ok(()) => {
+                record["decision"] = "admitted".into();
+                self.inner.audit.record(record).map_err(|e| Violation {
+                    limit: "audit",
+                    reason: e.to_string(),
+                })?;
+                Ok(Admission {
+                    motion_id,
+                    origin: origin.clone(),
+                    stop_generation,
+                })
+            }
+            Err(violation) => {
+                record["decision"] = "refused".into();
+                record["limit"] = violation.limit.into();
+                record["reason"] = violation.reason.clone().into();
+                if let Err(error) = self.inner.audit.record(record) {
+                    tracing::error!(%error, "could not record a refused motion");
+                }
+                tracing::warn!(%origin, actor, action, limit = violation.limit, reason = %violation.reason, "motion refused");
+                Err(violation)
+            }
+        }
+    }
+
+    async fn decide(&self, origin: &Origin, action: &str) -> Result<(), Violation> {
+        self.check_estop()?;
+        if self.inner.config.mode == SafetyMode::Supervised
+            && !self.inner.approvals.is_granted(origin.approval_id)
+        {
+            self.ask_approval(origin, action, &format!("{action} from {origin}"))
+                .await?;
+            self.check_estop()?;
+        }
+        let per_minute = if origin.is_llm() {
+            self.inner.config.llm_motions_per_minute
+        } else {
+            self.inner.config.motions_per_minute
+        };
+        self.inner
+            .rates
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .admit(origin, per_minute, Instant::now())
+            .map_err(|reason| Violation {
+                limit: "rate",
+                reason,
+            })
+    }
+
+    fn check_estop(&self) -> Result<(), Violation> {
+        match self.estop() {
+            Some(reason) => Err(Violation {
+                limit: "estop",
+                reason: format!("emergency stop engaged: {reason}; release it (release_emergency_stop) before moving"),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Checks the planned `motion` of an admitted arm command from joints `start`: the
+    /// geofence at every sampled tool position, joint limits with the margin, and the speed
+    /// scale under the origin's caps.
+    pub fn check_arm_motion(
+        &self,
+        admission: &Admission,
+        start: &[f64],
+        motion: &Motion,
+    ) -> Result<MotionCheck, Violation> {
+        self.check_estop()?;
+        path::check_motion(
+            &self.inner.kinematics,
+            &self.inner.fence,
+            self.inner.config.joint_margin_rad,
+            start,
+            motion,
+            self.caps(&admission.origin),
+        )
+    }
+
+    /// Records how an admitted motion ended (`Err` with the reason when it failed).
+    pub fn finish(&self, admission: &Admission, outcome: Result<(), String>) {
+        let mut record = serde_json::json!({
+            "event": "outcome",
+            "motion": admission.motion_id,
+        });
+        match outcome {
+            Ok(()) => record["outcome"] = "done".into(),
+            Err(reason) => {
+                record["outcome"] = "failed".into();
+                record["reason"] = reason.into();
+            }
+        }
+        if let Err(error) = self.inner.audit.record(record) {
+            tracing::error!(%error, motion = admission.motion_id, "could not record a motion's outcome");
+        }
+    }
+}
+
+/// How far the tool centre can get from the base axis: the makers' stated reach (Ned2
+/// 440 mm, WidowX 250 s 650 mm).
+fn model_reach_m(kinematics: &Kinematics) -> f64 {
+    match kinematics.model() {
+        robotd_protocol::RobotModel::Ned2 => 0.44,
+        robotd_protocol::RobotModel::WidowX250 => 0.65,
+    }
+}

@@ -1,0 +1,213 @@
+//! The safety API on the HTTP port: the emergency stop and the approval queue.
+//!
+//! | route | does |
+//! |---|---|
+//! | `GET /estop` | `{"engaged": bool, "reason": …}` |
+//! | `POST /estop` | engages the e-stop (body optional: `{"reason": "…"}`); the arm halts within one control tick |
+//! | `POST /estop/release` | releases it; the body must be `{"confirm": "release"}` (a deliberate act, never a side effect) |
+//! | `GET /approvals` | motions waiting for a human's yes, oldest first |
+//! | `POST /approvals/{id}` | `{"approve": true\|false, "by": "name"}` answers one |
+//!
+//! Engaging and releasing go through the bus topic `safety/estop`, like every other entry
+//! point (MCP tools, `robotd estop`, bus clients), so all of them act the same way. The
+//! routes sit behind the same guard as the MCP edge (bearer token off loopback, Origin
+//! checks).
+
+use axum::body::Bytes;
+use axum::extract::{Path, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use robotd_protocol::health::EmergencyStop;
+use robotd_runtime::bus::Publisher;
+use robotd_safety::Safety;
+use serde::Deserialize;
+use std::sync::{Arc, Mutex};
+
+/// What the safety routes need.
+#[derive(Clone)]
+pub struct SafetyApi {
+    /// The motion policy (e-stop state, approvals).
+    pub safety: Safety,
+    /// `safety/estop` publisher.
+    pub estop: Arc<Mutex<Publisher<EmergencyStop>>>,
+}
+
+/// The routes above, over `api`.
+pub fn router(api: SafetyApi) -> Router {
+    Router::new()
+        .route("/estop", get(estop_state).post(engage))
+        .route("/estop/release", post(release))
+        .route("/approvals", get(approvals))
+        .route("/approvals/{id}", post(answer))
+        .with_state(api)
+}
+
+/// A refusal: the status and a message a user can act on, as `{"error": …}`.
+struct ApiError(StatusCode, String);
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.0, Json(serde_json::json!({"error": self.1}))).into_response()
+    }
+}
+
+fn error(status: StatusCode, message: impl Into<String>) -> ApiError {
+    ApiError(status, message.into())
+}
+
+/// Reads an optional JSON body of type `T` (empty = `T::default()`).
+fn body<T: for<'de> Deserialize<'de> + Default>(bytes: &Bytes) -> Result<T, ApiError> {
+    if bytes.iter().all(u8::is_ascii_whitespace) {
+        return Ok(T::default());
+    }
+    serde_json::from_slice(bytes).map_err(|e| {
+        error(
+            StatusCode::BAD_REQUEST,
+            format!("the body is not the expected JSON: {e}"),
+        )
+    })
+}
+
+fn state(api: &SafetyApi) -> serde_json::Value {
+    let reason = api.safety.estop();
+    serde_json::json!({"engaged": reason.is_some(), "reason": reason})
+}
+
+async fn estop_state(State(api): State<SafetyApi>) -> Response {
+    Json(state(&api)).into_response()
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EngageBody {
+    reason: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReleaseBody {
+    confirm: Option<String>,
+    by: Option<String>,
+}
+
+/// Publishes `estop`; how many receivers (arms) took it.
+fn publish(api: &SafetyApi, estop: &EmergencyStop) -> Result<usize, ApiError> {
+    let publisher = api.estop.lock().unwrap_or_else(|e| e.into_inner());
+    match publisher.publish(estop) {
+        Ok(0) => Err(error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "no arm is listening on safety/estop (is the arm actor running?)",
+        )),
+        Ok(n) => Ok(n),
+        Err(e) => Err(error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!("the e-stop could not be sent: {e}"),
+        )),
+    }
+}
+
+async fn engage(State(api): State<SafetyApi>, bytes: Bytes) -> Response {
+    let body: EngageBody = match body(&bytes) {
+        Ok(b) => b,
+        Err(r) => return r.into_response(),
+    };
+    // No control characters (they would forge log lines), at most 500 characters.
+    let reason: String = body
+        .reason
+        .unwrap_or_default()
+        .chars()
+        .filter(|c| !c.is_control())
+        .take(500)
+        .collect();
+    let reason = match reason.trim() {
+        "" => "engaged over HTTP".to_owned(),
+        text => text.to_owned(),
+    };
+    let estop = EmergencyStop {
+        engaged: true,
+        reason: reason.clone(),
+        source: "http".into(),
+    };
+    if let Err(r) = publish(&api, &estop) {
+        return r.into_response();
+    }
+    tracing::warn!(%reason, "emergency stop engaged over HTTP");
+    Json(serde_json::json!({"engaged": true, "reason": estop.reason})).into_response()
+}
+
+async fn release(State(api): State<SafetyApi>, bytes: Bytes) -> Response {
+    let body: ReleaseBody = match body(&bytes) {
+        Ok(b) => b,
+        Err(r) => return r.into_response(),
+    };
+    if body.confirm.as_deref() != Some("release") {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "releasing the emergency stop is a deliberate act: send {\"confirm\": \"release\"}",
+        )
+        .into_response();
+    }
+    let by: String = body
+        .by
+        .unwrap_or_else(|| "http".into())
+        .chars()
+        .filter(|c| !c.is_control())
+        .take(100)
+        .collect();
+    let estop = EmergencyStop {
+        engaged: false,
+        reason: format!("released by {by}"),
+        source: "http".into(),
+    };
+    if let Err(r) = publish(&api, &estop) {
+        return r.into_response();
+    }
+    Json(serde_json::json!({"engaged": false, "reason": estop.reason})).into_response()
+}
+
+async fn approvals(State(api): State<SafetyApi>) -> Response {
+    Json(api.safety.approvals().pending()).into_response()
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AnswerBody {
+    approve: Option<bool>,
+    by: Option<String>,
+}
+
+async fn answer(State(api): State<SafetyApi>, Path(id): Path<String>, bytes: Bytes) -> Response {
+    let Ok(id) = id.parse::<u64>() else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            format!("'{id}' is not an approval id (a number from GET /approvals)"),
+        )
+        .into_response();
+    };
+    let body: AnswerBody = match body(&bytes) {
+        Ok(b) => b,
+        Err(r) => return r.into_response(),
+    };
+    let Some(approve) = body.approve else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "say {\"approve\": true} or {\"approve\": false}",
+        )
+        .into_response();
+    };
+    let by: String = body
+        .by
+        .unwrap_or_else(|| "http".into())
+        .chars()
+        .filter(|c| !c.is_control())
+        .take(100)
+        .collect();
+    match api.safety.approvals().answer(id, approve, &by) {
+        Ok(()) => {
+            Json(serde_json::json!({"id": id, "approved": approve, "by": by})).into_response()
+        }
+        Err(e) => error(StatusCode::NOT_FOUND, e.to_string()).into_response(),
+    }
+}

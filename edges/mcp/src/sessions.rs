@@ -1,0 +1,260 @@
+//! Stopping what a client started when the client goes away.
+//!
+//! A motion tool call must not outlive its caller. Besides `notifications/cancelled`
+//! (handled by rmcp through the call's own cancellation token), a call is cancelled when:
+//!
+//! - its **session closes**: the legacy SSE stream is dropped, or a streamable-HTTP client
+//!   sends `DELETE /mcp`;
+//! - its **HTTP connection drops** before the answer was sent (streamable HTTP answers each
+//!   `POST /mcp` on its own response stream; dropping that stream early is a cancel).
+//!
+//! [`CallScopes`] keeps one cancellation token per open session and per running request;
+//! the MCP service cancels a tool call when any of them fires. [`ClosingSessions`] wraps rmcp's
+//! in-memory session manager to fire them for streamable HTTP; the SSE transport fires its
+//! session's token when its event stream is dropped.
+
+use futures::Stream;
+use rmcp::model::{ClientJsonRpcMessage, JsonRpcMessage, ServerJsonRpcMessage};
+use rmcp::transport::streamable_http_server::session::local::LocalSessionManager;
+use rmcp::transport::streamable_http_server::session::ServerSseMessage;
+use rmcp::transport::streamable_http_server::{SessionId, SessionManager};
+use std::collections::HashMap;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex};
+use std::task::{Context, Poll};
+use tokio_util::sync::CancellationToken;
+
+/// Cancellation tokens of open sessions and running requests.
+#[derive(Debug, Default)]
+pub struct CallScopes {
+    sessions: Mutex<HashMap<String, CancellationToken>>,
+    requests: Mutex<HashMap<(String, String), CancellationToken>>,
+}
+
+impl CallScopes {
+    /// The token of session `id`, cancelled when the session closes.
+    pub fn session(&self, id: &str) -> CancellationToken {
+        lock(&self.sessions)
+            .entry(id.to_owned())
+            .or_default()
+            .clone()
+    }
+
+    /// The token of session `id` while it is open.
+    pub fn find_session(&self, id: &str) -> Option<CancellationToken> {
+        lock(&self.sessions).get(id).cloned()
+    }
+
+    /// The token of a running `request` of `session`, if its response stream is open.
+    pub fn find_request(&self, session: &str, request: &str) -> Option<CancellationToken> {
+        lock(&self.requests)
+            .get(&(session.to_owned(), request.to_owned()))
+            .cloned()
+    }
+
+    /// The session closed: cancel everything it started.
+    pub fn close_session(&self, id: &str) {
+        if let Some(token) = lock(&self.sessions).remove(id) {
+            token.cancel();
+        }
+        lock(&self.requests).retain(|(session, _), token| {
+            if session == id {
+                token.cancel();
+                false
+            } else {
+                true
+            }
+        });
+    }
+
+    /// The token of `request` in `session`, cancelled when its connection drops early.
+    pub fn request(&self, session: &str, request: &str) -> CancellationToken {
+        lock(&self.requests)
+            .entry((session.to_owned(), request.to_owned()))
+            .or_default()
+            .clone()
+    }
+
+    /// `request` was answered (or abandoned, with `cancel`): forget its token.
+    fn end_request(&self, session: &str, request: &str, cancel: bool) {
+        if let Some(token) = lock(&self.requests).remove(&(session.to_owned(), request.to_owned()))
+        {
+            if cancel {
+                token.cancel();
+            }
+        }
+    }
+
+    /// Forgets the tokens of sessions `alive` says are gone.
+    fn prune(&self, alive: impl Fn(&str) -> bool) {
+        let gone: Vec<String> = lock(&self.sessions)
+            .keys()
+            .filter(|id| !alive(id))
+            .cloned()
+            .collect();
+        for id in gone {
+            self.close_session(&id);
+        }
+    }
+
+    /// Open sessions and running requests tracked (for tests and metrics).
+    pub fn len(&self) -> (usize, usize) {
+        (lock(&self.sessions).len(), lock(&self.requests).len())
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// rmcp's in-memory session manager, firing [`CallScopes`] when a session closes or a
+/// request's response stream is dropped before its answer.
+pub struct ClosingSessions {
+    inner: LocalSessionManager,
+    scopes: Arc<CallScopes>,
+}
+
+impl ClosingSessions {
+    /// Sessions tracked in `scopes`.
+    pub fn new(scopes: Arc<CallScopes>) -> Self {
+        Self {
+            inner: LocalSessionManager::default(),
+            scopes,
+        }
+    }
+}
+
+impl SessionManager for ClosingSessions {
+    type Error = <LocalSessionManager as SessionManager>::Error;
+    type Transport = <LocalSessionManager as SessionManager>::Transport;
+
+    async fn create_session(&self) -> Result<(SessionId, Self::Transport), Self::Error> {
+        // Sessions that ended without DELETE (timed out) leave tokens behind: drop them here.
+        let open: Vec<String> = lock(&self.scopes.sessions).keys().cloned().collect();
+        let mut alive = Vec::with_capacity(open.len());
+        for id in open {
+            if self
+                .inner
+                .has_session(&SessionId::from(id.as_str()))
+                .await?
+            {
+                alive.push(id);
+            }
+        }
+        self.scopes.prune(|id| alive.iter().any(|a| a == id));
+        let (id, transport) = self.inner.create_session().await?;
+        self.scopes.session(&id);
+        Ok((id, transport))
+    }
+
+    async fn initialize_session(
+        &self,
+        id: &SessionId,
+        message: ClientJsonRpcMessage,
+    ) -> Result<ServerJsonRpcMessage, Self::Error> {
+        self.inner.initialize_session(id, message).await
+    }
+
+    async fn has_session(&self, id: &SessionId) -> Result<bool, Self::Error> {
+        self.inner.has_session(id).await
+    }
+
+    async fn close_session(&self, id: &SessionId) -> Result<(), Self::Error> {
+        tracing::debug!(session = %id, "MCP session closed by the client: cancelling its calls");
+        self.scopes.close_session(id);
+        self.inner.close_session(id).await
+    }
+
+    async fn create_stream(
+        &self,
+        id: &SessionId,
+        message: ClientJsonRpcMessage,
+    ) -> Result<impl Stream<Item = ServerSseMessage> + Send + Sync + 'static, Self::Error> {
+        let request = match &message {
+            JsonRpcMessage::Request(r) => Some(r.id.to_string()),
+            _ => None,
+        };
+        if let Some(request) = &request {
+            // Created before the request reaches the handler, which looks it up.
+            self.scopes.request(id, request);
+        }
+        let inner = self.inner.create_stream(id, message).await?;
+        Ok(AnswerStream {
+            inner: Box::pin(inner),
+            scopes: self.scopes.clone(),
+            session: id.to_string(),
+            request,
+            answered: false,
+        })
+    }
+
+    async fn accept_message(
+        &self,
+        id: &SessionId,
+        message: ClientJsonRpcMessage,
+    ) -> Result<(), Self::Error> {
+        self.inner.accept_message(id, message).await
+    }
+
+    async fn create_standalone_stream(
+        &self,
+        id: &SessionId,
+    ) -> Result<impl Stream<Item = ServerSseMessage> + Send + Sync + 'static, Self::Error> {
+        self.inner.create_standalone_stream(id).await
+    }
+
+    async fn resume(
+        &self,
+        id: &SessionId,
+        last_event_id: String,
+    ) -> Result<impl Stream<Item = ServerSseMessage> + Send + Sync + 'static, Self::Error> {
+        self.inner.resume(id, last_event_id).await
+    }
+}
+
+type BoxedSse = Pin<Box<dyn Stream<Item = ServerSseMessage> + Send + Sync>>;
+
+/// The response stream of one request: dropped before the answer went through, it cancels
+/// the request.
+struct AnswerStream {
+    inner: BoxedSse,
+    scopes: Arc<CallScopes>,
+    session: String,
+    request: Option<String>,
+    answered: bool,
+}
+
+impl Stream for AnswerStream {
+    type Item = ServerSseMessage;
+
+    fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
+        let polled = self.inner.as_mut().poll_next(cx);
+        match &polled {
+            Poll::Ready(Some(item)) => {
+                let answers = item.message.as_deref().and_then(|m| match m {
+                    JsonRpcMessage::Response(r) => Some(r.id.to_string()),
+                    JsonRpcMessage::Error(e) => e.id.as_ref().map(|id| id.to_string()),
+                    _ => None,
+                });
+                if answers.is_some() && answers == self.request {
+                    self.answered = true;
+                }
+            }
+            Poll::Ready(None) => self.answered = true,
+            Poll::Pending => {}
+        }
+        polled
+    }
+}
+
+impl Drop for AnswerStream {
+    fn drop(&mut self) {
+        if let Some(request) = &self.request {
+            if !self.answered {
+                tracing::info!(session = %self.session, %request, "MCP client dropped the connection before the answer: cancelling the call");
+            }
+            self.scopes
+                .end_request(&self.session, request, !self.answered);
+        }
+    }
+}

@@ -1,0 +1,185 @@
+//! `robotd bench safety`: what the motion policy adds to every motion command, beside the
+//! planning the arm actor does for the same command anyway.
+//!
+//! For random tool-down targets over the workspace, timed in the same loop: planning
+//! (inverse kinematics, and for straight paths the dense waypoints) — the bare command's own
+//! cost — then the policy's admission (e-stop, rate limit, audit record) with the audit log
+//! off and on (writing to a temporary file), and the plan check (geofence at every sampled
+//! tool position, joint margins, speed caps). Nothing moves: the simulated arm stays at rest.
+
+use super::Latency;
+use anyhow::{Context, Result};
+use robotd_arm::{plan, ArmContext};
+use robotd_driver::MotionControl;
+use robotd_kinematics::Kinematics;
+use robotd_protocol::arm::PathKind;
+use robotd_protocol::geometry::{Pose, RobotModel};
+use robotd_protocol::safety::{Origin, OriginKind};
+use robotd_safety::{Safety, SafetyConfig};
+use serde::Serialize;
+use std::time::{Duration, Instant};
+
+/// Everything `robotd bench safety` measures (µs per motion command).
+#[derive(Debug, Clone, Serialize)]
+pub struct SafetyFigures {
+    /// Planning a joint move (IK), the bare cost.
+    pub plan_joint: Latency,
+    /// Planning a straight-line move (dense waypoints).
+    pub plan_linear: Latency,
+    /// Admission with the audit log off.
+    pub admit: Latency,
+    /// Admission with the audit log writing to a file.
+    pub admit_audited: Latency,
+    /// Plan check of a joint move.
+    pub check_joint: Latency,
+    /// Plan check of a straight-line move.
+    pub check_linear: Latency,
+    /// Motion commands per variant.
+    pub commands: usize,
+}
+
+impl SafetyFigures {
+    /// The human-readable table.
+    pub fn table(&self) -> String {
+        let row =
+            |name: &str, l: &Latency| format!("{name:<44}{:>8.1} {:>8.1}\n", l.p50_us, l.p99_us);
+        let mut out = format!(
+            "{:<44}{:>8} {:>8}   ({} commands each; target: policy ≤ 50 µs added)\n",
+            "per motion command", "p50 µs", "p99 µs", self.commands
+        );
+        out += &row("bare: plan a joint move (IK)", &self.plan_joint);
+        out += &row("bare: plan a straight move (waypoints)", &self.plan_linear);
+        out += &row("policy: admission, audit off", &self.admit);
+        out += &row("policy: admission, audit to a file", &self.admit_audited);
+        out += &row("policy: check a joint move", &self.check_joint);
+        out += &row("policy: check a straight move", &self.check_linear);
+        out
+    }
+}
+
+/// Runs the measurement over `commands` random targets.
+pub fn run(commands: usize) -> Result<SafetyFigures> {
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    let robot = robotd_config::Config::default().robot;
+    let sim = robotd_driver_sim::open(&robot).context("the simulator")?;
+    let kinematics = Kinematics::new(RobotModel::Ned2);
+    let control = MotionControl::default();
+    let config = SafetyConfig {
+        motions_per_minute: 0,
+        llm_motions_per_minute: 0,
+        ..SafetyConfig::default()
+    };
+    let dir = tempfile::tempdir().context("a temporary directory for the audit log")?;
+    let mut audited = config.clone();
+    audited.audit.path = dir.path().join("audit.jsonl").display().to_string();
+    let workspaces = robot.workspaces();
+    let make = |config: &SafetyConfig| -> Result<Safety> {
+        let audit = Safety::open_audit(config, dir.path())?;
+        Ok(Safety::new(
+            config.clone(),
+            kinematics.clone(),
+            control.clone(),
+            &workspaces,
+            audit,
+        ))
+    };
+    let mut quiet = config;
+    quiet.audit.enabled = false;
+    let safety = make(&quiet)?;
+    let safety_audited = make(&audited)?;
+    let context = ArmContext {
+        driver: sim.drivers.arm.clone(),
+        kinematics: kinematics.clone(),
+        control: control.clone(),
+        observation_poses: Vec::new(),
+        safety: safety.clone(),
+    };
+    let start = sim.robot.joints();
+    let origin = Origin::new(OriginKind::Mcp).session("bench");
+    let mut seed: u64 = 0x0BE7_C4AF;
+    let mut unit = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut samples: [Vec<Duration>; 6] = Default::default();
+    let mut done = 0;
+    let mut tries = 0;
+    while done < commands && tries < commands * 20 {
+        tries += 1;
+        let target = Pose::new(
+            0.17 + 0.16 * unit(),
+            -0.08 + 0.16 * unit(),
+            0.03 + 0.15 * unit(),
+            0.0,
+            std::f64::consts::FRAC_PI_2,
+            0.0,
+        );
+        let t = Instant::now();
+        let Ok(joint) = plan(&context, target, PathKind::Joint) else {
+            continue;
+        };
+        let plan_joint = t.elapsed();
+        let t = Instant::now();
+        let Ok(linear) = plan(&context, target, PathKind::Linear) else {
+            continue;
+        };
+        let plan_linear = t.elapsed();
+        let arguments = serde_json::json!({"kind": "move_to_pose", "target": target});
+        let t = Instant::now();
+        let admission = runtime
+            .block_on(safety.admit(&origin, "arm", "move_to_pose", arguments.clone()))
+            .map_err(|v| anyhow::anyhow!("{v}"))?;
+        let admit = t.elapsed();
+        let t = Instant::now();
+        let audited_admission = runtime
+            .block_on(safety_audited.admit(&origin, "arm", "move_to_pose", arguments))
+            .map_err(|v| anyhow::anyhow!("{v}"))?;
+        let admit_audited = t.elapsed();
+        let t = Instant::now();
+        let check_joint = safety.check_arm_motion(&admission, &start, &joint);
+        let check_joint_time = t.elapsed();
+        let t = Instant::now();
+        let check_linear = safety.check_arm_motion(&admission, &start, &linear);
+        let check_linear_time = t.elapsed();
+        if check_joint.is_err() || check_linear.is_err() {
+            continue;
+        }
+        safety_audited.finish(&audited_admission, Ok(()));
+        for (i, d) in [
+            plan_joint,
+            plan_linear,
+            admit,
+            admit_audited,
+            check_joint_time,
+            check_linear_time,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            samples[i].push(d);
+        }
+        done += 1;
+    }
+    if done == 0 {
+        anyhow::bail!("no target inside the workspace could be planned and checked");
+    }
+    safety_audited
+        .audit()
+        .flush(Duration::from_secs(10))
+        .context("flushing the benchmark's audit log")?;
+    let [a, b, c, d, e, f] = &mut samples;
+    Ok(SafetyFigures {
+        plan_joint: Latency::of(a),
+        plan_linear: Latency::of(b),
+        admit: Latency::of(c),
+        admit_audited: Latency::of(d),
+        check_joint: Latency::of(e),
+        check_linear: Latency::of(f),
+        commands: done,
+    })
+}

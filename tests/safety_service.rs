@@ -1,0 +1,480 @@
+//! The motion policy of a served robotd, from outside its process: a bus client cannot move
+//! the arm past the limits, the e-stop engages from every entry point and stays engaged until
+//! a deliberate release, approvals hold motions until a human answers, closing an MCP session
+//! stops the motion it started, a cancelled call that waits its turn never runs, and the
+//! audit log's chain detects a deleted or edited line.
+
+mod common;
+
+use rmcp::model::{CallToolRequest, CallToolRequestParams, ClientRequest};
+use rmcp::service::PeerRequestOptions;
+use robotd_mcp::client::{connect, McpClient};
+use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, ArmState};
+use robotd_protocol::diagnostics::{SimObjectState, SimWorldRequest};
+use robotd_protocol::geometry::Pose;
+use robotd_protocol::health::EmergencyStop;
+use robotd_runtime::bus::{Bus, BusOptions, Client, Subscriber};
+use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP, SIM_WORLD};
+use serde_json::{json, Value};
+use std::time::{Duration, Instant};
+
+const TIMEOUT: Duration = Duration::from_secs(30);
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+fn down(x: f64, y: f64, z: f64) -> Pose {
+    Pose::new(x, y, z, 0.0, std::f64::consts::FRAC_PI_2, 0.0)
+}
+
+async fn text(client: &McpClient, tool: &str, args: Value) -> String {
+    let mut params = CallToolRequestParams::new(tool.to_owned());
+    if let Value::Object(map) = args {
+        params = params.with_arguments(map);
+    }
+    let result = client.call_tool(params).await.unwrap();
+    result.content[0].as_text().unwrap().text.clone()
+}
+
+/// Waits for the next `arm/state` with `moving == want`.
+async fn until_moving(states: &mut Subscriber<ArmState>, want: bool, within: Duration) -> ArmState {
+    let deadline = Instant::now() + within;
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let state = tokio::time::timeout(left, states.recv())
+            .await
+            .unwrap_or_else(|_| panic!("the arm never had moving = {want}"))
+            .unwrap()
+            .body;
+        if state.moving == want {
+            return state;
+        }
+    }
+}
+
+async fn pose(arm: &Client<ArmCommand, ArmReply>) -> Pose {
+    match arm.request(&ArmCommand::GetPose, TIMEOUT).await.unwrap() {
+        ArmReply::Ok { pose } => pose,
+        other => panic!("{other:?}"),
+    }
+}
+
+async fn world(bus: &Bus) -> Vec<SimObjectState> {
+    bus.client(&SIM_WORLD)
+        .unwrap()
+        .request(&SimWorldRequest {}, TIMEOUT)
+        .await
+        .unwrap()
+        .objects
+}
+
+fn robotd_cli(namespace: &str, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["--namespace", namespace])
+        .args(args)
+        .output()
+        .expect("run robotd")
+}
+
+#[test]
+fn a_bus_client_elsewhere_cannot_pass_the_limits_and_the_estop_latches_from_every_entry_point() {
+    let namespace = common::fresh_namespace("safety");
+    let port = common::free_port();
+    let dir = tempfile::tempdir().unwrap();
+    let audit = dir.path().join("audit.jsonl");
+    let _robotd = common::start_robotd(
+        &namespace,
+        port,
+        &[
+            "--set",
+            "robot.time_scale=1.0",
+            "--set",
+            &format!("safety.audit.path={}", audit.display()),
+        ],
+    );
+    runtime().block_on(async {
+        let bus = Bus::open(BusOptions::new(&namespace, "safety-test")).unwrap();
+        let arm = bus.client(&ARM_COMMAND).unwrap();
+        let mut states = bus.subscriber(&ARM_STATE).unwrap();
+        let estop = bus.publisher(&SAFETY_ESTOP).unwrap();
+        let mcp = connect(&format!("http://127.0.0.1:{port}/mcp"), None)
+            .await
+            .unwrap();
+
+        // This test process is a bus client of its own: the policy holds for it.
+        let before = pose(&arm).await;
+        let reply = arm
+            .request(&ArmCommand::move_to(down(0.25, 0.0, -0.03)), TIMEOUT)
+            .await
+            .unwrap();
+        assert_eq!(
+            reply.into_result().unwrap_err().to_string(),
+            "refused by the safety policy: the tool centre would go to z -0.030 m, below the table floor 0.000 m"
+        );
+        let reply = arm
+            .request(&ArmCommand::move_to(down(0.20, 0.25, 0.10)), TIMEOUT)
+            .await
+            .unwrap();
+        match reply.into_result().unwrap_err() {
+            ArmError::Refused { limit, reason } => {
+                assert_eq!(limit, "fence", "{reason}");
+                assert!(reason.contains("outside the geofence"), "{reason}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(pose(&arm).await, before, "a refused motion moved the arm");
+
+        // Engage from each entry point during a motion; release from another.
+        let entries = ["bus", "http", "mcp", "cli"];
+        let targets = [down(0.33, 0.08, 0.05), down(0.18, -0.08, 0.05)];
+        for (i, entry) in entries.iter().enumerate() {
+            let motion = {
+                let arm = bus.client(&ARM_COMMAND).unwrap();
+                let target = targets[i % 2];
+                tokio::spawn(async move { arm.request(&ArmCommand::move_to(target), TIMEOUT).await })
+            };
+            until_moving(&mut states, true, Duration::from_secs(10)).await;
+            let engaged = Instant::now();
+            match *entry {
+                "bus" => {
+                    estop
+                        .publish(&EmergencyStop {
+                            engaged: true,
+                            reason: "test from the bus".into(),
+                            source: "test".into(),
+                        })
+                        .unwrap();
+                }
+                "http" => {
+                    let (status, body) = common::http_request(
+                        port,
+                        "POST",
+                        "/estop",
+                        &[("Content-Type", "application/json")],
+                        br#"{"reason": "test over HTTP"}"#,
+                    );
+                    assert_eq!(status, 200, "{body}");
+                }
+                "mcp" => {
+                    let t = text(&mcp, "emergency_stop", json!({"reason": "test over MCP"})).await;
+                    assert!(t.starts_with("✓ Emergency stop engaged: test over MCP"), "{t}");
+                }
+                _ => {
+                    let out = robotd_cli(&namespace, &["estop", "test from the CLI"]);
+                    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+                }
+            }
+            let reply = motion.await.unwrap().unwrap();
+            let stopped_after = engaged.elapsed();
+            eprintln!("e-stop from {entry}: motion answered {stopped_after:?} after the entry point returned");
+            assert!(
+                matches!(reply, ArmReply::Error { error: ArmError::EStopped { .. } }),
+                "{entry}: {reply:?}"
+            );
+            let held = pose(&arm).await;
+            // Engaged: every motion is refused, and a new motion never releases it.
+            for _ in 0..2 {
+                let refused = arm
+                    .request(&ArmCommand::move_to(down(0.25, 0.0, 0.10)), TIMEOUT)
+                    .await
+                    .unwrap();
+                assert!(
+                    matches!(refused, ArmReply::Error { error: ArmError::EStopped { .. } }),
+                    "{refused:?}"
+                );
+            }
+            assert_eq!(pose(&arm).await, held, "the arm moved while e-stopped");
+            let (_, health) = common::http_get(port, "/health");
+            let health: Value = serde_json::from_str(&health).unwrap();
+            assert_eq!(health["safety"]["estop"]["engaged"], true, "{health}");
+            let status = text(&mcp, "get_system_status", json!({})).await;
+            assert!(status.contains("\"estop_engaged\": true"), "{status}");
+            // A release must be deliberate.
+            let (status, body) = common::http_request(port, "POST", "/estop/release", &[], b"{}");
+            assert_eq!(status, 400, "{body}");
+            let t = text(&mcp, "release_emergency_stop", json!({"confirm": "yes"})).await;
+            assert!(t.starts_with("❌ Validation Error in release_emergency_stop"), "{t}");
+            match (i + 1) % 4 {
+                0 => {
+                    estop
+                        .publish(&EmergencyStop {
+                            engaged: false,
+                            reason: "test over".into(),
+                            source: "test".into(),
+                        })
+                        .unwrap();
+                }
+                1 => {
+                    let (status, body) = common::http_request(
+                        port,
+                        "POST",
+                        "/estop/release",
+                        &[],
+                        br#"{"confirm": "release", "by": "the test"}"#,
+                    );
+                    assert_eq!(status, 200, "{body}");
+                }
+                2 => {
+                    let t = text(&mcp, "release_emergency_stop", json!({"confirm": "release"})).await;
+                    assert!(t.starts_with('✓'), "{t}");
+                }
+                _ => {
+                    let out = robotd_cli(&namespace, &["estop", "--release"]);
+                    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+                }
+            }
+            // Released: motions run again (the release reaches the arm through the bus).
+            let deadline = Instant::now() + Duration::from_secs(5);
+            loop {
+                let reply = arm
+                    .request(&ArmCommand::move_to(down(0.25, 0.0, 0.12)), TIMEOUT)
+                    .await
+                    .unwrap();
+                match reply {
+                    ArmReply::Ok { .. } => break,
+                    ArmReply::Error { error: ArmError::EStopped { .. } } if Instant::now() < deadline => {
+                        tokio::time::sleep(Duration::from_millis(20)).await;
+                    }
+                    other => panic!("after the release: {other:?}"),
+                }
+            }
+        }
+        mcp.cancel().await.unwrap();
+    });
+
+    // The audit log recorded all of it, in an unbroken chain; a deleted or edited line shows.
+    let verify =
+        |file: &std::path::Path| robotd_cli("unused", &["audit", "verify", file.to_str().unwrap()]);
+    let mut ok = verify(&audit);
+    for _ in 0..50 {
+        if ok.status.success() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+        ok = verify(&audit);
+    }
+    let report = String::from_utf8_lossy(&ok.stdout).to_string();
+    assert!(ok.status.success(), "{report}");
+    assert!(report.starts_with("ok: "), "{report}");
+    let content = std::fs::read_to_string(&audit).unwrap();
+    let lines: Vec<&str> = content.lines().collect();
+    assert!(lines.len() >= 20, "{} audit lines", lines.len());
+    assert!(
+        content.contains("\"decision\":\"refused\""),
+        "refusals are recorded"
+    );
+    assert!(content.contains("\"limit\":\"floor\""));
+    let deleted = dir.path().join("deleted.jsonl");
+    let mut kept = lines.clone();
+    kept.remove(5);
+    std::fs::write(&deleted, kept.join("\n") + "\n").unwrap();
+    let out = verify(&deleted);
+    let said = String::from_utf8_lossy(&out.stdout).to_string();
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(said.contains("line 6"), "{said}");
+    let edited = dir.path().join("edited.jsonl");
+    let mut changed: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    changed[3] = changed[3].replacen("\"arm\"", "\"gripper\"", 1);
+    assert_ne!(changed[3], lines[3], "the edit must change the line");
+    std::fs::write(&edited, changed.join("\n") + "\n").unwrap();
+    let out = verify(&edited);
+    let said = String::from_utf8_lossy(&out.stdout).to_string();
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(said.contains("line 4") && said.contains("edited"), "{said}");
+}
+
+fn pick_pencil() -> Value {
+    json!({"object_name": "pencil", "pick_coordinate": [0.22, -0.05]})
+}
+
+fn pencil(world: &[SimObjectState]) -> SimObjectState {
+    world.iter().find(|o| o.label == "pencil").unwrap().clone()
+}
+
+/// Asks for the pick on its own task; returns the task.
+fn spawn_call(
+    client: std::sync::Arc<McpClient>,
+    tool: &'static str,
+    args: Value,
+) -> tokio::task::JoinHandle<String> {
+    tokio::spawn(async move { text(&client, tool, args).await })
+}
+
+/// Waits until an approval is waiting; returns its id.
+async fn waiting_approval(port: u16) -> u64 {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let (status, body) = common::http_get(port, "/approvals");
+        assert_eq!(status, 200, "{body}");
+        let list: Value = serde_json::from_str(&body).unwrap();
+        if let Some(first) = list.as_array().and_then(|l| l.first()) {
+            assert_eq!(first["action"], "pick_object", "{first}");
+            return first["id"].as_u64().unwrap();
+        }
+        assert!(Instant::now() < deadline, "no approval request appeared");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+#[test]
+fn an_approval_tool_moves_only_after_a_human_said_yes() {
+    let namespace = common::fresh_namespace("approval");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(
+        &namespace,
+        port,
+        &[
+            "--set",
+            "safety.approval_tools=[\"pick_object\"]",
+            "--set",
+            "safety.approval_timeout_s=2",
+        ],
+    );
+    runtime().block_on(async {
+        let bus = Bus::open(BusOptions::new(&namespace, "approval-test")).unwrap();
+        let arm = bus.client(&ARM_COMMAND).unwrap();
+        let client = std::sync::Arc::new(
+            connect(&format!("http://127.0.0.1:{port}/sse"), None)
+                .await
+                .unwrap(),
+        );
+        let start_world = world(&bus).await;
+        let start_pose = pose(&arm).await;
+
+        // Denied: refused, nothing moved.
+        let call = spawn_call(client.clone(), "pick_object", pick_pencil());
+        let id = waiting_approval(port).await;
+        let (status, body) = common::http_request(
+            port,
+            "POST",
+            &format!("/approvals/{id}"),
+            &[],
+            br#"{"approve": false, "by": "the operator"}"#,
+        );
+        assert_eq!(status, 200, "{body}");
+        let t = call.await.unwrap();
+        assert_eq!(
+            t,
+            "❌ Failed to pick 'pencil': pick_object needs a human's approval: denied by the operator; nothing moved"
+        );
+        assert_eq!(world(&bus).await, start_world);
+        assert_eq!(pose(&arm).await, start_pose);
+
+        // Nobody answers: refused after the timeout, nothing moved.
+        let t = text(&client, "pick_object", pick_pencil()).await;
+        assert_eq!(
+            t,
+            "❌ Failed to pick 'pencil': pick_object needs a human's approval: nobody approved it within 2 s; nothing moved"
+        );
+        assert_eq!(world(&bus).await, start_world);
+        assert_eq!(pose(&arm).await, start_pose);
+
+        // Approved: it runs.
+        let call = spawn_call(client.clone(), "pick_object", pick_pencil());
+        let id = waiting_approval(port).await;
+        let (status, body) = common::http_request(
+            port,
+            "POST",
+            &format!("/approvals/{id}"),
+            &[],
+            br#"{"approve": true, "by": "the operator"}"#,
+        );
+        assert_eq!(status, 200, "{body}");
+        let t = call.await.unwrap();
+        assert!(t.starts_with('✓'), "{t}");
+        assert!(pencil(&world(&bus).await).held, "the approved pick did not pick");
+        // An answered request cannot be answered again.
+        let (status, _) = common::http_request(
+            port,
+            "POST",
+            &format!("/approvals/{id}"),
+            &[],
+            br#"{"approve": true}"#,
+        );
+        assert_eq!(status, 404);
+    });
+}
+
+#[test]
+fn closing_the_session_stops_its_motion_and_a_cancelled_call_never_runs_later() {
+    let namespace = common::fresh_namespace("deadman");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=1.0"]);
+    runtime().block_on(async {
+        let bus = Bus::open(BusOptions::new(&namespace, "deadman-test")).unwrap();
+        let mut states = bus.subscriber(&ARM_STATE).unwrap();
+        for url in ["sse", "mcp"] {
+            let client = connect(&format!("http://127.0.0.1:{port}/{url}"), None)
+                .await
+                .unwrap();
+            let request = ClientRequest::CallToolRequest(CallToolRequest::new(
+                CallToolRequestParams::new("pick_object")
+                    .with_arguments(pick_pencil().as_object().cloned().unwrap()),
+            ));
+            let _handle = client
+                .peer()
+                .send_cancellable_request(request, PeerRequestOptions::no_options())
+                .await
+                .unwrap();
+            until_moving(&mut states, true, Duration::from_secs(20)).await;
+            let closed = Instant::now();
+            client.cancel().await.unwrap();
+            until_moving(&mut states, false, Duration::from_secs(3)).await;
+            eprintln!(
+                "{url}: the arm came to rest {:?} after the session closed",
+                closed.elapsed()
+            );
+            tokio::time::sleep(Duration::from_millis(1500)).await;
+            while let Ok(Some(state)) = states.try_recv() {
+                assert!(
+                    !state.body.moving,
+                    "{url}: the arm moved again after the session closed"
+                );
+            }
+        }
+
+        // Two clients: the second call waits behind the first, is cancelled while waiting,
+        // and never runs.
+        let first = std::sync::Arc::new(
+            connect(&format!("http://127.0.0.1:{port}/sse"), None)
+                .await
+                .unwrap(),
+        );
+        let second = connect(&format!("http://127.0.0.1:{port}/sse"), None)
+            .await
+            .unwrap();
+        let before = world(&bus).await;
+        let running = spawn_call(
+            first.clone(),
+            "pick_object",
+            json!({"object_name": "red cube", "pick_coordinate": [0.28, 0.04]}),
+        );
+        let request = ClientRequest::CallToolRequest(CallToolRequest::new(
+            CallToolRequestParams::new("pick_object")
+                .with_arguments(pick_pencil().as_object().cloned().unwrap()),
+        ));
+        let waiting = second
+            .peer()
+            .send_cancellable_request(request, PeerRequestOptions::no_options())
+            .await
+            .unwrap();
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        waiting
+            .cancel(Some("changed my mind".into()))
+            .await
+            .unwrap();
+        let _ = running.await.unwrap();
+        // Give the cancelled call every chance to run if it were going to.
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        assert!(
+            !pencil(&world(&bus).await).held,
+            "the cancelled pick ran later"
+        );
+        assert_eq!(pencil(&world(&bus).await), pencil(&before));
+    });
+}
