@@ -1,26 +1,36 @@
 //! `robotd estop [REASON]` and `robotd estop --release`: the emergency stop from a terminal.
 //!
 //! Sends on the running robotd's bus topic `safety/estop`, the same path as the MCP tools
-//! and `POST /estop`; the arm halts within one control tick. Releasing is its own flag, never
-//! a side effect. Fails (exit 2) when no arm listens on the configured bus namespace.
+//! and `POST /estop`; the arm halts within one control tick. Returns once the arm reports the
+//! new state on `arm/state`. Releasing is its own flag, never a side effect. Fails when no arm
+//! listens on the configured bus namespace or none confirms.
 
 use anyhow::{bail, Context, Result};
 use robotd_config::Config;
 use robotd_protocol::health::EmergencyStop;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::SAFETY_ESTOP;
+use robotd_runtime::catalog::{ARM_STATE, SAFETY_ESTOP};
 use std::time::{Duration, Instant};
 
-/// How long to wait for robotd's arm to be connected to the new publisher.
-const CONNECT_WAIT: Duration = Duration::from_secs(2);
+/// How long to wait for robotd's arm to confirm the new e-stop state on `arm/state`.
+const CONFIRM_WAIT: Duration = Duration::from_secs(5);
 
 /// Engages (or, with `release`, releases) the e-stop of the robotd on `config`'s bus.
 pub fn run(config: &Config, reason: Option<&str>, release: bool) -> Result<String> {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?
+        .block_on(send(config, reason, release))
+}
+
+async fn send(config: &Config, reason: Option<&str>, release: bool) -> Result<String> {
     let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd-estop"))
         .with_context(|| format!("joining the bus '{}'", config.bus.namespace))?;
     let publisher = bus
         .publisher(&SAFETY_ESTOP)
         .context("opening safety/estop")?;
+    let mut states = bus.subscriber(&ARM_STATE).context("opening arm/state")?;
     let user = std::env::var("USER").unwrap_or_else(|_| "a terminal user".into());
     let reason: String = match (release, reason) {
         (true, _) => format!("released by {user} (robotd estop --release)"),
@@ -36,23 +46,39 @@ pub fn run(config: &Config, reason: Option<&str>, release: bool) -> Result<Strin
         reason: reason.clone(),
         source: "cli".into(),
     };
-    // A new publisher may need a moment to see the running service's subscriber.
+    // A new publisher may need a moment to see the running service's subscriber, and a sample
+    // lives in this process's shared memory: send until the arm reports the new state.
     let started = Instant::now();
-    loop {
-        let delivered = publisher.publish(&estop).context("sending the e-stop")?;
-        if delivered > 0 {
-            let what = if release { "released" } else { "engaged" };
-            return Ok(format!(
-                "emergency stop {what} on bus '{}': {reason}",
-                config.bus.namespace
-            ));
+    let mut delivered_once = false;
+    while started.elapsed() < CONFIRM_WAIT {
+        if publisher.publish(&estop).context("sending the e-stop")? > 0 {
+            delivered_once = true;
         }
-        if started.elapsed() > CONNECT_WAIT {
-            bail!(
-                "no robotd arm listens on bus namespace '{}' (is robotd serve running with this namespace?)",
-                config.bus.namespace
-            );
+        let until = tokio::time::Instant::now() + Duration::from_millis(500);
+        loop {
+            match tokio::time::timeout_at(until, states.recv()).await {
+                Ok(Ok(state)) if state.body.estop_engaged != release => {
+                    let what = if release { "released" } else { "engaged" };
+                    return Ok(format!(
+                        "emergency stop {what} on bus '{}': {reason}",
+                        config.bus.namespace
+                    ));
+                }
+                Ok(Ok(_)) => {}
+                Ok(Err(error)) => bail!("reading arm/state: {error}"),
+                Err(_) => break,
+            }
         }
-        std::thread::sleep(Duration::from_millis(20));
     }
+    if delivered_once {
+        bail!(
+            "the e-stop was sent on bus '{}' but the arm did not confirm it within {} s; check /health",
+            config.bus.namespace,
+            CONFIRM_WAIT.as_secs()
+        )
+    }
+    bail!(
+        "no robotd arm listens on bus namespace '{}' (is robotd serve running with this namespace?)",
+        config.bus.namespace
+    )
 }

@@ -278,6 +278,9 @@ pub struct ArmState {
     pub collision_detected: bool,
     /// Whether the arm is calibrated.
     pub calibrated: bool,
+    /// Whether the emergency stop is engaged (absent from older senders: not engaged).
+    #[serde(default)]
+    pub estop_engaged: bool,
 }
 
 impl Message for ArmState {

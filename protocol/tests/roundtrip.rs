@@ -161,14 +161,16 @@ fn arm_state() -> impl Strategy<Value = ArmState> {
         any::<bool>(),
         any::<bool>(),
         any::<bool>(),
+        any::<bool>(),
     )
         .prop_map(
-            |(joints, tool_pose, moving, collision_detected, calibrated)| ArmState {
+            |(joints, tool_pose, moving, collision_detected, calibrated, estop_engaged)| ArmState {
                 joints,
                 tool_pose,
                 moving,
                 collision_detected,
                 calibrated,
+                estop_engaged,
             },
         )
 }

@@ -36,6 +36,15 @@ pub struct SafetyFigures {
     pub check_linear: Latency,
     /// Motion commands per variant.
     pub commands: usize,
+    /// E-stop published on `safety/estop` (the path of every entry point) until the simulated
+    /// arm's joints last changed, over `estop_trials` stops of a running motion.
+    pub estop_to_standstill: Latency,
+    /// Worst of the same, µs.
+    pub estop_to_standstill_max_us: f64,
+    /// One control tick of the simulated arm, µs (the target).
+    pub control_tick_us: f64,
+    /// E-stops measured.
+    pub estop_trials: usize,
 }
 
 impl SafetyFigures {
@@ -53,6 +62,15 @@ impl SafetyFigures {
         out += &row("policy: admission, audit to a file", &self.admit_audited);
         out += &row("policy: check a joint move", &self.check_joint);
         out += &row("policy: check a straight move", &self.check_linear);
+        out += &format!(
+            "\n{:<44}{:>8.0} {:>8.0}   (max {:.0} µs; one control tick = {:.0} µs; {} stops)\n",
+            "e-stop on the bus → arm at a standstill",
+            self.estop_to_standstill.p50_us,
+            self.estop_to_standstill.p99_us,
+            self.estop_to_standstill_max_us,
+            self.control_tick_us,
+            self.estop_trials
+        );
         out
     }
 }
@@ -149,7 +167,7 @@ pub fn run(commands: usize) -> Result<SafetyFigures> {
         if check_joint.is_err() || check_linear.is_err() {
             continue;
         }
-        safety_audited.finish(&audited_admission, Ok(()));
+        safety_audited.finish(&audited_admission, robotd_safety::Outcome::Done);
         for (i, d) in [
             plan_joint,
             plan_linear,
@@ -172,8 +190,17 @@ pub fn run(commands: usize) -> Result<SafetyFigures> {
         .audit()
         .flush(Duration::from_secs(10))
         .context("flushing the benchmark's audit log")?;
+    let (mut stops, control_tick) = runtime.block_on(estop_latencies(20))?;
+    let estop_to_standstill_max_us = stops
+        .iter()
+        .map(|d| d.as_secs_f64() * 1e6)
+        .fold(0.0, f64::max);
     let [a, b, c, d, e, f] = &mut samples;
     Ok(SafetyFigures {
+        estop_trials: stops.len(),
+        estop_to_standstill: Latency::of(&mut stops),
+        estop_to_standstill_max_us,
+        control_tick_us: control_tick.as_secs_f64() * 1e6,
         plan_joint: Latency::of(a),
         plan_linear: Latency::of(b),
         admit: Latency::of(c),
@@ -182,4 +209,79 @@ pub fn run(commands: usize) -> Result<SafetyFigures> {
         check_linear: Latency::of(f),
         commands: done,
     })
+}
+
+/// Stops `trials` running motions of the simulated arm with an e-stop on the bus; for each,
+/// the time from the publish to the joints' last change. Also returns the control tick.
+async fn estop_latencies(trials: usize) -> Result<(Vec<Duration>, Duration)> {
+    use robotd_protocol::arm::ArmCommand;
+    use robotd_protocol::health::EmergencyStop;
+    use robotd_runtime::catalog::{ARM_COMMAND, SAFETY_ESTOP};
+    let mut config = robotd_config::Config::default();
+    config.bus.namespace = format!("bench-estop-{}", std::process::id());
+    config.robot.time_scale = 1.0;
+    config.safety.audit.enabled = false;
+    let bus = robotd_runtime::bus::Bus::open(robotd_runtime::bus::BusOptions::new(
+        &config.bus.namespace,
+        "robotd-bench",
+    ))?;
+    let hardware = robotd_robot::Hardware::start(&bus, &config, |_| {
+        robotd_runtime::supervision::observer_fn(
+            |_: &robotd_runtime::supervision::SupervisionEvent| {},
+        )
+    })
+    .await?;
+    let sim = hardware
+        .sim
+        .clone()
+        .context("the benchmark needs the simulated arm")?;
+    let estop = bus.publisher(&SAFETY_ESTOP)?;
+    let down = |x, y| Pose::new(x, y, 0.05, 0.0, std::f64::consts::FRAC_PI_2, 0.0);
+    let targets = [down(0.33, 0.08), down(0.18, -0.08)];
+    let mut out = Vec::with_capacity(trials);
+    for i in 0..trials {
+        let arm = bus.client(&ARM_COMMAND)?;
+        let target = targets[i % 2];
+        let motion = tokio::spawn(async move {
+            arm.request(&ArmCommand::move_to(target), Duration::from_secs(30))
+                .await
+        });
+        // Let it get going: stop it somewhere along the way.
+        let before = sim.joints();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while sim.joints() == before && Instant::now() < deadline {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+        tokio::time::sleep(Duration::from_millis(100 + 13 * (i as u64 % 7))).await;
+        let sent = Instant::now();
+        estop.publish(&EmergencyStop {
+            engaged: true,
+            reason: "robotd bench safety".into(),
+            source: "bench".into(),
+        })?;
+        let mut last = sim.joints();
+        let mut last_change = sent;
+        while sent.elapsed() < Duration::from_millis(300) {
+            let now = sim.joints();
+            if now != last {
+                last_change = Instant::now();
+                last = now;
+            }
+            tokio::time::sleep(Duration::from_micros(200)).await;
+        }
+        out.push(last_change - sent);
+        let _ = motion.await;
+        estop.publish(&EmergencyStop {
+            engaged: false,
+            reason: "bench: next trial".into(),
+            source: "bench".into(),
+        })?;
+        let released = Instant::now() + Duration::from_secs(5);
+        while hardware.safety.estop().is_some() && Instant::now() < released {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    }
+    let tick = config.robot.control_period();
+    hardware.shutdown().await;
+    Ok((out, tick))
 }

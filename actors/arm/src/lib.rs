@@ -30,7 +30,7 @@ use robotd_protocol::validate::Validate;
 use robotd_runtime::bus::{BusError, Fault, Publisher, Server, Subscriber};
 use robotd_runtime::host::fault_from;
 use robotd_runtime::supervision::Supervised;
-use robotd_safety::{Admission, Safety};
+use robotd_safety::{Admission, Outcome, Safety};
 use std::convert::Infallible;
 use std::sync::Arc;
 use std::time::Duration;
@@ -91,6 +91,7 @@ impl ArmContext {
             moving: flags.moving,
             collision_detected: flags.collision_detected,
             calibrated: flags.calibrated,
+            estop_engaged: self.control.estop_engaged(),
         })
     }
 
@@ -447,10 +448,20 @@ pub async fn admit_and_run(
         })
         .await
         .map_err(fault_from);
-    let outcome = match &reply {
-        Ok(ArmReply::Error { error }) => Err(error.to_string()),
-        Ok(_) => Ok(()),
-        Err(fault) => Err(fault.to_string()),
+    let text = match &reply {
+        Ok(ArmReply::Error { error }) => Some(error.to_string()),
+        Ok(_) => None,
+        Err(fault) => Some(fault.to_string()),
+    };
+    let outcome = match (&reply, &text) {
+        (
+            Ok(ArmReply::Error {
+                error: ArmError::Refused { limit, reason },
+            }),
+            _,
+        ) => Outcome::Refused { limit, reason },
+        (_, Some(reason)) => Outcome::Failed { reason },
+        (_, None) => Outcome::Done,
     };
     safety.finish(&admission, outcome);
     reply
@@ -483,7 +494,7 @@ fn command_kind(command: &ArmCommand) -> &'static str {
 }
 
 /// Publishes the arm's state on `arm/state`: every `period` while it moves, about once a
-/// second while it rests. Runs until the publisher fails.
+/// second while it rests, and at the next tick after the e-stop was engaged or released. Runs until the publisher fails.
 pub async fn publish_arm_state(
     publisher: Publisher<ArmState>,
     context: ArmContext,
@@ -494,11 +505,14 @@ pub async fn publish_arm_state(
     let idle_every = (Duration::from_secs(1).as_secs_f64() / period.as_secs_f64()).ceil() as u64;
     let mut ticks: u64 = 0;
     let mut was_moving = false;
+    let mut was_estopped = false;
     loop {
         ticker.tick().await;
         ticks += 1;
         let moving = context.driver.flags().moving;
-        if moving || was_moving || ticks.is_multiple_of(idle_every.max(1)) {
+        let estop = context.control.estop_engaged();
+        if moving || was_moving || estop != was_estopped || ticks.is_multiple_of(idle_every.max(1))
+        {
             match context.state() {
                 Ok(state) => {
                     publisher.publish(&state)?;
@@ -507,6 +521,7 @@ pub async fn publish_arm_state(
             }
         }
         was_moving = moving;
+        was_estopped = estop;
     }
 }
 

@@ -15,7 +15,7 @@ use robotd_protocol::validate::Validate;
 use robotd_runtime::bus::{BusError, Publisher, Server};
 use robotd_runtime::host::fault_from;
 use robotd_runtime::supervision::Supervised;
-use robotd_safety::Safety;
+use robotd_safety::{Outcome, Safety};
 use std::convert::Infallible;
 use std::sync::Arc;
 use tracing::Instrument;
@@ -134,10 +134,14 @@ pub async fn serve_gripper(
                 }
             };
             let reply = actor.ask(command).await.map_err(fault_from);
-            let outcome = match &reply {
-                Ok(GripperReply::Error { error }) => Err(error.to_string()),
-                Ok(_) => Ok(()),
-                Err(fault) => Err(fault.to_string()),
+            let failure = match &reply {
+                Ok(GripperReply::Error { error }) => Some(error.to_string()),
+                Ok(_) => None,
+                Err(fault) => Some(fault.to_string()),
+            };
+            let outcome = match &failure {
+                Some(reason) => Outcome::Failed { reason },
+                None => Outcome::Done,
             };
             safety.finish(&admission, outcome);
             reply

@@ -75,6 +75,7 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
         moving: true,
         collision_detected: false,
         calibrated: true,
+        estop_engaged: false,
     };
     arm.publish(&state).unwrap();
     tokio::time::sleep(Duration::from_millis(20)).await;

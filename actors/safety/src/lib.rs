@@ -337,15 +337,20 @@ impl Safety {
         )
     }
 
-    /// Records how an admitted motion ended (`Err` with the reason when it failed).
-    pub fn finish(&self, admission: &Admission, outcome: Result<(), String>) {
+    /// Records how an admitted motion ended.
+    pub fn finish(&self, admission: &Admission, outcome: Outcome<'_>) {
         let mut record = serde_json::json!({
             "event": "outcome",
             "motion": admission.motion_id,
         });
         match outcome {
-            Ok(()) => record["outcome"] = "done".into(),
-            Err(reason) => {
+            Outcome::Done => record["outcome"] = "done".into(),
+            Outcome::Refused { limit, reason } => {
+                record["outcome"] = "refused".into();
+                record["limit"] = limit.into();
+                record["reason"] = reason.into();
+            }
+            Outcome::Failed { reason } => {
                 record["outcome"] = "failed".into();
                 record["reason"] = reason.into();
             }
@@ -354,6 +359,25 @@ impl Safety {
             tracing::error!(%error, motion = admission.motion_id, "could not record a motion's outcome");
         }
     }
+}
+
+/// How an admitted motion ended, for the audit log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome<'a> {
+    /// It did what was asked.
+    Done,
+    /// The plan check refused it (nothing moved).
+    Refused {
+        /// The limit's short name.
+        limit: &'a str,
+        /// Why.
+        reason: &'a str,
+    },
+    /// It failed (collision, stop, driver error).
+    Failed {
+        /// Why.
+        reason: &'a str,
+    },
 }
 
 /// How far the tool centre can get from the base axis: the makers' stated reach (Ned2

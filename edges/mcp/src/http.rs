@@ -231,7 +231,9 @@ async fn open_sse(State(state): State<SseState>) -> Response {
         inner: Box::pin(futures::stream::once(async move { Ok(endpoint) }).chain(messages)),
     };
     Sse::new(stream)
-        .keep_alive(KeepAlive::new().interval(Duration::from_secs(15)))
+        // A comment every second: the server only learns that a client went away when a
+        // write fails, and the calls of a client that went away must stop soon.
+        .keep_alive(KeepAlive::new().interval(Duration::from_secs(1)))
         .into_response()
 }
 
