@@ -8,6 +8,7 @@
 use anyhow::{bail, Context, Result};
 use robotd_config::Config;
 use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::safety::printable;
 use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_runtime::catalog::{ARM_STATE, SAFETY_ESTOP};
 use std::time::{Duration, Instant};
@@ -32,15 +33,14 @@ async fn send(config: &Config, reason: Option<&str>, release: bool) -> Result<St
         .context("opening safety/estop")?;
     let mut states = bus.subscriber(&ARM_STATE).context("opening arm/state")?;
     let user = std::env::var("USER").unwrap_or_else(|_| "a terminal user".into());
-    let reason: String = match (release, reason) {
-        (true, _) => format!("released by {user} (robotd estop --release)"),
-        (false, Some(text)) if !text.trim().is_empty() => text.to_owned(),
-        (false, _) => format!("engaged by {user} (robotd estop)"),
-    }
-    .chars()
-    .filter(|c| !c.is_control())
-    .take(500)
-    .collect();
+    let reason = printable(
+        &match (release, reason) {
+            (true, _) => format!("released by {user} (robotd estop --release)"),
+            (false, Some(text)) if !text.trim().is_empty() => text.to_owned(),
+            (false, _) => format!("engaged by {user} (robotd estop)"),
+        },
+        500,
+    );
     let estop = EmergencyStop {
         engaged: !release,
         reason: reason.clone(),

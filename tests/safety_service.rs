@@ -333,6 +333,19 @@ fn spawn_call(
     tokio::spawn(async move { text(&client, tool, args).await })
 }
 
+/// Answers approval `id` as "the operator".
+fn answer(port: u16, id: u64, approve: bool) {
+    let body = format!(r#"{{"approve": {approve}, "by": "the operator"}}"#);
+    let (status, reply) = common::http_request(
+        port,
+        "POST",
+        &format!("/approvals/{id}"),
+        &[],
+        body.as_bytes(),
+    );
+    assert_eq!(status, 200, "{reply}");
+}
+
 /// Waits until an approval is waiting; returns its id.
 async fn waiting_approval(port: u16) -> u64 {
     let deadline = Instant::now() + Duration::from_secs(20);
@@ -377,14 +390,7 @@ fn an_approval_tool_moves_only_after_a_human_said_yes() {
         // Denied: refused, nothing moved.
         let call = spawn_call(client.clone(), "pick_object", pick_pencil());
         let id = waiting_approval(port).await;
-        let (status, body) = common::http_request(
-            port,
-            "POST",
-            &format!("/approvals/{id}"),
-            &[],
-            br#"{"approve": false, "by": "the operator"}"#,
-        );
-        assert_eq!(status, 200, "{body}");
+        answer(port, id, false);
         let t = call.await.unwrap();
         assert_eq!(
             t,
@@ -405,14 +411,7 @@ fn an_approval_tool_moves_only_after_a_human_said_yes() {
         // Approved: it runs.
         let call = spawn_call(client.clone(), "pick_object", pick_pencil());
         let id = waiting_approval(port).await;
-        let (status, body) = common::http_request(
-            port,
-            "POST",
-            &format!("/approvals/{id}"),
-            &[],
-            br#"{"approve": true, "by": "the operator"}"#,
-        );
-        assert_eq!(status, 200, "{body}");
+        answer(port, id, true);
         let t = call.await.unwrap();
         assert!(t.starts_with('✓'), "{t}");
         assert!(pencil(&world(&bus).await).held, "the approved pick did not pick");

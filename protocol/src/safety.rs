@@ -141,8 +141,19 @@ impl fmt::Display for Origin {
     }
 }
 
+/// `text` without control characters (CR, LF, ESC… would forge log lines), at most `max`
+/// characters: for the reasons and names people give the e-stop and approvals.
+pub fn printable(text: &str, max: usize) -> String {
+    text.chars().filter(|c| !c.is_control()).take(max).collect()
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn printable_text_has_no_control_characters() {
+        assert_eq!(super::printable("a\r\nb\u{1b}[31mc\0", 4), "ab[3");
+    }
+
     use super::*;
 
     #[test]

@@ -20,6 +20,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::safety::printable;
 use robotd_runtime::bus::Publisher;
 use robotd_safety::Safety;
 use serde::Deserialize;
@@ -113,14 +114,7 @@ async fn engage(State(api): State<SafetyApi>, bytes: Bytes) -> Response {
         Ok(b) => b,
         Err(r) => return r.into_response(),
     };
-    // No control characters (they would forge log lines), at most 500 characters.
-    let reason: String = body
-        .reason
-        .unwrap_or_default()
-        .chars()
-        .filter(|c| !c.is_control())
-        .take(500)
-        .collect();
+    let reason = printable(body.reason.as_deref().unwrap_or_default(), 500);
     let reason = match reason.trim() {
         "" => "engaged over HTTP".to_owned(),
         text => text.to_owned(),
@@ -149,13 +143,7 @@ async fn release(State(api): State<SafetyApi>, bytes: Bytes) -> Response {
         )
         .into_response();
     }
-    let by: String = body
-        .by
-        .unwrap_or_else(|| "http".into())
-        .chars()
-        .filter(|c| !c.is_control())
-        .take(100)
-        .collect();
+    let by = printable(body.by.as_deref().unwrap_or("http"), 100);
     let estop = EmergencyStop {
         engaged: false,
         reason: format!("released by {by}"),
@@ -197,13 +185,7 @@ async fn answer(State(api): State<SafetyApi>, Path(id): Path<String>, bytes: Byt
         )
         .into_response();
     };
-    let by: String = body
-        .by
-        .unwrap_or_else(|| "http".into())
-        .chars()
-        .filter(|c| !c.is_control())
-        .take(100)
-        .collect();
+    let by = printable(body.by.as_deref().unwrap_or("http"), 100);
     match api.safety.approvals().answer(id, approve, &by) {
         Ok(()) => {
             Json(serde_json::json!({"id": id, "approved": approve, "by": by})).into_response()

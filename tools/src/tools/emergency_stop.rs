@@ -9,6 +9,7 @@ use super::{Reply, Tool};
 use crate::args;
 use crate::{CallHooks, Registry};
 use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::safety::printable;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -30,11 +31,6 @@ pub(crate) struct EStopState {
     pub(crate) engaged: bool,
     /// The reason given.
     pub(crate) reason: String,
-}
-
-/// `text` without control characters (they would forge log lines), at most `max` characters.
-pub(crate) fn clean(text: &str, max: usize) -> String {
-    text.chars().filter(|c| !c.is_control()).take(max).collect()
 }
 
 /// Sends `estop` on the bus; the error text when no arm took it.
@@ -62,7 +58,7 @@ impl Tool for EmergencyStopTool {
 
     async fn run(registry: &Registry, a: Args, _: CallHooks) -> Result<Reply<EStopState>, String> {
         let reason = match a.reason {
-            Some(reason) => clean(&reason, 500),
+            Some(reason) => printable(&reason, 500),
             None => "engaged by an MCP client".to_owned(),
         };
         let estop = EmergencyStop {

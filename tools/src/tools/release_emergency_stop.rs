@@ -1,11 +1,12 @@
 //! `release_emergency_stop`: release the emergency stop; a deliberate act, never a side
 //! effect: the call must say `confirm = "release"`.
 
-use super::emergency_stop::{clean, send, EStopState};
+use super::emergency_stop::{send, EStopState};
 use super::{Reply, Tool};
 use crate::args::{self, validation_text, FieldError};
 use crate::{CallHooks, Registry};
 use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::safety::printable;
 use schemars::JsonSchema;
 use serde::Deserialize;
 
@@ -39,13 +40,13 @@ impl Tool for ReleaseEmergencyStop {
                     field: "confirm".into(),
                     message: format!(
                         "must be 'release' to release the emergency stop, got '{}'",
-                        clean(&a.confirm, 40)
+                        printable(&a.confirm, 40)
                     ),
                 }],
             ));
         }
         let reason = match a.note {
-            Some(note) => format!("released by an MCP client: {}", clean(&note, 200)),
+            Some(note) => format!("released by an MCP client: {}", printable(&note, 200)),
             None => "released by an MCP client".to_owned(),
         };
         let estop = EmergencyStop {
