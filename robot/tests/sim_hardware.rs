@@ -579,3 +579,64 @@ async fn injected_faults_restart_the_arm_safely_and_the_next_command_works() {
     );
     hardware.shutdown().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_emergency_stop_stays_engaged_across_a_restart_of_the_arm_actor() {
+    let mut config = fresh_config(0.05);
+    // The first motion hangs for 300 ms, then crashes the driver.
+    config.robot.faults.arm.fail_every_n = 1;
+    config.robot.faults.arm.hang_ms = 300;
+    let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd-test")).unwrap();
+    let (events_tx, mut events) = tokio::sync::mpsc::unbounded_channel::<SupervisionEvent>();
+    let hardware = Hardware::start(&bus, &config, |_| events_tx.clone())
+        .await
+        .unwrap();
+    let arm = bus.client(&ARM_COMMAND).unwrap();
+    let estop = bus.publisher(&SAFETY_ESTOP).unwrap();
+    let crashing = {
+        let arm = bus.client(&ARM_COMMAND).unwrap();
+        tokio::spawn(async move {
+            arm.request(&ArmCommand::move_to(down(0.25, 0.0, 0.1, 0.0)), TIMEOUT)
+                .await
+        })
+    };
+    // Engage while the doomed command hangs in the driver.
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    estop
+        .publish(&EmergencyStop {
+            engaged: true,
+            reason: "before the crash".into(),
+            source: "test".into(),
+        })
+        .unwrap();
+    assert!(
+        crashing.await.unwrap().is_err(),
+        "the command was meant to crash the driver"
+    );
+    // Wait for the restart.
+    loop {
+        let event = tokio::time::timeout(TIMEOUT, events.recv())
+            .await
+            .expect("supervision events")
+            .unwrap();
+        if event.actor() == "arm" && event.kind() == "restarted" {
+            break;
+        }
+    }
+    hardware.arm.wait_ready(TIMEOUT).await.unwrap();
+    // The new incarnation still refuses motion, with the reason given before the crash.
+    let reply = arm
+        .request(&ArmCommand::move_to(down(0.25, 0.0, 0.1, 0.0)), TIMEOUT)
+        .await
+        .unwrap();
+    assert_eq!(
+        reply,
+        ArmReply::Error {
+            error: ArmError::EStopped {
+                reason: "before the crash".into()
+            }
+        }
+    );
+    assert!(hardware.safety.estop().is_some());
+    hardware.shutdown().await;
+}
