@@ -351,3 +351,30 @@ fn stack_the_small_cube_on_the_large_one_and_recover_from_errors() {
         assert_near(&small, [large.x_m, large.y_m], 0.006);
     });
 }
+
+#[test]
+fn move2by_places_at_the_pick_coordinate_moved_by_the_distance() {
+    runtime().block_on(async {
+        let lab = lab(None).await;
+        let cube = lab.truth_of("red cube").await;
+        // A pick coordinate 1 cm off the cube's centre: the contract moves the coordinate,
+        // so the cube ends 2 cm left of the coordinate, 3 cm left of where it was.
+        let pick = [cube.x_m, cube.y_m - 0.01];
+        let (text, _) = lab
+            .call(
+                "move2by",
+                json!({"object_name": "red cube", "pick_coordinate": pick,
+                       "direction": "left", "distance": 0.02}),
+            )
+            .await;
+        let target = [pick[0], pick[1] + 0.02];
+        assert_eq!(
+            text,
+            format!(
+                "✓ Successfully picked 'red cube' from [{:.3}, {:.3}] and placed it 2.0 centimeters leftwards at [{:.3}, {:.3}]",
+                pick[0], pick[1], target[0], target[1]
+            )
+        );
+        assert_near(&lab.truth_of("red cube").await, target, 0.006);
+    });
+}

@@ -199,7 +199,9 @@ impl Runner {
                         Some(direction.offset(pick_at, distance_m)),
                     )
                     .await?;
-                let target = direction.offset(object_xy(&object), distance_m);
+                // The contract: the place is `pick_coordinate` moved by `distance` (not the
+                // object's own centre moved), which is also what the reply says.
+                let target = direction.offset(pick_at, distance_m);
                 let (_, at) = self.place(run, target, Location::None).await?;
                 self.finish(run).await?;
                 let from = object_xy(&object);
