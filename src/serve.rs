@@ -320,7 +320,9 @@ impl Runtime {
 
     /// The tool registry over this runtime's bus.
     pub fn tool_registry(&self, config: &Config) -> Result<Registry> {
-        let mut settings = ToolSettings::new(config.service.name.clone(), self.workspaces.clone());
+        // `robot_id` is the robot type, as the Python server answers (`niryo`, `widowx`).
+        let robot_type = self.hardware.arm_context.kinematics.model().robot_type();
+        let mut settings = ToolSettings::new(robot_type, self.workspaces.clone());
         settings.skill_timeout = std::time::Duration::from_secs(config.mcp.skill_timeout_s);
         let health = self.health_source.clone();
         let safety = self.hardware.safety.clone();

@@ -280,6 +280,8 @@ async fn check_contract(client: &McpClient, tag: &str) {
     let status = text(client, "get_system_status", json!({})).await;
     let status: Value = serde_json::from_str(&status).unwrap();
     assert_eq!(status["workspace_id"], "niryo_ws");
+    // The robot type, as the Python server answers.
+    assert_eq!(status["robot_id"], "niryo");
     assert_eq!(status["estop_engaged"], false);
     for key in ["x", "y", "z", "roll", "pitch", "yaw"] {
         assert!(status["pose"][key].is_number(), "{status}");

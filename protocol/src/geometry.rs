@@ -377,6 +377,15 @@ impl RobotModel {
         }
     }
 
+    /// The robot type as the Python stack names it (`robot_id` of `get_system_status`):
+    /// `niryo` or `widowx`.
+    pub const fn robot_type(&self) -> &'static str {
+        match self {
+            Self::Ned2 => "niryo",
+            Self::WidowX250 => "widowx",
+        }
+    }
+
     /// Number of arm joints (the gripper not counted).
     pub const fn joint_count(&self) -> usize {
         match self {

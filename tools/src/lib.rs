@@ -64,7 +64,7 @@ pub type StatusSource = Arc<dyn Fn() -> serde_json::Value + Send + Sync>;
 /// What the registry needs to know about this robotd.
 #[derive(Clone)]
 pub struct ToolSettings {
-    /// The robot's id (`robot_id` of `get_system_status`).
+    /// The robot type (`robot_id` of `get_system_status`: `niryo`, `widowx`).
     pub robot_id: String,
     /// The configured workspaces; the first is the robot's current one.
     pub workspaces: Vec<WorkspaceInfo>,
