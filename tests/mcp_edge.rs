@@ -136,7 +136,7 @@ async fn check_contract(client: &McpClient, tag: &str) {
             json!({"workspace_id": "niryo_ws", "point": "middle"})
         )
         .await,
-        "❌ Could not get coordinate for 'middle' in workspace 'niryo_ws'"
+        "❌ Validation Error in get_workspace_coordinate_from_point:\n  • point: Value error, Point must be one of: upper left corner, upper right corner, lower left corner, lower right corner, center point"
     );
 
     // Labels.
@@ -314,6 +314,20 @@ async fn check_contract(client: &McpClient, tag: &str) {
          • location: unknown location 'beside'; valid values: 'left next to', 'right next to', \
          'above', 'below', 'on top of', 'inside', 'close to', 'none'\n  \
          • z_offset: must be between 0 and 0.1, got 0.5"
+    );
+    assert_eq!(
+        text(
+            client,
+            "pick_place_object",
+            json!({
+                "object_name": "pencil", "pick_coordinate": [0.2, -0.05],
+                "place_coordinate": [0.28, 0.04], "location": "close to"
+            })
+        )
+        .await,
+        "❌ Validation Error in pick_place_object:\n  • location: Value error, Invalid location \
+         'close to'. Must be one of: left next to, right next to, above, below, on top of, \
+         inside. Note: 'close to' is not allowed for pick_place_object."
     );
     assert_eq!(
         text(

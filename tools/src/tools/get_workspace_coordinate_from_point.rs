@@ -1,10 +1,12 @@
 //! `get_workspace_coordinate_from_point`: the `[x, y]` of a workspace corner or centre.
 //!
-//! An unknown point word is the Python server's `❌ Could not get coordinate for …`, not a
-//! validation error, so `point` is read as text and parsed by the handler.
+//! An unknown point word is a validation error worded as the Python server's
+//! (`• point: Value error, Point must be one of: …`); `point` is read as text and parsed by the
+//! handler, so case and spacing are forgiven like every other word-valued argument.
 
 use super::{pt, xy, Reply, Tool};
 use crate::args;
+use crate::args::{validation_text, FieldError};
 use crate::schema::point_schema;
 use crate::view::{ask, unexpected};
 use crate::{CallHooks, Registry};
@@ -49,9 +51,15 @@ impl Tool for GetWorkspaceCoordinateFromPoint {
     async fn run(registry: &Registry, a: Args, _: CallHooks) -> Result<Reply<Data>, String> {
         let ws = a.workspace_id;
         let Ok(point) = a.point.parse::<WorkspacePoint>() else {
-            return Err(format!(
-                "❌ Could not get coordinate for '{}' in workspace '{ws}'",
-                a.point
+            return Err(validation_text(
+                Self::NAME,
+                &[FieldError {
+                    field: "point".into(),
+                    message: format!(
+                        "Value error, Point must be one of: {}",
+                        WorkspacePoint::STRINGS.join(", ")
+                    ),
+                }],
             ));
         };
         let request = WorkspaceRequest::GetWorkspacePoint {

@@ -2,7 +2,7 @@
 //! coordinate, or relative to the object nearest it (`location`).
 
 use super::{pt, Reply, Tool};
-use crate::args;
+use crate::args::{self, validation_text, FieldError};
 use crate::schema::location_schema;
 use crate::skill::{location_text, run_skill, Motion, SkillFailure};
 use crate::{CallHooks, Registry};
@@ -52,6 +52,21 @@ impl Tool for PickPlaceObject {
 
     async fn run(registry: &Registry, a: Args, hooks: CallHooks) -> Result<Reply<Motion>, String> {
         let location = a.location.unwrap_or_default();
+        if location == Location::CloseTo {
+            // The contract refuses 'close to' here, in the Python server's words.
+            return Err(validation_text(
+                Self::NAME,
+                &[FieldError {
+                    field: "location".into(),
+                    message: concat!(
+                        "Value error, Invalid location 'close to'. Must be one of: left next to, ",
+                        "right next to, above, below, on top of, inside. Note: 'close to' is not ",
+                        "allowed for pick_place_object."
+                    )
+                    .into(),
+                }],
+            ));
+        }
         let skill = Skill::PickPlace {
             object_name: a.object_name.clone(),
             pick_at: a.pick_coordinate,
