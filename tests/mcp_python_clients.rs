@@ -58,6 +58,15 @@ fn fastmcp_drives_robotd_over_sse_and_streamable_http() {
             report["coordinate_structured"]["data"]["coordinate"],
             serde_json::json!([0.163, -0.087])
         );
+        // fastmcp's `result.data` is the reply text, as the Python server gives it.
+        assert_eq!(
+            report["coordinate_data"], report["coordinate_text"],
+            "{report}"
+        );
+        assert_eq!(
+            report["pick_place_data"], report["pick_place_text"],
+            "{report}"
+        );
         assert!(
             report["objects_text"]
                 .as_str()

@@ -45,6 +45,8 @@ async def main(url: str) -> None:
         )
         report["coordinate_text"] = text_of(coordinate)
         report["coordinate_structured"] = coordinate.structured_content
+        # What fastmcp users read: the reply text, as with the Python server.
+        report["coordinate_data"] = coordinate.data
 
         objects = await client.call_tool("get_detected_objects", {"label": "pencil"})
         report["objects_text"] = text_of(objects)
@@ -65,6 +67,7 @@ async def main(url: str) -> None:
             progress_handler=on_progress,
         )
         report["pick_place_text"] = text_of(picked)
+        report["pick_place_data"] = picked.data
         report["progress"] = progress
 
         moved = await client.call_tool("get_detected_objects", {"label": "pencil"})

@@ -54,7 +54,11 @@ pub fn output_schema<T: JsonSchema>() -> Map<String, Value> {
             "result": {"type": "string", "description": "The reply text (starts with ✓ or ❌)."},
             "data": {"anyOf": [data, {"type": "null"}], "description": "Machine-readable payload; null on failure."}
         },
-        "required": ["result", "data"]
+        "required": ["result", "data"],
+        // fastmcp clients read `result.data`; for the Python server it is the reply text. This
+        // mark (fastmcp's own, for wrapped results) makes `result.data` the text here too,
+        // while `structuredContent.data` keeps the objects.
+        "x-fastmcp-wrap-result": true
     });
     match schema {
         Value::Object(map) => map,
