@@ -154,10 +154,21 @@ fn a_bus_client_elsewhere_cannot_pass_the_limits_and_the_estop_latches_from_ever
         let entries = ["bus", "http", "mcp", "cli"];
         let targets = [down(0.33, 0.08, 0.05), down(0.18, -0.08, 0.05)];
         for (i, entry) in entries.iter().enumerate() {
+            // Back and forth until something stops it: a slow entry point (the CLI starts a
+            // process) on a loaded machine still lands during a motion.
             let motion = {
                 let arm = bus.client(&ARM_COMMAND).unwrap();
-                let target = targets[i % 2];
-                tokio::spawn(async move { arm.request(&ArmCommand::move_to(target), TIMEOUT).await })
+                tokio::spawn(async move {
+                    for k in 0..40 {
+                        let reply = arm
+                            .request(&ArmCommand::move_to(targets[(i + k) % 2]), TIMEOUT)
+                            .await?;
+                        if matches!(reply, ArmReply::Error { .. }) {
+                            return Ok(reply);
+                        }
+                    }
+                    arm.request(&ArmCommand::GetPose, TIMEOUT).await
+                })
             };
             until_moving(&mut states, true, Duration::from_secs(10)).await;
             let engaged = Instant::now();
