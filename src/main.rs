@@ -126,7 +126,7 @@ struct EstopArgs {
 #[derive(Debug, Subcommand)]
 enum AuditCommand {
     /// Check the hash chain of audit files (oldest first, e.g. audit.jsonl.1 audit.jsonl);
-    /// exit 1 names the first broken line.
+    /// exit 1 names the first broken line, exit 2 when a file cannot be read.
     Verify {
         /// The files, oldest first.
         #[arg(required = true)]
@@ -345,11 +345,15 @@ fn run() -> Result<std::process::ExitCode> {
         Command::Audit {
             what: AuditCommand::Verify { files },
         } => match audit::run(&files) {
-            Ok(report) => {
+            Err(unreadable) => {
+                eprintln!("robotd: {unreadable:#}");
+                Ok(std::process::ExitCode::from(2))
+            }
+            Ok(audit::Verdict::Intact(report)) => {
                 println!("{report}");
                 Ok(std::process::ExitCode::SUCCESS)
             }
-            Err(broken) => {
+            Ok(audit::Verdict::Broken(broken)) => {
                 println!("broken: {broken}");
                 Ok(std::process::ExitCode::from(1))
             }

@@ -127,6 +127,22 @@ fn a_bus_client_elsewhere_cannot_pass_the_limits_and_the_estop_latches_from_ever
             .await
             .unwrap();
 
+        // Garbage to the safety routes gets a clear 400/404 and changes nothing.
+        for (path, body, status) in [
+            ("/estop", &b"{not json"[..], 400),
+            ("/estop", &br#"{"reason": 5}"#[..], 400),
+            ("/estop/release", &br#"{"confirm": "release", "extra": 1}"#[..], 400),
+            ("/approvals/abc", &br#"{"approve": true}"#[..], 400),
+            ("/approvals/7", &b"{}"[..], 400),
+            ("/approvals/7", &br#"{"approve": true}"#[..], 404),
+        ] {
+            let (got, reply) = common::http_request(port, "POST", path, &[], body);
+            assert_eq!(got, status, "{path}: {reply}");
+            assert!(reply.contains("\"error\""), "{path}: {reply}");
+        }
+        let (_, health) = common::http_get(port, "/health");
+        assert!(health.contains("\"engaged\":false"), "{health}");
+
         // This test process is a bus client of its own: the policy holds for it.
         let before = pose(&arm).await;
         let reply = arm
@@ -293,6 +309,14 @@ fn a_bus_client_elsewhere_cannot_pass_the_limits_and_the_estop_latches_from_ever
     let report = String::from_utf8_lossy(&ok.stdout).to_string();
     assert!(ok.status.success(), "{report}");
     assert!(report.starts_with("ok: "), "{report}");
+    // A file that is not there is not a broken chain: it is an error of its own.
+    let missing = verify(&dir.path().join("missing.jsonl"));
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&missing.stderr).contains("cannot verify the audit log"),
+        "{}",
+        String::from_utf8_lossy(&missing.stderr)
+    );
     let content = std::fs::read_to_string(&audit).unwrap();
     let lines: Vec<&str> = content.lines().collect();
     assert!(lines.len() >= 20, "{} audit lines", lines.len());
