@@ -295,3 +295,59 @@ impl Section for SafetyConfig {
         checks.range_u64("audit.queue", audit.queue as u64, 16..=1_000_000, "");
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn problems(config: &SafetyConfig) -> Vec<(String, String)> {
+        let mut out = Vec::new();
+        config.check(&mut Checks::new("safety", &mut out));
+        out
+    }
+
+    #[test]
+    fn the_defaults_pass_and_bad_values_name_their_key() {
+        assert_eq!(problems(&SafetyConfig::default()), Vec::new());
+        let bad = SafetyConfig {
+            floor_z_m: 0.3,
+            ceiling_z_m: 0.2,
+            llm_max_tcp_speed_m_s: f64::NAN,
+            keep_out: vec![KeepOutBox {
+                name: " ".into(),
+                min: [0.3, 0.0, 0.0],
+                max: [0.2, 0.1, 0.1],
+            }],
+            approval_tools: vec!["get_detected_objects".into()],
+            audit: AuditSection {
+                queue: 1,
+                ..AuditSection::default()
+            },
+            ..SafetyConfig::default()
+        };
+        let keys: Vec<String> = problems(&bad).into_iter().map(|(k, _)| k).collect();
+        assert_eq!(
+            keys,
+            [
+                "safety.floor_z_m",
+                "safety.ceiling_z_m",
+                "safety.keep_out[0].name",
+                "safety.keep_out[0]",
+                "safety.llm_max_tcp_speed_m_s",
+                "safety.approval_tools[0]",
+                "safety.audit.queue",
+            ]
+        );
+        let approval = problems(&bad)
+            .into_iter()
+            .find(|(k, _)| k == "safety.approval_tools[0]")
+            .unwrap()
+            .1;
+        assert!(
+            approval.starts_with(
+                "'get_detected_objects' is not a motion tool; one of: pick_place_object"
+            ),
+            "{approval}"
+        );
+    }
+}
