@@ -5,7 +5,8 @@
 //! newest one waiting (latest wins: under load it skips frames, it never falls behind), reads
 //! the frame in place in shared memory, and publishes [`Detections`] on
 //! `perception/detections` with the frame's id and capture time. A frame taken while the arm
-//! moved is published with `steady = false`, so the workspace model ignores it. While the
+//! moved, or away from the observation pose of the workspace in view, is published with
+//! `steady = false`, so the workspace model ignores it. While the
 //! gripper holds something (`gripper/state`), the held object hangs in the wrist camera's view
 //! and would look like an object on the table under the tool: detections whose footprint
 //! covers the tool's position are dropped then (a real object right under the tool is missed
@@ -125,8 +126,9 @@ struct ArmView {
     tool_pose: Option<Pose>,
     /// Whether the latest state said the arm moves.
     moving: bool,
-    /// Send time of the latest state that said the arm moves.
-    last_moving_ns: u64,
+    /// Send time of the first state that said the arm rests, after the last one that said it
+    /// moves (`None` while it moves, or before any state).
+    rest_since_ns: Option<u64>,
     /// Whether any arm state was received (without an arm, frames count as steady).
     heard: bool,
     /// Whether the gripper holds something (it then hangs in the wrist camera's view).
@@ -151,8 +153,25 @@ impl ArmView {
 }
 
 impl ArmView {
+    /// Takes in one arm state.
+    fn update(&mut self, moving: bool, tool_pose: Pose, sent_at_unix_ns: u64) {
+        self.heard = true;
+        self.tool_pose = Some(tool_pose);
+        if moving {
+            self.rest_since_ns = None;
+        } else if self.moving || self.rest_since_ns.is_none() {
+            self.rest_since_ns = Some(sent_at_unix_ns);
+        }
+        self.moving = moving;
+    }
+
+    /// Whether a frame captured at `capture_ns` shows the arm at rest: taken after a state
+    /// that said the arm rests, with no state since saying it moves. States come every
+    /// control period while the arm moves, so a frame taken in the last period of a motion
+    /// (after the last "moving" state, before the arm stopped) is not steady, and neither is
+    /// one taken before the first state of a rest.
     fn steady_at(&self, capture_ns: u64) -> bool {
-        !self.heard || (!self.moving && capture_ns > self.last_moving_ns)
+        !self.heard || (!self.moving && self.rest_since_ns.is_some_and(|r| capture_ns > r))
     }
 }
 
@@ -219,12 +238,11 @@ fn run(
                 sample = newer;
             }
             while let Ok(Some(state)) = arm_states.try_recv() {
-                arm.heard = true;
-                arm.tool_pose = Some(state.body.tool_pose);
-                arm.moving = state.body.moving;
-                if state.body.moving {
-                    arm.last_moving_ns = state.sent_at_unix_ns;
-                }
+                arm.update(
+                    state.body.moving,
+                    state.body.tool_pose,
+                    state.sent_at_unix_ns,
+                );
             }
             while let Ok(Some(state)) = gripper_states.try_recv() {
                 arm.holding = state.body.holding;
@@ -253,7 +271,12 @@ fn run(
                 frame_id: header.frame_id,
                 timestamp_unix_ns: header.timestamp_unix_ns,
             };
-            let steady = arm.steady_at(header.timestamp_unix_ns);
+            // Memory learns only from views taken standing still at an observation pose.
+            let steady = arm.steady_at(header.timestamp_unix_ns)
+                && arm
+                    .tool_pose
+                    .as_ref()
+                    .is_none_or(|tool| pipeline.at_observation_pose(tool));
             let started = Instant::now();
             let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                 pipeline.process(&frame, arm.tool_pose.as_ref(), steady)
@@ -298,4 +321,40 @@ fn run(
         }
         tracing::info!("perception stopped");
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pose() -> Pose {
+        Pose::new(0.17, 0.0, 0.28, 0.0, 1.3, 0.0)
+    }
+
+    #[test]
+    fn without_an_arm_every_frame_is_steady() {
+        assert!(ArmView::default().steady_at(1));
+    }
+
+    #[test]
+    fn a_frame_from_the_last_period_of_a_motion_is_not_steady() {
+        let mut arm = ArmView::default();
+        arm.update(false, pose(), 100);
+        assert!(
+            !arm.steady_at(99),
+            "taken before the first state of the rest"
+        );
+        assert!(arm.steady_at(101));
+        arm.update(true, pose(), 200);
+        assert!(!arm.steady_at(250), "moving");
+        // The last "moving" state at 300; the arm stops at 310; the next state says so at 320.
+        arm.update(true, pose(), 300);
+        arm.update(false, pose(), 320);
+        assert!(!arm.steady_at(305), "taken while the arm still moved");
+        assert!(!arm.steady_at(315));
+        assert!(arm.steady_at(321));
+        // Idle states while it rests do not move the start of the rest.
+        arm.update(false, pose(), 1320);
+        assert!(arm.steady_at(500));
+    }
 }

@@ -122,6 +122,17 @@ impl Pipeline {
             .unwrap_or(first)
     }
 
+    /// Whether `tool_pose` is the observation pose of the workspace the camera looks at,
+    /// within [`OBSERVATION_POSE_TOLERANCE`]. Only views from there describe the table
+    /// faithfully: elsewhere a held object hangs over the sheet in the wrist camera's view and
+    /// the tops of tall objects project away from their bases.
+    pub fn at_observation_pose(&self, tool_pose: &Pose) -> bool {
+        pose_gap(
+            &self.workspace_for(Some(tool_pose)).observation_pose,
+            tool_pose,
+        ) <= OBSERVATION_POSE_TOLERANCE
+    }
+
     /// Finds the sheet of `workspace` in `frame`: its table plane.
     pub fn locate_sheet(
         &mut self,
@@ -199,6 +210,11 @@ impl Pipeline {
     }
 }
 
+/// How far from its observation pose (in [`pose_gap`] units: metres plus radians/10) the
+/// tool may be for a view to count as taken from there: 1.5 cm, or 1 cm and 0.05 rad. Arms
+/// repeat a pose to well under a millimetre.
+pub const OBSERVATION_POSE_TOLERANCE: f64 = 0.015;
+
 /// How far apart two poses are, for picking the nearest observation pose: metres plus
 /// radians/10 (1 cm ≈ 0.1 rad).
 fn pose_gap(a: &Pose, b: &Pose) -> f64 {
@@ -211,4 +227,55 @@ fn pose_gap(a: &Pose, b: &Pose) -> f64 {
         + angle(a.pitch_rad, b.pitch_rad)
         + angle(a.yaw_rad, b.yaw_rad);
     d + r / 10.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detector::{ColourDetector, ColourDetectorSettings};
+    use crate::labels::LabelTable;
+    use robotd_protocol::geometry::{Point2, RobotModel};
+
+    fn workspace(id: &str, observation_pose: Pose) -> WorkspaceInfo {
+        WorkspaceInfo {
+            id: id.into(),
+            robot: RobotModel::Ned2,
+            upper_left: Point2::new(0.337, 0.087),
+            lower_right: Point2::new(0.163, -0.087),
+            observation_pose,
+        }
+    }
+
+    #[test]
+    fn only_poses_near_an_observation_pose_count_as_at_it() {
+        let a = Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027);
+        let b = Pose::new(0.0, 0.25, 0.277, -3.042, 1.327, -1.5);
+        let detector =
+            ColourDetector::new(LabelTable::builtin(), ColourDetectorSettings::default());
+        let pipeline = Pipeline::new(
+            &robotd_render::Intrinsics::ned2().into(),
+            vec![workspace("a", a), workspace("b", b)],
+            Box::new(detector),
+        )
+        .unwrap();
+        assert!(pipeline.at_observation_pose(&a));
+        assert!(pipeline.at_observation_pose(&b));
+        let near = Pose {
+            z_m: a.z_m + 0.005,
+            ..a
+        };
+        assert!(pipeline.at_observation_pose(&near));
+        let lower = Pose {
+            z_m: a.z_m - 0.03,
+            ..a
+        };
+        assert!(!pipeline.at_observation_pose(&lower), "3 cm lower");
+        let tilted = Pose {
+            pitch_rad: a.pitch_rad + 0.2,
+            ..a
+        };
+        assert!(!pipeline.at_observation_pose(&tilted), "0.2 rad tilted");
+        let above_an_object = Pose::new(0.25, 0.065, 0.09, 0.0, std::f64::consts::FRAC_PI_2, 0.0);
+        assert!(!pipeline.at_observation_pose(&above_an_object));
+    }
 }
