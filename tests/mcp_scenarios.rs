@@ -378,3 +378,177 @@ fn move2by_places_at_the_pick_coordinate_moved_by_the_distance() {
         assert_near(&lab.truth_of("red cube").await, target, 0.006);
     });
 }
+
+/// Whether the simulated gripper holds `label`.
+async fn held(lab: &Lab, label: &str) -> bool {
+    lab.truth_of(label).await.held
+}
+
+#[test]
+fn a_place_that_would_hide_a_marker_is_refused_and_says_what_is_held() {
+    // Issue 17, failure 1: the 12 cm pencil "left next to" the red cube would cover a corner
+    // marker (and its fingers would touch the cube): refused before moving, pencil still held.
+    runtime().block_on(async {
+        let lab = lab(None).await;
+        let pencil = lab.truth_of("pencil").await;
+        lab.ok(
+            "pick_object",
+            json!({"object_name": "pencil", "pick_coordinate": [pencil.x_m, pencil.y_m]}),
+        )
+        .await;
+        let (text, _) = lab
+            .call(
+                "place_object",
+                json!({"place_coordinate": [0.25, 0.0], "location": "left next to"}),
+            )
+            .await;
+        assert!(
+            text.starts_with("❌ Failed to place object: no room left next to 'red cube'")
+                && text.contains("would cover the marker at [0.337, 0.087]")
+                && text.ends_with("'pencil' is still held: put it down with place_object"),
+            "{text}"
+        );
+        assert!(held(&lab, "pencil").await);
+        lab.ok(
+            "place_object",
+            json!({"place_coordinate": [0.22, -0.05], "location": "none"}),
+        )
+        .await;
+        assert_near(&lab.truth_of("pencil").await, [0.22, -0.05], 0.006);
+        // And the camera still sees the whole workspace.
+        assert_eq!(lab.seen().await.len(), 4);
+    });
+}
+
+#[test]
+fn after_a_collision_clearing_the_flag_lets_the_arm_retreat_and_work_again() {
+    // Issue 17, failure 1: after a collision and clear_collision_detected, the next motion
+    // first retreats straight up, so the arm is never stuck in contact.
+    runtime().block_on(async {
+        let lab = lab(Some(scene("hidden.toml"))).await;
+        let seen = lab.seen().await;
+        assert_eq!(seen.len(), 1, "only the red cube is visible: {seen:?}");
+        let cube = seen[0].1;
+        lab.ok(
+            "pick_object",
+            json!({"object_name": "red cube", "pick_coordinate": cube}),
+        )
+        .await;
+        // Onto the block the camera cannot see: the held cube hits it on the way down.
+        let (text, _) = lab
+            .call("place_object", json!({"place_coordinate": [0.25, -0.03]}))
+            .await;
+        assert!(
+            text.contains("collision detected")
+                && text.ends_with("'red cube' is still held: put it down with place_object"),
+            "{text}"
+        );
+        assert!(held(&lab, "red cube").await, "the collision keeps the cube");
+        // Until the flag is cleared, nothing moves.
+        let (text, _) = lab
+            .call("move2observation_pose", json!({"workspace_id": "niryo_ws"}))
+            .await;
+        assert!(text.contains("collision detected"), "{text}");
+        lab.ok("clear_collision_detected", json!({})).await;
+        // The place looks first (a motion to the observation pose): it starts with the retreat.
+        lab.ok("place_object", json!({"place_coordinate": [0.2, 0.04]}))
+            .await;
+        assert_near(&lab.truth_of("red cube").await, [0.2, 0.04], 0.006);
+        let block = lab.truth_of("white block").await;
+        assert_near(&block, [0.25, -0.03], 0.001);
+        assert_eq!(lab.seen().await.len(), 1);
+    });
+}
+
+#[test]
+fn an_object_placed_right_next_to_another_can_be_picked_again() {
+    // Issue 17, failure 2: the fingers, open across the pencil, must not reach the cube.
+    runtime().block_on(async {
+        let lab = lab(None).await;
+        let seen = lab.seen().await;
+        let at = |label: &str| seen.iter().find(|s| s.0 == label).unwrap().1;
+        lab.ok(
+            "pick_place_object",
+            json!({"object_name": "pencil", "pick_coordinate": at("pencil"),
+                   "place_coordinate": at("red cube"), "location": "right next to"}),
+        )
+        .await;
+        let pencil = lab.truth_of("pencil").await;
+        lab.ok(
+            "pick_place_object",
+            json!({"object_name": "pencil", "pick_coordinate": [pencil.x_m, pencil.y_m],
+                   "place_coordinate": [0.22, -0.05]}),
+        )
+        .await;
+        assert_near(&lab.truth_of("pencil").await, [0.22, -0.05], 0.006);
+        let cube = lab.truth_of("red cube").await;
+        assert_near(&cube, [0.28, 0.04], 0.001);
+    });
+}
+
+#[test]
+fn a_move_whose_place_cannot_work_never_picks() {
+    // Issue 17, failure 3: the place is checked before the pick.
+    runtime().block_on(async {
+        let lab = lab(None).await;
+        let seen = lab.seen().await;
+        let at = |label: &str| seen.iter().find(|s| s.0 == label).unwrap().1;
+        lab.ok(
+            "push_object",
+            json!({"object_name": "blue square", "push_coordinate": at("blue square"),
+                   "direction": "up", "distance": 30.0}),
+        )
+        .await;
+        // The square, pushed up, shoves the cube a little: where the camera sees it now.
+        let before = lab.truth_of("red cube").await;
+        let cube = lab
+            .seen()
+            .await
+            .into_iter()
+            .find(|s| s.0 == "red cube")
+            .unwrap()
+            .1;
+        let (text, _) = lab
+            .call(
+                "move2by",
+                json!({"object_name": "red cube", "pick_coordinate": cube,
+                       "direction": "left", "distance": 0.02}),
+            )
+            .await;
+        assert!(
+            text.starts_with("❌")
+                && text.contains("'blue square' is in the way")
+                && !text.contains("still held"),
+            "{text}"
+        );
+        let truth = lab.truth_of("red cube").await;
+        assert!(!truth.held, "the cube was picked: {truth:?}");
+        assert_near(&truth, [before.x_m, before.y_m], 0.0005);
+        assert!(lab.seen().await.iter().any(|s| s.0 == "red cube"));
+    });
+}
+
+#[test]
+fn a_placement_that_would_cover_a_marker_is_refused_before_anything_moves() {
+    // Issue 17, failure 4: the green cylinder at [0.173, 0.074] would cover a corner marker.
+    runtime().block_on(async {
+        let lab = lab(None).await;
+        let seen = lab.seen().await;
+        let at = seen.iter().find(|s| s.0 == "green cylinder").unwrap().1;
+        let (text, _) = lab
+            .call(
+                "pick_place_object",
+                json!({"object_name": "green cylinder", "pick_coordinate": at,
+                       "place_coordinate": [0.173, 0.074]}),
+            )
+            .await;
+        assert!(
+            text.starts_with("❌") && text.contains("would cover the marker at [0.163, 0.087]"),
+            "{text}"
+        );
+        let truth = lab.truth_of("green cylinder").await;
+        assert!(!truth.held);
+        assert_near(&truth, [0.30, -0.06], 0.001);
+        assert_eq!(lab.seen().await.len(), 4);
+    });
+}

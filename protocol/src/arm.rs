@@ -281,6 +281,11 @@ pub struct ArmState {
     /// Whether the emergency stop is engaged (absent from older senders: not engaged).
     #[serde(default)]
     pub estop_engaged: bool,
+    /// When the arm last came to rest, ns since the Unix epoch; 0 while it moves (absent from
+    /// older senders: 0). A camera frame taken after this instant, while `moving` is false,
+    /// shows the arm standing still, however short the motion before was.
+    #[serde(default)]
+    pub still_since_unix_ns: u64,
 }
 
 impl Message for ArmState {

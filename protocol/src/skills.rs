@@ -318,6 +318,16 @@ pub enum SkillError {
     },
 }
 
+impl SkillReply {
+    /// A failure that leaves the gripper empty (or holding what it held before, untouched).
+    pub fn failed(error: SkillError) -> Self {
+        Self::Failed {
+            error,
+            still_held: None,
+        }
+    }
+}
+
 impl SkillError {
     /// An arm failure with `message`.
     pub fn arm(message: impl Into<String>) -> Self {
@@ -377,6 +387,9 @@ pub enum SkillReply {
     Failed {
         /// Why.
         error: SkillError,
+        /// The label of the object the gripper still holds after the failure (absent: none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        still_held: Option<String>,
     },
 }
 
@@ -439,6 +452,7 @@ mod tests {
         // Every error travels on the bus (MessagePack, internally tagged).
         let reply = SkillReply::Failed {
             error: SkillError::arm("collision detected"),
+            still_held: Some("pencil".into()),
         };
         let mut bytes = Vec::new();
         crate::envelope::encode(&crate::envelope::Envelope::new(reply.clone()), &mut bytes)

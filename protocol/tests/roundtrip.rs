@@ -162,15 +162,19 @@ fn arm_state() -> impl Strategy<Value = ArmState> {
         any::<bool>(),
         any::<bool>(),
         any::<bool>(),
+        any::<u64>(),
     )
         .prop_map(
-            |(joints, tool_pose, moving, collision_detected, calibrated, estop_engaged)| ArmState {
-                joints,
-                tool_pose,
-                moving,
-                collision_detected,
-                calibrated,
-                estop_engaged,
+            |(joints, tool_pose, moving, collision_detected, calibrated, estop_engaged, still)| {
+                ArmState {
+                    joints,
+                    tool_pose,
+                    moving,
+                    collision_detected,
+                    calibrated,
+                    estop_engaged,
+                    still_since_unix_ns: still,
+                }
             },
         )
 }

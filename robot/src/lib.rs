@@ -154,6 +154,7 @@ impl Hardware {
             driver: drivers.arm,
             control,
             safety: safety.clone(),
+            shared: Default::default(),
             observation_poses: config
                 .robot
                 .workspaces()

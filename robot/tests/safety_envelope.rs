@@ -253,6 +253,7 @@ async fn random_motions_from_every_origin_never_leave_the_envelope() {
             })
             .collect(),
         safety: safety.clone(),
+        shared: Default::default(),
     };
     let actor = Supervisor::new("arm")
         .spawn_actor::<ArmActor>(move || ArmActor::new(context.clone()))

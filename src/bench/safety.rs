@@ -126,6 +126,7 @@ pub fn run(commands: usize) -> Result<SafetyFigures> {
         control: control.clone(),
         observation_poses: Vec::new(),
         safety: safety.clone(),
+        shared: Default::default(),
     };
     let start = sim.robot.joints();
     let origin = Origin::new(OriginKind::Mcp).session("bench");

@@ -128,7 +128,16 @@ pub(crate) async fn run_skill(
             from: from.map(point_xy),
             to: to.map(point_xy),
         }),
-        Ok(SkillReply::Failed { error }) => Err(SkillFailure::Failed(error.to_string())),
+        Ok(SkillReply::Failed {
+            error,
+            still_held: None,
+        }) => Err(SkillFailure::Failed(error.to_string())),
+        Ok(SkillReply::Failed {
+            error,
+            still_held: Some(label),
+        }) => Err(SkillFailure::Failed(format!(
+            "{error}; '{label}' is still held: put it down with place_object"
+        ))),
         Err(error) => Err(SkillFailure::Unavailable(format!(
             "the skills actor did not answer: {error}"
         ))),

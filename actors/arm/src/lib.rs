@@ -32,12 +32,17 @@ use robotd_runtime::host::fault_from;
 use robotd_runtime::supervision::Supervised;
 use robotd_safety::{Admission, Outcome, Safety};
 use std::convert::Infallible;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 use tracing::Instrument;
 
 /// Spacing of the waypoints of a straight tool path, metres.
 const LINEAR_STEP_M: f64 = 0.005;
+
+/// How far the tool retreats straight up after a cleared collision, metres: the first
+/// reachable of these.
+const COLLISION_RETREATS_M: [f64; 3] = [0.05, 0.03, 0.015];
 
 /// What the arm actor and its serving loop share.
 #[derive(Clone)]
@@ -52,6 +57,44 @@ pub struct ArmContext {
     pub observation_poses: Vec<ObservationPose>,
     /// The motion policy.
     pub safety: Safety,
+    /// What the actor, its serving loop and its state publisher share (survives a restart of
+    /// the actor).
+    pub shared: Arc<ArmShared>,
+}
+
+/// State shared by the arm actor and its state publisher.
+#[derive(Debug)]
+pub struct ArmShared {
+    /// Set when a collision flag is cleared: the next motion first retreats straight up, away
+    /// from the contact.
+    retreat_pending: AtomicBool,
+    /// When the last motion ended, ns since the Unix epoch; 0 while one runs.
+    still_since_ns: AtomicU64,
+    /// Wakes the state publisher when a motion starts or ends.
+    changed: tokio::sync::Notify,
+}
+
+impl Default for ArmShared {
+    fn default() -> Self {
+        Self {
+            retreat_pending: AtomicBool::new(false),
+            still_since_ns: AtomicU64::new(robotd_protocol::envelope::unix_now_ns()),
+            changed: tokio::sync::Notify::new(),
+        }
+    }
+}
+
+impl ArmShared {
+    fn motion_started(&self) {
+        self.still_since_ns.store(0, Ordering::SeqCst);
+        self.changed.notify_one();
+    }
+
+    fn motion_ended(&self) {
+        self.still_since_ns
+            .store(robotd_protocol::envelope::unix_now_ns(), Ordering::SeqCst);
+        self.changed.notify_one();
+    }
 }
 
 impl std::fmt::Debug for ArmContext {
@@ -85,10 +128,12 @@ impl ArmContext {
                 message: e.to_string(),
             })?;
         let flags = self.driver.flags();
+        let still_since_unix_ns = self.shared.still_since_ns.load(Ordering::SeqCst);
         Ok(ArmState {
             joints: JointState::from_positions(q, robotd_protocol::envelope::unix_now_ns()),
             tool_pose,
-            moving: flags.moving,
+            moving: flags.moving || still_since_unix_ns == 0,
+            still_since_unix_ns,
             collision_detected: flags.collision_detected,
             calibrated: flags.calibrated,
             estop_engaged: self.control.estop_engaged(),
@@ -150,6 +195,10 @@ impl ArmActor {
                 reason: ctx.control.estop_reason(),
             });
         }
+        if command.moves_arm() && ctx.shared.retreat_pending.load(Ordering::SeqCst) {
+            self.retreat(admission).await?;
+        }
+        let ctx = &self.context;
         match command {
             ArmCommand::MoveToPose { target, path } => self.move_to(target, path, admission).await,
             ArmCommand::ShiftPose { delta } => {
@@ -184,7 +233,10 @@ impl ArmActor {
                 ctx.control
                     .begin_motion(admission.stop_generation())
                     .map_err(arm_error)?;
-                ctx.driver.calibrate().await.map_err(arm_error)?;
+                ctx.shared.motion_started();
+                let calibrated = ctx.driver.calibrate().await;
+                ctx.shared.motion_ended();
+                calibrated.map_err(arm_error)?;
                 Ok(ArmReply::Ok {
                     pose: ctx.tool_pose()?,
                 })
@@ -195,6 +247,42 @@ impl ArmActor {
             | ArmCommand::GetJoints
             | ArmCommand::GetCollisionState => unreachable_query(),
         }
+    }
+
+    /// After a cleared collision: moves the tool straight up (the first reachable of
+    /// [`COLLISION_RETREATS_M`]) so that the next motion does not start in contact. A collision
+    /// on the way up keeps the retreat pending; when no retreat is reachable the motion goes
+    /// ahead without one.
+    async fn retreat(&mut self, admission: &Admission) -> Result<(), ArmError> {
+        let from = self.context.tool_pose()?;
+        for rise in COLLISION_RETREATS_M {
+            let target = Pose {
+                z_m: from.z_m + rise,
+                ..from
+            };
+            let Ok(motion) = plan(&self.context, target, PathKind::Linear) else {
+                continue;
+            };
+            self.execute(motion, admission).await?;
+            self.context
+                .shared
+                .retreat_pending
+                .store(false, Ordering::SeqCst);
+            tracing::info!(
+                rise_m = rise,
+                "retreated straight up after the cleared collision"
+            );
+            return Ok(());
+        }
+        self.context
+            .shared
+            .retreat_pending
+            .store(false, Ordering::SeqCst);
+        tracing::warn!(
+            z_m = from.z_m,
+            "no straight retreat up is reachable after the cleared collision; moving without one"
+        );
+        Ok(())
     }
 
     async fn move_to(
@@ -224,15 +312,18 @@ impl ArmActor {
         ctx.control
             .begin_motion(admission.stop_generation())
             .map_err(arm_error)?;
-        ctx.driver
+        ctx.shared.motion_started();
+        let executed = ctx
+            .driver
             .execute(motion, check.speed_scale, &ctx.control)
-            .await
-            .map_err(|e| match e {
-                DriverError::Stopped { reason } if ctx.control.estop_engaged() => {
-                    ArmError::EStopped { reason }
-                }
-                other => arm_error(other),
-            })?;
+            .await;
+        ctx.shared.motion_ended();
+        executed.map_err(|e| match e {
+            DriverError::Stopped { reason } if ctx.control.estop_engaged() => {
+                ArmError::EStopped { reason }
+            }
+            other => arm_error(other),
+        })?;
         Ok(ArmReply::Ok {
             pose: ctx.tool_pose()?,
         })
@@ -278,6 +369,9 @@ impl Message<ClearCollisionFlag> for ArmActor {
         _: &mut Context<Self, Self::Reply>,
     ) -> Self::Reply {
         let ctx = &self.context;
+        if ctx.driver.flags().collision_detected {
+            ctx.shared.retreat_pending.store(true, Ordering::SeqCst);
+        }
         let cleared = ctx
             .driver
             .clear_collision()
@@ -493,8 +587,9 @@ fn command_kind(command: &ArmCommand) -> &'static str {
     }
 }
 
-/// Publishes the arm's state on `arm/state`: every `period` while it moves, about once a
-/// second while it rests, and at the next tick after the e-stop was engaged or released. Runs until the publisher fails.
+/// Publishes the arm's state on `arm/state`: at once when a motion starts or ends, every
+/// `period` while it moves, about once a second while it rests, and at the next tick after
+/// the e-stop was engaged or released. Runs until the publisher fails.
 pub async fn publish_arm_state(
     publisher: Publisher<ArmState>,
     context: ArmContext,
@@ -506,13 +601,22 @@ pub async fn publish_arm_state(
     let mut ticks: u64 = 0;
     let mut was_moving = false;
     let mut was_estopped = false;
+    let mut published_still_since = None;
     loop {
-        ticker.tick().await;
-        ticks += 1;
-        let moving = context.driver.flags().moving;
+        tokio::select! {
+            _ = ticker.tick() => ticks += 1,
+            () = context.shared.changed.notified() => {}
+        }
+        let still_since = context.shared.still_since_ns.load(Ordering::SeqCst);
+        let moving = context.driver.flags().moving || still_since == 0;
         let estop = context.control.estop_engaged();
-        if moving || was_moving || estop != was_estopped || ticks.is_multiple_of(idle_every.max(1))
+        if moving
+            || was_moving
+            || estop != was_estopped
+            || published_still_since != Some(still_since)
+            || ticks.is_multiple_of(idle_every.max(1))
         {
+            published_still_since = Some(still_since);
             match context.state() {
                 Ok(state) => {
                     publisher.publish(&state)?;

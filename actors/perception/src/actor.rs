@@ -17,6 +17,7 @@
 
 use crate::detector::FrameView;
 use crate::pipeline::{Pipeline, SheetStatus};
+use robotd_protocol::arm::ArmState;
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::objects::Detections;
 use robotd_runtime::bus::{Bus, BusError};
@@ -126,8 +127,9 @@ struct ArmView {
     tool_pose: Option<Pose>,
     /// Whether the latest state said the arm moves.
     moving: bool,
-    /// Send time of the first state that said the arm rests, after the last one that said it
-    /// moves (`None` while it moves, or before any state).
+    /// Since when the arm rests (`None` while it moves, or before any state): the state's
+    /// `still_since_unix_ns`, or for senders without it the send time of the first state that
+    /// said the arm rests.
     rest_since_ns: Option<u64>,
     /// Whether any arm state was received (without an arm, frames count as steady).
     heard: bool,
@@ -154,22 +156,22 @@ impl ArmView {
 
 impl ArmView {
     /// Takes in one arm state.
-    fn update(&mut self, moving: bool, tool_pose: Pose, sent_at_unix_ns: u64) {
+    fn update(&mut self, state: &ArmState, sent_at_unix_ns: u64) {
         self.heard = true;
-        self.tool_pose = Some(tool_pose);
-        if moving {
+        self.tool_pose = Some(state.tool_pose);
+        if state.moving {
             self.rest_since_ns = None;
+        } else if state.still_since_unix_ns > 0 {
+            self.rest_since_ns = Some(state.still_since_unix_ns);
         } else if self.moving || self.rest_since_ns.is_none() {
             self.rest_since_ns = Some(sent_at_unix_ns);
         }
-        self.moving = moving;
+        self.moving = state.moving;
     }
 
-    /// Whether a frame captured at `capture_ns` shows the arm at rest: taken after a state
-    /// that said the arm rests, with no state since saying it moves. States come every
-    /// control period while the arm moves, so a frame taken in the last period of a motion
-    /// (after the last "moving" state, before the arm stopped) is not steady, and neither is
-    /// one taken before the first state of a rest.
+    /// Whether a frame captured at `capture_ns` shows the arm at rest: taken after the arm
+    /// came to rest, with no state since saying it moves. A frame taken during a motion, even
+    /// one too short for any state to say "moving", is older than the rest that followed.
     fn steady_at(&self, capture_ns: u64) -> bool {
         !self.heard || (!self.moving && self.rest_since_ns.is_some_and(|r| capture_ns > r))
     }
@@ -238,11 +240,7 @@ fn run(
                 sample = newer;
             }
             while let Ok(Some(state)) = arm_states.try_recv() {
-                arm.update(
-                    state.body.moving,
-                    state.body.tool_pose,
-                    state.sent_at_unix_ns,
-                );
+                arm.update(&state.body, state.sent_at_unix_ns);
             }
             while let Ok(Some(state)) = gripper_states.try_recv() {
                 arm.holding = state.body.holding;
@@ -327,8 +325,16 @@ fn run(
 mod tests {
     use super::*;
 
-    fn pose() -> Pose {
-        Pose::new(0.17, 0.0, 0.28, 0.0, 1.3, 0.0)
+    fn state(moving: bool, still_since_unix_ns: u64) -> ArmState {
+        ArmState {
+            joints: Default::default(),
+            tool_pose: Pose::new(0.17, 0.0, 0.28, 0.0, 1.3, 0.0),
+            moving,
+            collision_detected: false,
+            calibrated: true,
+            estop_engaged: false,
+            still_since_unix_ns,
+        }
     }
 
     #[test]
@@ -337,24 +343,35 @@ mod tests {
     }
 
     #[test]
-    fn a_frame_from_the_last_period_of_a_motion_is_not_steady() {
+    fn a_frame_counts_from_when_the_arm_came_to_rest() {
         let mut arm = ArmView::default();
-        arm.update(false, pose(), 100);
-        assert!(
-            !arm.steady_at(99),
-            "taken before the first state of the rest"
-        );
-        assert!(arm.steady_at(101));
-        arm.update(true, pose(), 200);
+        arm.update(&state(false, 90), 100);
+        assert!(!arm.steady_at(89), "taken before the arm came to rest");
+        assert!(arm.steady_at(95));
+        arm.update(&state(true, 0), 200);
         assert!(!arm.steady_at(250), "moving");
-        // The last "moving" state at 300; the arm stops at 310; the next state says so at 320.
-        arm.update(true, pose(), 300);
-        arm.update(false, pose(), 320);
+        // The last "moving" state at 300; the arm stops at 310; a state says so at 320.
+        arm.update(&state(true, 0), 300);
+        arm.update(&state(false, 310), 320);
         assert!(!arm.steady_at(305), "taken while the arm still moved");
-        assert!(!arm.steady_at(315));
-        assert!(arm.steady_at(321));
+        assert!(arm.steady_at(315));
+        // A motion from 400 to 410 that no "moving" state saw: frames before 410 are old.
+        arm.update(&state(false, 410), 420);
+        assert!(!arm.steady_at(405));
+        assert!(arm.steady_at(411));
         // Idle states while it rests do not move the start of the rest.
-        arm.update(false, pose(), 1320);
+        arm.update(&state(false, 410), 1420);
+        assert!(arm.steady_at(500));
+    }
+
+    #[test]
+    fn without_the_rest_time_the_first_rest_state_counts() {
+        let mut arm = ArmView::default();
+        arm.update(&state(true, 0), 300);
+        arm.update(&state(false, 0), 320);
+        assert!(!arm.steady_at(315), "taken while the arm still moved");
+        assert!(arm.steady_at(321));
+        arm.update(&state(false, 0), 1320);
         assert!(arm.steady_at(500));
     }
 }

@@ -76,6 +76,7 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
         collision_detected: false,
         calibrated: true,
         estop_engaged: false,
+        still_since_unix_ns: 0,
     };
     arm.publish(&state).unwrap();
     tokio::time::sleep(Duration::from_millis(20)).await;
@@ -84,6 +85,7 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
 
     // Once it has stopped, the next frame is steady again.
     state.moving = false;
+    state.still_since_unix_ns = robotd_protocol::envelope::unix_now_ns();
     arm.publish(&state).unwrap();
     tokio::time::sleep(Duration::from_millis(20)).await;
     publish(&frames, lab.frame(), 3);

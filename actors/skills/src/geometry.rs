@@ -60,35 +60,6 @@ pub fn overlaps(at: Point2, extents: (f64, f64), others: &[DetectedObject], gap_
     })
 }
 
-/// `close to` placement: beside the reference on the free side nearest `wanted`, never on
-/// it. `None` when every side is taken or outside the workspaces.
-pub fn close_to(
-    reference: &DetectedObject,
-    held_extents: (f64, f64),
-    wanted: Point2,
-    others: &[DetectedObject],
-    fits: impl Fn(Point2) -> bool,
-) -> Option<Point2> {
-    let mut sides: Vec<Point2> = [
-        Location::LeftNextTo,
-        Location::RightNextTo,
-        Location::Above,
-        Location::Below,
-    ]
-    .iter()
-    .filter_map(|side| beside(reference, *side, held_extents))
-    .collect();
-    sides.sort_by(|a, b| a.distance_to(&wanted).total_cmp(&b.distance_to(&wanted)));
-    let neighbours: Vec<DetectedObject> = others
-        .iter()
-        .filter(|o| o.id != reference.id)
-        .cloned()
-        .collect();
-    sides
-        .into_iter()
-        .find(|p| fits(*p) && !overlaps(*p, held_extents, &neighbours, 0.005))
-}
-
 /// Where the tool starts a push of `object` in `direction`: `clearance_m` behind its edge.
 pub fn push_start(object: &DetectedObject, direction: Direction, clearance_m: f64) -> Point2 {
     let c = object.xy();
@@ -99,6 +70,103 @@ pub fn push_start(object: &DetectedObject, direction: Direction, clearance_m: f6
         Direction::Left => Point2::new(c.x_m, c.y_m - w / 2.0 - clearance_m),
         Direction::Right => Point2::new(c.x_m, c.y_m + w / 2.0 + clearance_m),
     }
+}
+
+/// A rectangle on the table, turned by `yaw_rad` about the vertical: `half_x_m` along its own
+/// x axis, `half_y_m` along its y axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rect {
+    /// Centre on the table.
+    pub centre: Point2,
+    /// Half its extent along its own x axis, metres.
+    pub half_x_m: f64,
+    /// Half its extent along its own y axis, metres.
+    pub half_y_m: f64,
+    /// Its turn about the vertical, radians (0: its x axis is the world's).
+    pub yaw_rad: f64,
+}
+
+impl Rect {
+    /// An object's footprint (its x and y extents, axis-aligned, as the detector reports).
+    pub fn of_object(o: &DetectedObject) -> Rect {
+        Rect::footprint(o.xy(), extents(o))
+    }
+
+    /// An axis-aligned footprint of `extents` (width along y, height along x) at `centre`.
+    pub fn footprint(centre: Point2, extents: (f64, f64)) -> Rect {
+        Rect {
+            centre,
+            half_x_m: extents.1 / 2.0,
+            half_y_m: extents.0 / 2.0,
+            yaw_rad: 0.0,
+        }
+    }
+
+    /// The same rectangle grown by `gap_m` on every side.
+    pub fn grown(self, gap_m: f64) -> Rect {
+        Rect {
+            half_x_m: self.half_x_m + gap_m,
+            half_y_m: self.half_y_m + gap_m,
+            ..self
+        }
+    }
+
+    fn axes(&self) -> [(f64, f64); 2] {
+        let (s, c) = self.yaw_rad.sin_cos();
+        [(c, s), (-s, c)]
+    }
+
+    /// Half the rectangle's extent along the unit direction `axis`.
+    fn radius_along(&self, axis: (f64, f64)) -> f64 {
+        let [u, v] = self.axes();
+        self.half_x_m * (u.0 * axis.0 + u.1 * axis.1).abs()
+            + self.half_y_m * (v.0 * axis.0 + v.1 * axis.1).abs()
+    }
+
+    /// Whether the two rectangles overlap (separating axis test; touching is not overlapping).
+    pub fn overlaps(&self, other: &Rect) -> bool {
+        let d = (
+            other.centre.x_m - self.centre.x_m,
+            other.centre.y_m - self.centre.y_m,
+        );
+        self.axes().into_iter().chain(other.axes()).all(|axis| {
+            let distance = (d.0 * axis.0 + d.1 * axis.1).abs();
+            distance < self.radius_along(axis) + other.radius_along(axis)
+        })
+    }
+}
+
+/// What the open fingers sweep on the table around a tool centre at `at` turned by `yaw_rad`
+/// (a tool pointing down): along the closing axis, `reach_m` each side of the centre (half the
+/// opening plus a finger's thickness); across it, `half_width_m` each side.
+pub fn finger_sweep(at: Point2, yaw_rad: f64, reach_m: f64, half_width_m: f64) -> Rect {
+    // The closing axis of a tool pointing down with yaw ψ is (−sin ψ, cos ψ): the rectangle's
+    // y axis.
+    Rect {
+        centre: at,
+        half_x_m: half_width_m,
+        half_y_m: reach_m,
+        yaw_rad,
+    }
+}
+
+/// The squares around a workspace's four corner markers that placed or pushed objects must
+/// keep clear of, so that the camera keeps seeing every marker: `keep_out_m` each side of the
+/// marker's centre.
+pub fn marker_zones(workspace: &WorkspaceInfo, keep_out_m: f64) -> [Rect; 4] {
+    let (ul, lr) = (workspace.upper_left, workspace.lower_right);
+    [
+        Point2::new(ul.x_m, ul.y_m),
+        Point2::new(ul.x_m, lr.y_m),
+        Point2::new(lr.x_m, ul.y_m),
+        Point2::new(lr.x_m, lr.y_m),
+    ]
+    .map(|corner| Rect {
+        centre: corner,
+        half_x_m: keep_out_m,
+        half_y_m: keep_out_m,
+        yaw_rad: 0.0,
+    })
 }
 
 /// The object's extent across the fingers when grasped across its narrow side, metres.
@@ -144,24 +212,45 @@ mod tests {
     }
 
     #[test]
-    fn close_to_takes_the_free_side_nearest_the_wish() {
-        let r = object("obj-1", 0.25, 0.0, 0.04, 0.04, 0.015);
-        let blocker = object("obj-2", 0.25, 0.05, 0.03, 0.03, 0.015);
-        // Wanted left of the reference, but the left side is taken.
-        let p = close_to(
-            &r,
-            (0.02, 0.02),
-            Point2::new(0.25, 0.06),
-            &[r.clone(), blocker],
-            |_| true,
-        )
-        .unwrap();
-        assert!(p.distance_to(&r.xy()) > 0.02, "never on top: {p}");
+    fn rectangles_overlap_only_when_they_do() {
+        let a = Rect::footprint(Point2::new(0.0, 0.0), (0.02, 0.02));
+        let touching = Rect::footprint(Point2::new(0.02, 0.0), (0.02, 0.02));
+        assert!(!a.overlaps(&touching));
+        assert!(a.overlaps(&touching.grown(0.001)));
+        // A long thin rectangle turned 45° reaches a square its axis-aligned box would not.
+        let diagonal = Rect {
+            centre: Point2::new(0.0, 0.0),
+            half_x_m: 0.05,
+            half_y_m: 0.002,
+            yaw_rad: std::f64::consts::FRAC_PI_4,
+        };
+        assert!(diagonal.overlaps(&Rect::footprint(Point2::new(0.03, 0.03), (0.01, 0.01))));
+        assert!(!diagonal.overlaps(&Rect::footprint(Point2::new(0.03, -0.03), (0.01, 0.01))));
+    }
+
+    #[test]
+    fn open_fingers_sweep_across_the_closing_axis() {
+        // Yaw 0: the fingers close along y.
+        let sweep = finger_sweep(Point2::new(0.25, 0.0), 0.0, 0.028, 0.009);
+        let beside_in_y = Rect::footprint(Point2::new(0.25, 0.04), (0.03, 0.03));
         assert!(
-            p.y_m <= 0.0 || p.x_m != 0.25,
-            "not the blocked left side: {p}"
+            sweep.overlaps(&beside_in_y),
+            "a finger reaches y = 0.028 > 0.025"
         );
-        assert!(close_to(&r, (0.02, 0.02), Point2::new(0.25, 0.06), &[], |_| false).is_none());
+        let beside_in_x = Rect::footprint(Point2::new(0.28, 0.0), (0.03, 0.03));
+        assert!(
+            !sweep.overlaps(&beside_in_x),
+            "across the fingers only 9 mm"
+        );
+        // Turned a quarter: the other way round.
+        let turned = finger_sweep(
+            Point2::new(0.25, 0.0),
+            std::f64::consts::FRAC_PI_2,
+            0.028,
+            0.009,
+        );
+        assert!(!turned.overlaps(&beside_in_y));
+        assert!(turned.overlaps(&beside_in_x));
     }
 
     #[test]

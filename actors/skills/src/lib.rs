@@ -39,6 +39,7 @@
 //! ```
 
 pub mod geometry;
+mod plan;
 mod runner;
 
 use robotd_protocol::arm::ArmCommand;
@@ -82,6 +83,12 @@ pub struct SkillsSettings {
     pub finger_length_m: f64,
     /// How far the palm reaches from the tool centre across the closing axis, metres.
     pub palm_reach_m: f64,
+    /// A finger's thickness along the closing axis: the open fingers sweep half the maximum
+    /// opening plus this each side of the tool centre, metres.
+    pub finger_thickness_m: f64,
+    /// Placed and pushed objects keep this far (each side) from the centre of every workspace
+    /// corner marker, so that the camera keeps seeing the workspace, metres.
+    pub marker_keep_out_m: f64,
     /// Gap between the gripper and the object when a push starts, metres.
     pub push_gap_m: f64,
     /// Tool height while pushing (at most half the object's height), metres.
@@ -121,6 +128,8 @@ impl SkillsSettings {
                 RobotModel::Ned2 => 0.015,
                 RobotModel::WidowX250 => 0.0175,
             },
+            finger_thickness_m: 0.008,
+            marker_keep_out_m: 0.02,
             push_gap_m: 0.010,
             push_z_m: 0.012,
             command_timeout: Duration::from_secs(60),
@@ -183,11 +192,9 @@ impl Skills {
                             {
                                 Ok(id) => approval = id,
                                 Err(violation) => {
-                                    return Ok(SkillReply::Failed {
-                                        error: SkillError::Refused {
-                                            reason: violation.reason,
-                                        },
-                                    })
+                                    return Ok(SkillReply::failed(SkillError::Refused {
+                                        reason: violation.reason,
+                                    }))
                                 }
                             }
                         }

@@ -2,7 +2,8 @@
 //! pose against the workspaces and the arm's reach, and only then move — step by step, with a
 //! progress message before each step and a cancel check between steps.
 
-use crate::geometry::{self, extents, top_z};
+use crate::geometry::{self, top_z};
+use crate::plan::{self, HeldPlan};
 use crate::SkillsSettings;
 use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, PathKind};
@@ -120,9 +121,7 @@ impl Runner {
                 run_id,
                 "skill cancelled before it started; nothing moved"
             );
-            return SkillReply::Failed {
-                error: SkillError::Cancelled,
-            };
+            return SkillReply::failed(SkillError::Cancelled);
         }
         let mut run = Run {
             run_id,
@@ -138,8 +137,9 @@ impl Runner {
                 reply
             }
             Err(error) => {
-                tracing::warn!(skill = name, run_id, %error, "skill failed");
-                SkillReply::Failed { error }
+                let still_held = self.held.as_ref().map(|h| h.object.label.clone());
+                tracing::warn!(skill = name, run_id, %error, ?still_held, "skill failed");
+                SkillReply::Failed { error, still_held }
             }
         }
     }
@@ -175,7 +175,13 @@ impl Runner {
             } => {
                 run.total = 14;
                 let object = self
-                    .pick(run, &object_name, pick_at, z_offset_m, Some(place_at))
+                    .pick(
+                        run,
+                        &object_name,
+                        pick_at,
+                        z_offset_m,
+                        Some((place_at, location)),
+                    )
                     .await?;
                 let (_, at) = self.place(run, place_at, location).await?;
                 self.finish(run).await?;
@@ -190,18 +196,18 @@ impl Runner {
                 z_offset_m,
             } => {
                 run.total = 14;
+                // The contract: the place is `pick_coordinate` moved by `distance` (not the
+                // object's own centre moved), which is also what the reply says.
+                let target = direction.offset(pick_at, distance_m);
                 let object = self
                     .pick(
                         run,
                         &object_name,
                         pick_at,
                         z_offset_m,
-                        Some(direction.offset(pick_at, distance_m)),
+                        Some((target, Location::None)),
                     )
                     .await?;
-                // The contract: the place is `pick_coordinate` moved by `distance` (not the
-                // object's own centre moved), which is also what the reply says.
-                let target = direction.offset(pick_at, distance_m);
                 let (_, at) = self.place(run, target, Location::None).await?;
                 self.finish(run).await?;
                 let from = object_xy(&object);
@@ -371,27 +377,7 @@ impl Runner {
     }
 
     fn workspace(&self, what: &str, p: Point2) -> Result<WorkspaceInfo, SkillError> {
-        geometry::workspace_of(
-            &self.settings.workspaces,
-            p,
-            self.settings.workspace_margin_m,
-        )
-        .cloned()
-        .ok_or_else(|| SkillError::OutsideWorkspace {
-            what: what.to_owned(),
-            at: p,
-            workspace_id: self
-                .settings
-                .workspaces
-                .iter()
-                .min_by(|a, b| {
-                    a.center()
-                        .distance_to(&p)
-                        .total_cmp(&b.center().distance_to(&p))
-                })
-                .map(|w| w.id.clone())
-                .unwrap_or_default(),
-        })
+        plan::workspace_of(&self.settings, what, p)
     }
 
     /// Checks that the arm reaches every pose of a plan, before anything moves.
@@ -419,16 +405,18 @@ impl Runner {
     // -----------------------------------------------------------------------------------
     // Pick
 
+    /// Picks `name` near `at`. With `then_place`, the place is planned from the same view
+    /// before anything moves: a place that cannot work means the pick does not start.
     async fn pick(
         &mut self,
         run: &mut Run,
         name: &str,
         at: Point2,
         z_offset_m: f64,
-        then_place_at: Option<Point2>,
+        then_place: Option<(Point2, Location)>,
     ) -> Result<DetectedObject, SkillError> {
         let ws = self.workspace("pick", at)?;
-        if let Some(place) = then_place_at {
+        if let Some((place, _)) = then_place {
             self.workspace("place", place)?;
         }
         if let Some(held) = &self.held {
@@ -451,9 +439,23 @@ impl Runner {
             });
         }
         let xy = object_xy(&object);
-        let yaw = object.gripper_rotation_rad;
         let grasp_z =
             (object.position.center_of_mass.z_m + z_offset_m).max(self.settings.min_tcp_z_m);
+        let yaw = plan::grasp_yaw(&self.settings, &object, &objects, grasp_z)?;
+        let base_z = (object.position.center_of_mass.z_m * 2.0 - top_z(&object)).max(0.0);
+        let held = HeldPlan {
+            object: &object,
+            yaw_rad: yaw,
+            tcp_above_base_m: grasp_z - base_z,
+        };
+        if let Some((place_at, location)) = then_place {
+            let others: Vec<DetectedObject> = objects
+                .iter()
+                .filter(|o| o.id != object.id)
+                .cloned()
+                .collect();
+            plan::place_target(&self.settings, &others, &held, place_at, location)?;
+        }
         let above_z = top_z(&object) + self.settings.approach_height_m;
         let above = down(xy, above_z, yaw);
         let grasp = down(xy, grasp_z, yaw);
@@ -467,21 +469,20 @@ impl Runner {
         self.move_to(grasp, PathKind::Linear).await?;
         self.step(run, "closing the gripper".into())?;
         let holding = self.grip(GripperCommand::Close).await?;
+        if holding {
+            self.held = Some(Held {
+                object: object.clone(),
+                tcp_above_base_m: grasp_z - base_z,
+                yaw_rad: yaw,
+            });
+        }
         self.step(run, "lifting".into())?;
         self.move_to(above, PathKind::Linear).await?;
-        if !holding {
-            return Err(SkillError::GraspMissed { at: xy });
-        }
         // Still holding after the lift?
-        if !self.grip(GripperCommand::GetState).await? {
+        if !holding || !self.grip(GripperCommand::GetState).await? {
+            self.held = None;
             return Err(SkillError::GraspMissed { at: xy });
         }
-        let base_z = (object.position.center_of_mass.z_m * 2.0 - top_z(&object)).max(0.0);
-        self.held = Some(Held {
-            object: object.clone(),
-            tcp_above_base_m: grasp_z - base_z,
-            yaw_rad: yaw,
-        });
         if let Err(error) = self
             .ask(
                 WorkspaceRequest::ObjectPicked {
@@ -510,64 +511,17 @@ impl Runner {
             // The gripper may hold something robotd did not pick (a restart, a hand).
             return Err(SkillError::NothingHeld);
         };
-        let held_extents = extents(&held.object);
         let objects = self.look(run, &ws).await?;
         let others: Vec<DetectedObject> = objects
             .into_iter()
             .filter(|o| o.id != held.object.id)
             .collect();
-        let (target, surface_z) = if location == Location::None {
-            (at, 0.0)
-        } else {
-            let reference = others
-                .iter()
-                .min_by(|a, b| a.xy().distance_to(&at).total_cmp(&b.xy().distance_to(&at)))
-                .cloned()
-                .ok_or_else(|| SkillError::BadPlacement {
-                    reason: format!(
-                        "no object near [{:.3}, {:.3}] to place {location}",
-                        at.x_m, at.y_m
-                    ),
-                })?;
-            match location {
-                Location::OnTopOf => (object_xy(&reference), top_z(&reference)),
-                Location::Inside => (object_xy(&reference), self.settings.container_floor_m),
-                Location::CloseTo => {
-                    let margin = self.settings.workspace_margin_m;
-                    let workspaces = self.settings.workspaces.clone();
-                    let p = geometry::close_to(&reference, held_extents, at, &others, |p| {
-                        geometry::workspace_of(&workspaces, p, margin).is_some()
-                    })
-                    .ok_or_else(|| SkillError::BadPlacement {
-                        reason: format!(
-                            "no free side next to '{}' at [{:.3}, {:.3}]",
-                            reference.label,
-                            reference.xy().x_m,
-                            reference.xy().y_m
-                        ),
-                    })?;
-                    (p, 0.0)
-                }
-                side => (
-                    geometry::beside(&reference, side, held_extents).unwrap_or(at),
-                    0.0,
-                ),
-            }
+        let plan = HeldPlan {
+            object: &held.object,
+            yaw_rad: held.yaw_rad,
+            tcp_above_base_m: held.tcp_above_base_m,
         };
-        self.workspace("place", target)?;
-        if surface_z == 0.0 {
-            if let Some(taken) = others
-                .iter()
-                .find(|o| geometry::overlaps(target, held_extents, std::slice::from_ref(o), 0.0))
-            {
-                return Err(SkillError::BadPlacement {
-                    reason: format!(
-                        "'{}' would not fit at [{:.3}, {:.3}]: '{}' is in the way",
-                        held.object.label, target.x_m, target.y_m, taken.label
-                    ),
-                });
-            }
-        }
+        let (target, surface_z) = plan::place_target(&self.settings, &others, &plan, at, location)?;
         let release_z = (surface_z + held.tcp_above_base_m + self.settings.release_gap_m)
             .max(self.settings.min_tcp_z_m);
         let above_z = surface_z
@@ -634,6 +588,9 @@ impl Runner {
         let object = find_object(&objects, name, at, self.settings.pick_radius_m)?;
         let end_of_object = direction.offset(object_xy(&object), distance_m);
         self.workspace("push", end_of_object)?;
+        if let Some(problem) = plan::resting_spot_problem(&self.settings, &object, end_of_object) {
+            return Err(SkillError::BadPlacement { reason: problem });
+        }
         let low_z = self
             .settings
             .push_z_m

@@ -794,3 +794,32 @@ fn gripper_geometry_per_robot() {
     assert!((local(&left).translation.x + 0.0175).abs() < 1e-12);
     assert!(local(&palm).translation.x < -0.035);
 }
+
+#[test]
+fn fingers_opening_against_a_neighbour_stall_at_the_contact() {
+    let mut world = empty_world();
+    world
+        .add_object(cube("pencil-ish", 0.25, 0.0, 0.012))
+        .unwrap();
+    world
+        .add_object(cube("neighbour", 0.25, 0.036, 0.03))
+        .unwrap();
+    // Grasp the small cube across y: fully open, a finger would reach y = 0.028 > 0.021.
+    world.set_tool(ToolState::pointing_down(0.25, 0.0, 0.006, 0.0, 0.012));
+    assert!(matches!(
+        world.close_gripper(),
+        GraspOutcome::Grasped { .. }
+    ));
+    world.open_gripper(0.04);
+    let opening = world.gripper_width_m();
+    // Finger inner face at opening/2, 8 mm thick: stops where the neighbour's side begins.
+    let outer = opening / 2.0 + 0.008;
+    assert!(
+        (outer - 0.021).abs() < 0.0002,
+        "the finger stopped with its outer face at {outer:.4} m"
+    );
+    assert_eq!(world.held(), None, "opened past the held width: released");
+    // And the arm is free to leave straight up.
+    let (_, outcome) = world.move_tool(&down(0.25, 0.0, 0.06, 0.0));
+    assert_eq!(outcome.collision, None);
+}

@@ -2,7 +2,7 @@
 //! coordinate, or relative to the object nearest it (`location`).
 
 use super::{pt, Reply, Tool};
-use crate::args::{self, validation_text, FieldError};
+use crate::args;
 use crate::schema::location_schema;
 use crate::skill::{location_text, run_skill, Motion, SkillFailure};
 use crate::{CallHooks, Registry};
@@ -28,8 +28,9 @@ pub(crate) struct Args {
     #[schemars(with = "[f64; 2]")]
     #[serde(deserialize_with = "args::point")]
     place_coordinate: Point2,
+    // `close to` is refused here, with the Python server's value error.
     #[schemars(schema_with = "location_schema", default)]
-    #[serde(deserialize_with = "args::opt_word")]
+    #[serde(deserialize_with = "args::pick_place_location")]
     location: Option<Location>,
     /// Height above the object's centre of mass at which to close the gripper, metres.
     #[schemars(with = "Option<f64>", range(min = 0.0, max = 0.1), extend("default" = 0.001))]
@@ -51,22 +52,8 @@ impl Tool for PickPlaceObject {
     type Data = Motion;
 
     async fn run(registry: &Registry, a: Args, hooks: CallHooks) -> Result<Reply<Motion>, String> {
+        // Never `close to`: the reader refuses it, in the Python server's words.
         let location = a.location.unwrap_or_default();
-        if location == Location::CloseTo {
-            // The contract refuses 'close to' here, in the Python server's words.
-            return Err(validation_text(
-                Self::NAME,
-                &[FieldError {
-                    field: "location".into(),
-                    message: concat!(
-                        "Value error, Invalid location 'close to'. Must be one of: left next to, ",
-                        "right next to, above, below, on top of, inside. Note: 'close to' is not ",
-                        "allowed for pick_place_object."
-                    )
-                    .into(),
-                }],
-            ));
-        }
         let skill = Skill::PickPlace {
             object_name: a.object_name.clone(),
             pick_at: a.pick_coordinate,

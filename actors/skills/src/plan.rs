@@ -1,0 +1,320 @@
+//! Where the fingers and the objects will go, checked before anything moves.
+//!
+//! - **Grasps** ([`grasp_yaw`]): the open fingers sweep a rectangle across the object
+//!   ([`geometry::finger_sweep`]) down to the grasp height. Of the yaws that fit the object (across
+//!   its narrow side, and across its long side when that fits the gripper too), the one whose
+//!   sweep keeps the most room to its neighbours is taken; when every yaw would touch a
+//!   neighbour taller than the finger tips, the pick is refused naming it.
+//! - **Placements** ([`place_target`]): the held object's footprint must lie in a workspace,
+//!   clear of the other objects (for table placements) and of the corner markers (the camera
+//!   needs all four); the fingers, opening to release, must not reach a neighbour. Placements
+//!   beside a reference step outwards from the contract's spot until all of that holds, so
+//!   that a later grasp of either object finds room for the fingers.
+//! - **Pushes** ([`resting_spot_problem`]): where the pushed object ends must keep clear of the
+//!   markers.
+//!
+//! Pick-and-place skills plan the place with the view taken for the pick, before the pick
+//! starts: a place that cannot work means the pick does not start.
+
+use crate::geometry::{self, extents, finger_sweep, marker_zones, top_z, Rect};
+use crate::SkillsSettings;
+use robotd_protocol::location::PLACE_GAP_M;
+use robotd_protocol::objects::DetectedObject;
+use robotd_protocol::skills::SkillError;
+use robotd_protocol::workspace::WorkspaceInfo;
+use robotd_protocol::{Location, Point2};
+use std::f64::consts::FRAC_PI_2;
+
+/// How far beyond the contract's spot a placement beside a reference may move outwards, in
+/// steps of [`SIDE_STEP_M`], metres.
+const SIDE_SEARCH_M: f64 = 0.03;
+/// Step of that search, metres.
+const SIDE_STEP_M: f64 = 0.0025;
+/// Clearances tried when ranking grasp yaws (the largest that fits wins), metres.
+const CLEARANCE_STEPS_M: [f64; 6] = [0.0, 0.002, 0.004, 0.007, 0.01, 0.015];
+
+/// The object the gripper will hold, and how.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct HeldPlan<'a> {
+    /// The object as seen before the pick.
+    pub(crate) object: &'a DetectedObject,
+    /// Gripper yaw of the grasp, radians.
+    pub(crate) yaw_rad: f64,
+    /// Height of the tool centre above the object's base while held, metres.
+    pub(crate) tcp_above_base_m: f64,
+}
+
+/// The workspace `p` lies in, or the error naming the nearest one.
+pub(crate) fn workspace_of(
+    settings: &SkillsSettings,
+    what: &str,
+    p: Point2,
+) -> Result<WorkspaceInfo, SkillError> {
+    geometry::workspace_of(&settings.workspaces, p, settings.workspace_margin_m)
+        .cloned()
+        .ok_or_else(|| SkillError::OutsideWorkspace {
+            what: what.to_owned(),
+            at: p,
+            workspace_id: settings
+                .workspaces
+                .iter()
+                .min_by(|a, b| {
+                    a.center()
+                        .distance_to(&p)
+                        .total_cmp(&b.center().distance_to(&p))
+                })
+                .map(|w| w.id.clone())
+                .unwrap_or_default(),
+        })
+}
+
+/// Half the span of the open fingers along the closing axis, metres.
+fn open_reach(settings: &SkillsSettings) -> f64 {
+    settings.gripper_max_width_m / 2.0 + settings.finger_thickness_m
+}
+
+/// The first of `others` whose footprint meets `area` and whose top is above `above_z`.
+fn first_in<'a>(
+    area: &Rect,
+    others: &'a [DetectedObject],
+    above_z: f64,
+) -> Option<&'a DetectedObject> {
+    others
+        .iter()
+        .find(|o| top_z(o) > above_z + 0.001 && area.overlaps(&Rect::of_object(o)))
+}
+
+/// The gripper yaw for grasping `object` at tool height `grasp_z` among `others` (the object
+/// itself may be among them): the fitting yaw with the most room for the open fingers.
+pub(crate) fn grasp_yaw(
+    settings: &SkillsSettings,
+    object: &DetectedObject,
+    others: &[DetectedObject],
+    grasp_z: f64,
+) -> Result<f64, SkillError> {
+    let neighbours: Vec<DetectedObject> = others
+        .iter()
+        .filter(|o| o.id != object.id)
+        .cloned()
+        .collect();
+    let (w, h) = extents(object);
+    let mut yaws = vec![object.gripper_rotation_rad];
+    if w.max(h) <= settings.gripper_max_width_m - 0.002 {
+        yaws.push(object.gripper_rotation_rad + FRAC_PI_2);
+    }
+    let reach = open_reach(settings);
+    let mut best: Option<(f64, f64)> = None;
+    let mut blocker = None;
+    for yaw in yaws {
+        let sweep = finger_sweep(object.xy(), yaw, reach, settings.finger_reach_m);
+        let mut room = None;
+        for gap in CLEARANCE_STEPS_M {
+            match first_in(&sweep.grown(gap), &neighbours, grasp_z) {
+                None => room = Some(gap),
+                Some(o) => {
+                    if gap == 0.0 && blocker.is_none() {
+                        blocker = Some(o.label.clone());
+                    }
+                    break;
+                }
+            }
+        }
+        if let Some(room) = room {
+            if best.is_none_or(|(_, r)| room > r) {
+                best = Some((yaw, room));
+            }
+        }
+    }
+    match (best, blocker) {
+        (Some((yaw, _)), _) => Ok(yaw),
+        (None, blocker) => Err(SkillError::BadPlacement {
+            reason: format!(
+                "the open gripper's fingers would hit '{}' grasping '{}' at [{:.3}, {:.3}]; \
+                 move one of them apart first (push_object)",
+                blocker.unwrap_or_default(),
+                object.label,
+                object.xy().x_m,
+                object.xy().y_m
+            ),
+        }),
+    }
+}
+
+/// What is wrong with the held object coming to rest at `at` on a surface at `surface_z`,
+/// released by the fingers at tool height `release_z`: `None` when nothing is.
+fn placement_problem(
+    settings: &SkillsSettings,
+    others: &[DetectedObject],
+    held: &HeldPlan<'_>,
+    at: Point2,
+    surface_z: f64,
+    release_z: f64,
+) -> Option<String> {
+    let label = &held.object.label;
+    let Ok(ws) = workspace_of(settings, "place", at) else {
+        return Some(format!(
+            "'{label}' at [{:.3}, {:.3}] would lie outside the workspaces",
+            at.x_m, at.y_m
+        ));
+    };
+    let footprint = Rect::footprint(at, extents(held.object));
+    if surface_z == 0.0 {
+        if let Some(taken) = others
+            .iter()
+            .find(|o| footprint.overlaps(&Rect::of_object(o)))
+        {
+            return Some(format!(
+                "'{label}' would not fit at [{:.3}, {:.3}]: '{}' is in the way",
+                at.x_m, at.y_m, taken.label
+            ));
+        }
+    }
+    if let Some(problem) = marker_problem(settings, &ws, label, &footprint) {
+        return Some(problem);
+    }
+    let sweep = finger_sweep(
+        at,
+        held.yaw_rad,
+        open_reach(settings),
+        settings.finger_reach_m,
+    );
+    if let Some(hit) = first_in(&sweep, others, release_z) {
+        return Some(format!(
+            "releasing '{label}' at [{:.3}, {:.3}], the opening fingers would hit '{}'",
+            at.x_m, at.y_m, hit.label
+        ));
+    }
+    None
+}
+
+/// Whether `footprint` covers a corner marker of `ws` (or the margin the camera needs).
+fn marker_problem(
+    settings: &SkillsSettings,
+    ws: &WorkspaceInfo,
+    label: &str,
+    footprint: &Rect,
+) -> Option<String> {
+    marker_zones(ws, settings.marker_keep_out_m)
+        .iter()
+        .find(|zone| footprint.overlaps(zone))
+        .map(|zone| {
+            format!(
+                "'{label}' at [{:.3}, {:.3}] would cover the marker at [{:.3}, {:.3}] of \
+                 workspace '{}', and the camera needs all four to see the workspace",
+                footprint.centre.x_m, footprint.centre.y_m, zone.centre.x_m, zone.centre.y_m, ws.id
+            )
+        })
+}
+
+/// What is wrong with `object` coming to rest at `at` after a push: `None` when nothing is.
+pub(crate) fn resting_spot_problem(
+    settings: &SkillsSettings,
+    object: &DetectedObject,
+    at: Point2,
+) -> Option<String> {
+    let ws = workspace_of(settings, "push", at).ok()?;
+    marker_problem(
+        settings,
+        &ws,
+        &object.label,
+        &Rect::footprint(at, extents(object)),
+    )
+}
+
+/// Where the held object goes for a placement at `at` with `location`, among `others` (the
+/// objects on the table without the held one): its centre and the height of the surface it
+/// rests on.
+pub(crate) fn place_target(
+    settings: &SkillsSettings,
+    others: &[DetectedObject],
+    held: &HeldPlan<'_>,
+    at: Point2,
+    location: Location,
+) -> Result<(Point2, f64), SkillError> {
+    let release_z = |surface_z: f64| {
+        (surface_z + held.tcp_above_base_m + settings.release_gap_m).max(settings.min_tcp_z_m)
+    };
+    let bad = |reason: String| SkillError::BadPlacement { reason };
+    if location == Location::None {
+        workspace_of(settings, "place", at)?;
+        return match placement_problem(settings, others, held, at, 0.0, release_z(0.0)) {
+            None => Ok((at, 0.0)),
+            Some(problem) => Err(bad(problem)),
+        };
+    }
+    let reference = others
+        .iter()
+        .min_by(|a, b| a.xy().distance_to(&at).total_cmp(&b.xy().distance_to(&at)))
+        .ok_or_else(|| {
+            bad(format!(
+                "no object near [{:.3}, {:.3}] to place {location}",
+                at.x_m, at.y_m
+            ))
+        })?;
+    let on_reference = |surface_z: f64| {
+        let target = reference.xy();
+        workspace_of(settings, "place", target)?;
+        match placement_problem(
+            settings,
+            others,
+            held,
+            target,
+            surface_z,
+            release_z(surface_z),
+        ) {
+            None => Ok((target, surface_z)),
+            Some(problem) => Err(bad(problem)),
+        }
+    };
+    let sides: Vec<Location> = match location {
+        Location::OnTopOf => return on_reference(top_z(reference)),
+        Location::Inside => return on_reference(settings.container_floor_m),
+        Location::CloseTo => {
+            let mut sides = vec![
+                Location::LeftNextTo,
+                Location::RightNextTo,
+                Location::Above,
+                Location::Below,
+            ];
+            let distance = |side: &Location| {
+                geometry::beside(reference, *side, extents(held.object))
+                    .map_or(f64::INFINITY, |p| p.distance_to(&at))
+            };
+            sides.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
+            sides
+        }
+        side => vec![side],
+    };
+    let mut first_problem = None;
+    for side in sides {
+        let Some(spot) = geometry::beside(reference, side, extents(held.object)) else {
+            continue;
+        };
+        let outwards = {
+            let (dx, dy) = (spot.x_m - reference.xy().x_m, spot.y_m - reference.xy().y_m);
+            let n = dx.hypot(dy).max(1e-9);
+            (dx / n, dy / n)
+        };
+        let steps = (SIDE_SEARCH_M / SIDE_STEP_M).round() as usize;
+        for k in 0..=steps {
+            let d = k as f64 * SIDE_STEP_M;
+            let p = Point2::new(spot.x_m + outwards.0 * d, spot.y_m + outwards.1 * d);
+            match placement_problem(settings, others, held, p, 0.0, release_z(0.0)) {
+                None => return Ok((p, 0.0)),
+                Some(problem) => {
+                    first_problem.get_or_insert(problem);
+                }
+            }
+        }
+    }
+    let problem = first_problem.unwrap_or_else(|| "no side to place on".to_owned());
+    Err(bad(format!(
+        "no room {location} '{}' at [{:.3}, {:.3}] (tried up to {:.0} mm beyond the {:.0} mm \
+         gap): {problem}",
+        reference.label,
+        reference.xy().x_m,
+        reference.xy().y_m,
+        SIDE_SEARCH_M * 1000.0,
+        PLACE_GAP_M * 1000.0
+    )))
+}
