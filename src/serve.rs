@@ -33,6 +33,22 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tokio_util::sync::CancellationToken;
 
+/// `/health`'s `workspace_view`: whether the camera sees the workspace from the observation
+/// pose (`null` before the first such view, or when the built-in detector does not run).
+fn workspace_view_report(view: Option<&robotd_perception::WorkspaceView>) -> serde_json::Value {
+    let Some(view) = view else {
+        return serde_json::Value::Null;
+    };
+    let age_s =
+        robotd_protocol::envelope::unix_now_ns().saturating_sub(view.taken_unix_ns) as f64 / 1e9;
+    serde_json::json!({
+        "workspace_id": view.workspace_id,
+        "visible": view.visible,
+        "reason": view.reason,
+        "age_s": (age_s * 10.0).round() / 10.0,
+    })
+}
+
 /// What /health says about the robot.
 struct RobotInfo {
     model: String,
@@ -284,9 +300,15 @@ impl Runtime {
         let report_config = config.clone();
         let report_health = health.clone();
         let report_safety = hardware.safety.clone();
+        let perception_stats = perception.as_ref().map(Perception::stats);
         let health_source: HealthSource = Arc::new(move || {
             let mut report = report_health.report(&report_config, &robot, started);
             report["safety"] = safety_report(&report_safety);
+            let view = perception_stats.as_ref().and_then(|s| s.workspace_view());
+            if view.as_ref().is_some_and(|v| !v.visible) {
+                report["status"] = "degraded".into();
+            }
+            report["workspace_view"] = workspace_view_report(view.as_ref());
             report["redis"] = match &redis_status {
                 Some(status) => status.to_json(),
                 None => serde_json::json!({"state": "off"}),
@@ -335,6 +357,7 @@ impl Runtime {
                 "estop_engaged": estop.is_some(),
                 "estop_reason": estop,
                 "redis": report.get("redis"),
+                "workspace_view": report.get("workspace_view"),
                 "uptime_ms": report.get("uptime_ms"),
             })
         });

@@ -112,6 +112,15 @@ fn the_served_workspace_model_knows_the_default_scene_from_pixels() {
             ids
         };
         assert_eq!(ids(&objects), ids(&later));
+
+        // /health says the camera sees the workspace from its observation pose.
+        let (code, body) = common::http_get(port, "/health");
+        assert_eq!(code, 200);
+        let health: serde_json::Value = serde_json::from_str(&body).unwrap();
+        let view = &health["workspace_view"];
+        assert_eq!(view["visible"], true, "{health:#}");
+        assert_eq!(view["workspace_id"], "niryo_ws");
+        assert_eq!(health["status"], "ok", "{health:#}");
     });
 }
 

@@ -240,7 +240,12 @@ impl Registry {
             let mut last: Option<ArmRest> = None;
             while let Ok(envelope) = arm_states.recv().await {
                 let state: ArmState = envelope.body;
+                // The arm says since when it stands still; older senders do not, and then
+                // the first state of a rest counts.
                 let rested_since_unix_ns = match last {
+                    _ if !state.moving && state.still_since_unix_ns > 0 => {
+                        state.still_since_unix_ns
+                    }
                     Some(prev) if prev.moving && !state.moving => {
                         robotd_protocol::envelope::unix_now_ns()
                     }

@@ -39,6 +39,30 @@ pub struct PerceptionStats {
     pub last_processing_us: AtomicU64,
     /// Objects found in the last frame.
     pub last_objects: AtomicU64,
+    /// What the last steady view from an observation pose showed (`None`: none yet).
+    pub view: std::sync::Mutex<Option<WorkspaceView>>,
+}
+
+/// Whether the camera sees the workspace from its observation pose: what `/health` and
+/// `get_system_status` report. Only views taken with the arm at rest at an observation pose
+/// count (elsewhere the sheet may rightly be out of view).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkspaceView {
+    /// The workspace whose observation pose the arm was at.
+    pub workspace_id: String,
+    /// Whether the sheet was found.
+    pub visible: bool,
+    /// What was seen, in words (why not, when not).
+    pub reason: String,
+    /// Capture time of that view, ns since the Unix epoch.
+    pub taken_unix_ns: u64,
+}
+
+impl PerceptionStats {
+    /// The last steady view from an observation pose.
+    pub fn workspace_view(&self) -> Option<WorkspaceView> {
+        self.view.lock().map(|v| v.clone()).unwrap_or_default()
+    }
 }
 
 /// The perception actor could not start.
@@ -287,6 +311,20 @@ fn run(
             let detections: Detections = match outcome {
                 Ok(Ok((mut detections, status))) => {
                     detections.objects.retain(|o| !arm.is_held_object(o));
+                    if steady {
+                        let view = WorkspaceView {
+                            workspace_id: pipeline
+                                .workspace_for(arm.tool_pose.as_ref())
+                                .id
+                                .clone(),
+                            visible: status == SheetStatus::Found,
+                            reason: status.to_string(),
+                            taken_unix_ns: header.timestamp_unix_ns,
+                        };
+                        if let Ok(mut last) = stats.view.lock() {
+                            *last = Some(view);
+                        }
+                    }
                     if status == SheetStatus::Found {
                         stats.frames_with_sheet.fetch_add(1, Ordering::Relaxed);
                         missing_sheet_streak = 0;

@@ -19,5 +19,5 @@ pub use robotd_vision::{
     camera, components, detector, external, footprint, labels, markers, pipeline, plane, rect,
 };
 
-pub use actor::{Perception, PerceptionStartError, PerceptionStats};
+pub use actor::{Perception, PerceptionStartError, PerceptionStats, WorkspaceView};
 pub use pipeline::{Pipeline, PipelineError, SheetStatus};

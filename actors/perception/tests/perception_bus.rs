@@ -97,6 +97,20 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
     let d = detections_of(&mut detections, 4).await;
     assert_eq!(d.workspace_id, "");
     assert!(d.objects.is_empty());
+    // Taken at rest at the observation pose: the health report says the workspace is not seen.
+    let view = perception
+        .stats()
+        .workspace_view()
+        .expect("a view from the pose");
+    assert!(!view.visible, "{view:?}");
+    assert_eq!(view.workspace_id, "niryo_ws");
+    assert!(
+        view.reason.starts_with("only 0 of the 4 workspace markers"),
+        "{view:?}"
+    );
+    publish(&frames, lab.frame(), 5);
+    detections_of(&mut detections, 5).await;
+    assert!(perception.stats().workspace_view().unwrap().visible);
 
     let stats = perception.stats();
     assert!(stats.frames.load(std::sync::atomic::Ordering::Relaxed) >= 4);

@@ -42,6 +42,24 @@ pub enum SheetStatus {
     Degenerate,
 }
 
+impl std::fmt::Display for SheetStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Found => write!(f, "the workspace sheet and its four markers are in view"),
+            Self::MarkersMissing { seen } => write!(
+                f,
+                "only {seen} of the 4 workspace markers are in view (one may be covered by an \
+                 object, in shadow or out of the picture)"
+            ),
+            Self::Degenerate => write!(
+                f,
+                "the 4 markers are in view but do not give a sensible camera pose (are they \
+                 the configured workspace's?)"
+            ),
+        }
+    }
+}
+
 /// Markers, plane and detector, for one camera.
 pub struct Pipeline {
     pub(crate) camera: Camera,
