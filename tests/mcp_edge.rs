@@ -308,12 +308,13 @@ async fn check_contract(client: &McpClient, tag: &str) {
         )
         .await,
         "❌ Validation Error in pick_place_object:\n  \
-         • object_name: must be a non-empty string\n  \
-         • pick_coordinate: must have exactly 2 items [x, y], got 1 item\n  \
-         • place_coordinate: is required\n  \
-         • location: unknown location 'beside'; valid values: 'left next to', 'right next to', \
-         'above', 'below', 'on top of', 'inside', 'close to', 'none'\n  \
-         • z_offset: must be between 0 and 0.1, got 0.5"
+         • object_name: String should have at least 1 character\n  \
+         • pick_coordinate: List should have at least 2 items after validation, not 1\n  \
+         • place_coordinate: Field required\n  \
+         • location: Value error, Invalid location 'beside'. Must be one of: left next to, \
+         right next to, above, below, on top of, inside. Note: 'close to' is not allowed for \
+         pick_place_object.\n  \
+         • z_offset: Input should be less than or equal to 0.1"
     );
     assert_eq!(
         text(
@@ -340,9 +341,10 @@ async fn check_contract(client: &McpClient, tag: &str) {
         )
         .await,
         "❌ Validation Error in push_object:\n  \
-         • push_coordinate[1]: must be a finite number, got a string\n  \
-         • direction: unknown direction 'sideways'; valid values: 'up', 'down', 'left', 'right'\n  \
-         • distance: must be greater than 0, got -5"
+         • push_coordinate.1: Input should be a valid number, unable to parse string as a \
+         number\n  \
+         • direction: Value error, Direction must be one of: up, down, left, right\n  \
+         • distance: Input should be greater than 0"
     );
     assert_eq!(
         text(
@@ -352,8 +354,8 @@ async fn check_contract(client: &McpClient, tag: &str) {
         )
         .await,
         "❌ Validation Error in get_detected_objects_sorted:\n  \
-         • ascending: must be true or false, got a string\n  \
-         • extra: unknown argument; expected ascending"
+         • ascending: Input should be a valid boolean, unable to interpret input\n  \
+         • extra: Extra inputs are not permitted"
     );
     assert_eq!(
         text(

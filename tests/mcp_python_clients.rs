@@ -76,8 +76,9 @@ fn fastmcp_drives_robotd_over_sse_and_streamable_http() {
         );
         assert_eq!(
             report["invalid_text"],
-            "❌ Validation Error in pick_object:\n  • object_name: must be a non-empty string\n  \
-             • pick_coordinate: must have exactly 2 items [x, y], got 1 item"
+            "❌ Validation Error in pick_object:\n  \
+             • object_name: String should have at least 1 character\n  \
+             • pick_coordinate: List should have at least 2 items after validation, not 1"
         );
         let text = report["pick_place_text"].as_str().unwrap();
         assert!(

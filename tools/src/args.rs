@@ -14,13 +14,21 @@
 //! ```
 //!
 //! [`from_args`] gets there with its own [`Deserializer`]. It hands the struct every field it
-//! declares (absent ones too, so "is required" comes from the field's reader, not serde), in
-//! declaration order. The field readers below (`#[serde(deserialize_with = "…")]`) word the
+//! declares (absent ones too, so "Field required" comes from the field's reader, not serde),
+//! in declaration order. The field readers below (`#[serde(deserialize_with = "…")]`) word the
 //! contract's messages. When a field is bad, the pass ends with that field's error; the field
 //! is then *poisoned* — on the next pass its reader returns a placeholder without looking —
 //! and deserialization runs again until it completes. The placeholders never leave this
 //! module: any problem means the caller gets the list of problems, not the struct. Arguments
 //! the struct does not declare are problems too (listed last, sorted).
+//!
+//! The messages are the Python server's, which are pydantic v2's: `Field required`,
+//! `Input should be a valid string`, `String should have at least 1 character`,
+//! `List should have at least 2 items after validation, not 1`,
+//! `Input should be less than or equal to 0.1`, `Value error, Direction must be one of: …`, and
+//! so on. A bad item of a coordinate is reported under pydantic's location of it,
+//! `pick_coordinate.1`, one line per bad item. Numbers in the messages are printed as Python
+//! prints the limits (`0`, `0.1`, `500`).
 //!
 //! Enum-like words are matched case-insensitively with surrounding whitespace ignored, as the
 //! contract asks; a coordinate written as the JSON text `"[0.2, 0.1]"` (some LLMs do that) is
@@ -43,12 +51,12 @@
 //! assert_eq!(
 //!     validation_text("pick_object", &errors),
 //!     "❌ Validation Error in pick_object:\n  \
-//!      • object_name: must be a non-empty string\n  \
-//!      • colour: unknown argument; expected object_name"
+//!      • object_name: String should have at least 1 character\n  \
+//!      • colour: Extra inputs are not permitted"
 //! );
 //! ```
 
-use robotd_protocol::{ParseEnumError, Point2};
+use robotd_protocol::{Location, ParseEnumError, Point2};
 use serde::de::{self, DeserializeOwned, DeserializeSeed, Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use serde_json::{Map, Value};
@@ -59,7 +67,8 @@ use std::str::FromStr;
 /// One problem with one argument.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct FieldError {
-    /// The argument's name (`pick_coordinate[1]` for one item of a coordinate).
+    /// The argument's name (`pick_coordinate.1` for one item of a coordinate, as pydantic
+    /// names it).
     pub field: String,
     /// What is wrong with it.
     pub message: String,
@@ -97,17 +106,18 @@ pub fn from_args<T: DeserializeOwned>(args: &Map<String, Value>) -> Result<T, Ve
             }
             Err(ArgError {
                 field: Some(field),
-                index,
-                message,
+                issues,
             }) if !poisoned.contains(&field) => {
-                let name = match index {
-                    Some(i) => format!("{field}[{i}]"),
-                    None => field.to_owned(),
-                };
-                errors.push(FieldError {
-                    field: name,
-                    message,
-                });
+                for Issue { index, message } in issues {
+                    let name = match index {
+                        Some(i) => format!("{field}.{i}"),
+                        None => field.to_owned(),
+                    };
+                    errors.push(FieldError {
+                        field: name,
+                        message,
+                    });
+                }
                 poisoned.push(field);
             }
             // Not a field's problem, or a poisoned field failing again: stop here; the
@@ -116,7 +126,7 @@ pub fn from_args<T: DeserializeOwned>(args: &Map<String, Value>) -> Result<T, Ve
                 if errors.is_empty() {
                     errors.push(FieldError {
                         field: "arguments".into(),
-                        message: format!("could not be read: {}", other.message),
+                        message: format!("could not be read: {other}"),
                     });
                 }
                 break;
@@ -130,14 +140,9 @@ pub fn from_args<T: DeserializeOwned>(args: &Map<String, Value>) -> Result<T, Ve
         .collect();
     unknown.sort();
     for key in unknown {
-        let message = if known.is_empty() {
-            "this tool takes no arguments".to_owned()
-        } else {
-            format!("unknown argument; expected {}", known.join(", "))
-        };
         errors.push(FieldError {
             field: key.clone(),
-            message,
+            message: EXTRA_FORBIDDEN.into(),
         });
     }
     match value {
@@ -165,17 +170,23 @@ pub fn fields_of<T: DeserializeOwned>() -> &'static [&'static str] {
 // ---------------------------------------------------------------------------------------
 // The deserializer
 
-/// Why one pass stopped: a problem with a field, or something else (`field` = `None`).
+/// Why one pass stopped: problems with a field, or something else (`field` = `None`).
 #[derive(Debug)]
 struct ArgError {
     field: Option<&'static str>,
-    index: Option<usize>,
-    message: String,
+    /// At least one.
+    issues: Vec<Issue>,
 }
 
 impl fmt::Display for ArgError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.message)
+        for (i, issue) in self.issues.iter().enumerate() {
+            if i > 0 {
+                f.write_str("; ")?;
+            }
+            f.write_str(&issue.message)?;
+        }
+        Ok(())
     }
 }
 
@@ -183,11 +194,9 @@ impl std::error::Error for ArgError {}
 
 impl de::Error for ArgError {
     fn custom<T: fmt::Display>(msg: T) -> Self {
-        let (index, message) = Problem::decode(&msg.to_string());
         ArgError {
             field: None,
-            index,
-            message,
+            issues: Problem::decode(&msg.to_string()),
         }
     }
 }
@@ -298,7 +307,7 @@ impl<'de> Deserializer<'de> for Slot<'_> {
     /// Fields without a reader of this module get the plain JSON value.
     fn deserialize_any<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, ArgError> {
         match self {
-            Slot::Absent => Err(Problem::new("is required").into_error()),
+            Slot::Absent => Err(Problem::new(FIELD_REQUIRED).into_error()),
             Slot::Present(v) => v
                 .clone()
                 .deserialize_any(visitor)
@@ -317,32 +326,94 @@ impl<'de> Deserializer<'de> for Slot<'_> {
 // ---------------------------------------------------------------------------------------
 // Field readers
 
-/// A problem found by a reader: its message, and which item of a list it is about.
-///
-/// It crosses serde as an error's text, `"[i]: message"` for an item, so that any
-/// deserializer can carry it; [`ArgError`] reads the index back.
-struct Problem {
+// pydantic v2's messages (pydantic-core's error types) for the problems the readers find.
+
+/// `missing`.
+const FIELD_REQUIRED: &str = "Field required";
+/// `string_type`.
+const STRING_TYPE: &str = "Input should be a valid string";
+/// `string_too_short` with `min_length` 1 (a blank string counts as empty).
+const STRING_TOO_SHORT: &str = "String should have at least 1 character";
+/// `list_type`.
+const LIST_TYPE: &str = "Input should be a valid list";
+/// `float_type`.
+const FLOAT_TYPE: &str = "Input should be a valid number";
+/// `float_parsing`: robotd reads no numbers from strings.
+const FLOAT_PARSING: &str = "Input should be a valid number, unable to parse string as a number";
+/// `finite_number`.
+const FINITE_NUMBER: &str = "Input should be a finite number";
+/// `bool_type`.
+const BOOL_TYPE: &str = "Input should be a valid boolean";
+/// `bool_parsing`: robotd reads no booleans from strings or numbers.
+const BOOL_PARSING: &str = "Input should be a valid boolean, unable to interpret input";
+/// `extra_forbidden`.
+const EXTRA_FORBIDDEN: &str = "Extra inputs are not permitted";
+
+/// `too_short` of a list.
+fn too_short(min: usize, actual: usize) -> String {
+    format!(
+        "List should have at least {min} item{} after validation, not {actual}",
+        plural(min)
+    )
+}
+
+/// `too_long` of a list.
+fn too_long(max: usize, actual: usize) -> String {
+    format!(
+        "List should have at most {max} item{} after validation, not {actual}",
+        plural(max)
+    )
+}
+
+fn plural(n: usize) -> &'static str {
+    if n == 1 {
+        ""
+    } else {
+        "s"
+    }
+}
+
+/// One problem, and which item of a list it is about.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Issue {
     index: Option<usize>,
     message: String,
 }
 
+/// The problems a reader found with its field: one, or one per bad item of a list.
+///
+/// They cross serde as an error's text, `"[i]: message"` for an item and the items separated
+/// by [`Problem::SEPARATOR`], so that any deserializer can carry them; [`ArgError`] reads them
+/// back.
+struct Problem(Vec<Issue>);
+
 impl Problem {
+    const SEPARATOR: char = '\u{1e}';
+
     fn new(message: impl Into<String>) -> Self {
-        Self {
+        Self(vec![Issue {
             index: None,
             message: message.into(),
-        }
+        }])
     }
 
-    fn decode(text: &str) -> (Option<usize>, String) {
-        let item = text
-            .strip_prefix('[')
-            .and_then(|rest| rest.split_once("]: "))
-            .and_then(|(i, message)| Some((i.parse::<usize>().ok()?, message)));
-        match item {
-            Some((i, message)) => (Some(i), message.to_owned()),
-            None => (None, text.to_owned()),
-        }
+    fn decode(text: &str) -> Vec<Issue> {
+        let items: Option<Vec<Issue>> = text
+            .split(Self::SEPARATOR)
+            .map(|part| {
+                let (i, message) = part.strip_prefix('[')?.split_once("]: ")?;
+                Some(Issue {
+                    index: Some(i.parse().ok()?),
+                    message: message.to_owned(),
+                })
+            })
+            .collect();
+        items.unwrap_or_else(|| {
+            vec![Issue {
+                index: None,
+                message: text.to_owned(),
+            }]
+        })
     }
 
     fn into_error<E: de::Error>(self) -> E {
@@ -352,10 +423,16 @@ impl Problem {
 
 impl fmt::Display for Problem {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.index {
-            Some(i) => write!(f, "[{i}]: {}", self.message),
-            None => f.write_str(&self.message),
+        for (n, issue) in self.0.iter().enumerate() {
+            if n > 0 {
+                write!(f, "{}", Self::SEPARATOR)?;
+            }
+            match issue.index {
+                Some(i) => write!(f, "[{i}]: {}", issue.message)?,
+                None => f.write_str(&issue.message)?,
+            }
         }
+        Ok(())
     }
 }
 
@@ -404,33 +481,21 @@ fn read<'de, D: Deserializer<'de>, T>(
     .map_err(Problem::into_error)
 }
 
-fn kind_of(v: &Value) -> &'static str {
-    match v {
-        Value::Null => "null",
-        Value::Bool(_) => "a boolean",
-        Value::Number(_) => "a number",
-        Value::String(_) => "a string",
-        Value::Array(_) => "an array",
-        Value::Object(_) => "an object",
-    }
-}
-
-fn missing(got_null: bool) -> Problem {
+/// The problem of a required field that is absent, or `null` (then the type's message, as
+/// pydantic words `None` for a field that does not allow it).
+fn required(got_null: bool, type_message: &str) -> Problem {
     Problem::new(if got_null {
-        "is required (got null)"
+        type_message
     } else {
-        "is required"
+        FIELD_REQUIRED
     })
 }
 
 fn text_of(v: &Value) -> Result<String, Problem> {
     match v {
-        Value::String(s) if s.trim().is_empty() => Err(Problem::new("must be a non-empty string")),
+        Value::String(s) if s.trim().is_empty() => Err(Problem::new(STRING_TOO_SHORT)),
         Value::String(s) => Ok(s.trim().to_owned()),
-        other => Err(Problem::new(format!(
-            "must be a string, got {}",
-            kind_of(other)
-        ))),
+        _ => Err(Problem::new(STRING_TYPE)),
     }
 }
 
@@ -438,49 +503,53 @@ fn point_of(v: &Value) -> Result<Point2, Problem> {
     let parsed;
     let v = match v {
         Value::String(s) if s.trim_start().starts_with('[') => {
-            parsed = serde_json::from_str::<Value>(s)
-                .map_err(|_| Problem::new("must be a list of two numbers [x, y]"))?;
+            parsed = serde_json::from_str::<Value>(s).map_err(|_| Problem::new(LIST_TYPE))?;
             &parsed
         }
         v => v,
     };
     let Value::Array(items) = v else {
-        return Err(Problem::new(format!(
-            "must be a list of two numbers [x, y], got {}",
-            kind_of(v)
-        )));
+        return Err(Problem::new(LIST_TYPE));
     };
-    if items.len() != 2 {
-        return Err(Problem::new(format!(
-            "must have exactly 2 items [x, y], got {} item{}",
-            items.len(),
-            if items.len() == 1 { "" } else { "s" }
-        )));
+    // In pydantic's order: too many items first, then the items, then too few.
+    if items.len() > 2 {
+        return Err(Problem::new(too_long(2, items.len())));
     }
     let mut xy = [0.0; 2];
+    let mut bad = Vec::new();
     for (i, item) in items.iter().enumerate() {
-        xy[i] = number_of(item).map_err(|mut p| {
-            p.index = Some(i);
-            p
-        })?;
+        match number_of(item) {
+            Ok(n) => xy[i] = n,
+            Err(message) => bad.push(Issue {
+                index: Some(i),
+                message: message.into(),
+            }),
+        }
+    }
+    if !bad.is_empty() {
+        return Err(Problem(bad));
+    }
+    if items.len() < 2 {
+        return Err(Problem::new(too_short(2, items.len())));
     }
     Ok(Point2::new(xy[0], xy[1]))
 }
 
-fn number_of(v: &Value) -> Result<f64, Problem> {
-    match v.as_f64() {
-        Some(n) if n.is_finite() => Ok(n),
-        _ => Err(Problem::new(format!(
-            "must be a finite number, got {}",
-            kind_of(v)
-        ))),
+fn number_of(v: &Value) -> Result<f64, &'static str> {
+    match v {
+        Value::Number(n) => match n.as_f64() {
+            Some(x) if x.is_finite() => Ok(x),
+            _ => Err(FINITE_NUMBER),
+        },
+        Value::String(_) => Err(FLOAT_PARSING),
+        _ => Err(FLOAT_TYPE),
     }
 }
 
 /// Reader of a required string of at least one non-blank character, trimmed.
 pub fn text<'de, D: Deserializer<'de>>(d: D) -> Result<String, D::Error> {
     read(d, String::new(), |v, null| match v {
-        None => Err(missing(null)),
+        None => Err(required(null, STRING_TYPE)),
         Some(v) => text_of(v),
     })
 }
@@ -497,7 +566,7 @@ pub fn opt_text<'de, D: Deserializer<'de>>(d: D) -> Result<Option<String>, D::Er
 /// Reader of a required `[x, y]` coordinate in metres.
 pub fn point<'de, D: Deserializer<'de>>(d: D) -> Result<Point2, D::Error> {
     read(d, Point2::new(0.0, 0.0), |v, null| match v {
-        None => Err(missing(null)),
+        None => Err(required(null, LIST_TYPE)),
         Some(v) => point_of(v),
     })
 }
@@ -514,7 +583,7 @@ where
     T: FromStr<Err = ParseEnumError> + Placeholder,
 {
     read(d, T::placeholder(), |v, null| match v {
-        None => Err(missing(null)),
+        None => Err(required(null, STRING_TYPE)),
         Some(v) => word_of(v),
     })
 }
@@ -530,12 +599,60 @@ where
 
 fn word_of<T: FromStr<Err = ParseEnumError>>(v: &Value) -> Result<T, Problem> {
     let Value::String(s) = v else {
-        return Err(Problem::new(format!(
-            "must be a string, got {}",
-            kind_of(v)
-        )));
+        return Err(Problem::new(STRING_TYPE));
     };
-    s.parse::<T>().map_err(|e| Problem::new(e.to_string()))
+    s.parse::<T>().map_err(|e| Problem::new(unknown_word(&e)))
+}
+
+/// The Python server's value error for a word it does not know: for a location
+/// `Value error, Invalid location 'sideways'. Must be one of: left next to, …, close to`
+/// (`none` is not listed: the Python server does not take it as a string), for the others
+/// `Value error, Direction must be one of: up, down, left, right`.
+fn unknown_word(e: &ParseEnumError) -> String {
+    if e.kind == "location" {
+        return format!(
+            "Value error, Invalid location '{}'. Must be one of: {}",
+            e.value,
+            location_words(&[Location::None])
+        );
+    }
+    let mut kind = e.kind.chars();
+    let kind = match kind.next() {
+        Some(first) => first.to_uppercase().chain(kind).collect::<String>(),
+        None => String::new(),
+    };
+    format!("Value error, {kind} must be one of: {}", e.valid.join(", "))
+}
+
+/// The location words but `except`, comma-separated.
+fn location_words(except: &[Location]) -> String {
+    Location::ALL
+        .iter()
+        .filter(|l| !except.contains(l))
+        .map(Location::as_str)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Reader of `pick_place_object`'s `location`: an optional location word (absent or `null` →
+/// `None`) other than `close to`, which the Python server refuses there with its own value
+/// error (`… Note: 'close to' is not allowed for pick_place_object.`), as it does any unknown
+/// word.
+pub fn pick_place_location<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Location>, D::Error> {
+    read(d, None, |v, _| {
+        let Some(v) = v else { return Ok(None) };
+        let Value::String(s) = v else {
+            return Err(Problem::new(STRING_TYPE));
+        };
+        match s.parse::<Location>() {
+            Ok(location) if location != Location::CloseTo => Ok(Some(location)),
+            _ => Err(Problem::new(format!(
+                "Value error, Invalid location '{s}'. Must be one of: {}. Note: 'close to' is not \
+                 allowed for pick_place_object.",
+                location_words(&[Location::CloseTo, Location::None])
+            ))),
+        }
+    })
 }
 
 /// A value a poisoned field of this type holds until the problems are reported.
@@ -551,6 +668,9 @@ impl Placeholder for robotd_protocol::Direction {
 }
 
 /// A number in `[min, max]`, `default` when absent (for a reader of one field).
+///
+/// The limits appear in the messages as Python prints them; Rust's `{}` does the same for the
+/// limits used (`0`, `0.1`, `500`: no `.0` on whole numbers).
 pub fn number_in<'de, D: Deserializer<'de>>(
     d: D,
     default: f64,
@@ -559,10 +679,15 @@ pub fn number_in<'de, D: Deserializer<'de>>(
 ) -> Result<f64, D::Error> {
     read(d, default, |v, _| {
         let Some(v) = v else { return Ok(default) };
-        let n = number_of(v)?;
-        if !(min..=max).contains(&n) {
+        let n = number_of(v).map_err(Problem::new)?;
+        if n < min {
             return Err(Problem::new(format!(
-                "must be between {min} and {max}, got {n}"
+                "Input should be greater than or equal to {min}"
+            )));
+        }
+        if n > max {
+            return Err(Problem::new(format!(
+                "Input should be less than or equal to {max}"
             )));
         }
         Ok(n)
@@ -573,14 +698,16 @@ pub fn number_in<'de, D: Deserializer<'de>>(
 pub fn positive<'de, D: Deserializer<'de>>(d: D, max: f64) -> Result<f64, D::Error> {
     read(d, max, |v, null| {
         let Some(v) = v else {
-            return Err(missing(null));
+            return Err(required(null, FLOAT_TYPE));
         };
-        let n = number_of(v)?;
+        let n = number_of(v).map_err(Problem::new)?;
         if n <= 0.0 {
-            return Err(Problem::new(format!("must be greater than 0, got {n}")));
+            return Err(Problem::new("Input should be greater than 0"));
         }
         if n > max {
-            return Err(Problem::new(format!("must be at most {max}, got {n}")));
+            return Err(Problem::new(format!(
+                "Input should be less than or equal to {max}"
+            )));
         }
         Ok(n)
     })
@@ -591,10 +718,13 @@ pub fn flag<'de, D: Deserializer<'de>>(d: D, default: bool) -> Result<bool, D::E
     read(d, default, |v, _| match v {
         None => Ok(default),
         Some(Value::Bool(b)) => Ok(*b),
-        Some(other) => Err(Problem::new(format!(
-            "must be true or false, got {}",
-            kind_of(other)
-        ))),
+        // Only JSON booleans are taken. pydantic's words: a string or a whole number is a
+        // value it could not interpret as a boolean, anything else is of the wrong type.
+        Some(Value::String(_)) => Err(Problem::new(BOOL_PARSING)),
+        Some(Value::Number(n)) if n.as_f64().is_some_and(|x| x.fract() == 0.0) => {
+            Err(Problem::new(BOOL_PARSING))
+        }
+        Some(_) => Err(Problem::new(BOOL_TYPE)),
     })
 }
 
@@ -613,6 +743,13 @@ mod tests {
 
     fn map(v: Value) -> Map<String, Value> {
         v.as_object().cloned().unwrap()
+    }
+
+    /// `(field, message)` of each problem.
+    fn pairs(e: &[FieldError]) -> Vec<(&str, &str)> {
+        e.iter()
+            .map(|e| (e.field.as_str(), e.message.as_str()))
+            .collect()
     }
 
     #[derive(Debug, Deserialize)]
@@ -643,14 +780,13 @@ mod tests {
         assert_eq!(
             validation_text("pick_place_object", &errors),
             "❌ Validation Error in pick_place_object:\n  \
-             • object_name: must be a non-empty string\n  \
-             • pick_coordinate: must have exactly 2 items [x, y], got 3 items\n  \
-             • place_coordinate: is required\n  \
-             • z_offset: must be between 0 and 0.1, got 0.5\n  \
-             • location: unknown location 'sideways'; valid values: 'left next to', 'right next to', \
-             'above', 'below', 'on top of', 'inside', 'close to', 'none'\n  \
-             • colour: unknown argument; expected object_name, pick_coordinate, \
-             place_coordinate, z_offset, location"
+             • object_name: String should have at least 1 character\n  \
+             • pick_coordinate: List should have at most 2 items after validation, not 3\n  \
+             • place_coordinate: Field required\n  \
+             • z_offset: Input should be less than or equal to 0.1\n  \
+             • location: Value error, Invalid location 'sideways'. Must be one of: left next to, \
+             right next to, above, below, on top of, inside, close to\n  \
+             • colour: Extra inputs are not permitted"
         );
     }
 
@@ -699,31 +835,166 @@ mod tests {
             "distance": -5, "label": 7
         }));
         let e = from_args::<Push>(&m).unwrap_err();
-        let got: Vec<(&str, &str)> = e
-            .iter()
-            .map(|e| (e.field.as_str(), e.message.as_str()))
-            .collect();
         assert_eq!(
-            got,
+            pairs(&e),
             [
-                ("object_name", "is required (got null)"),
+                ("object_name", "Input should be a valid string"),
                 (
-                    "push_coordinate[1]",
-                    "must be a finite number, got a string"
+                    "push_coordinate.1",
+                    "Input should be a valid number, unable to parse string as a number"
                 ),
-                ("direction", "must be a string, got a number"),
-                ("distance", "must be greater than 0, got -5"),
-                ("label", "must be a string, got a number"),
+                ("direction", "Input should be a valid string"),
+                ("distance", "Input should be greater than 0"),
+                ("label", "Input should be a valid string"),
             ]
         );
-        let m = map(
-            json!({"object_name": "a", "push_coordinate": "[0.1,", "direction": "up",
-                           "distance": 1001}),
-        );
+        let m = map(json!({
+            "object_name": "a", "push_coordinate": "[0.1,", "direction": "sideways",
+            "distance": 1001, "z_offset": -0.01
+        }));
         let e = from_args::<Push>(&m).unwrap_err();
-        assert_eq!(e[0].message, "must be a list of two numbers [x, y]");
-        assert_eq!(e[1].message, "must be at most 1000, got 1001");
-        assert_eq!(e.len(), 2);
+        assert_eq!(
+            pairs(&e),
+            [
+                ("push_coordinate", "Input should be a valid list"),
+                (
+                    "direction",
+                    "Value error, Direction must be one of: up, down, left, right"
+                ),
+                ("distance", "Input should be less than or equal to 1000"),
+                ("z_offset", "Input should be greater than or equal to 0"),
+            ]
+        );
+        let m = map(json!({
+            "object_name": "a", "push_coordinate": [null, {}], "direction": null,
+            "distance": null, "z_offset": "0.05"
+        }));
+        let e = from_args::<Push>(&m).unwrap_err();
+        assert_eq!(
+            pairs(&e),
+            [
+                ("push_coordinate.0", "Input should be a valid number"),
+                ("push_coordinate.1", "Input should be a valid number"),
+                ("direction", "Input should be a valid string"),
+                ("distance", "Input should be a valid number"),
+                (
+                    "z_offset",
+                    "Input should be a valid number, unable to parse string as a number"
+                ),
+            ]
+        );
+        let e = from_args::<Push>(&map(json!({"z_offset": true}))).unwrap_err();
+        assert_eq!(
+            pairs(&e),
+            [
+                ("object_name", "Field required"),
+                ("push_coordinate", "Field required"),
+                ("direction", "Field required"),
+                ("distance", "Field required"),
+                ("z_offset", "Input should be a valid number"),
+            ]
+        );
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[allow(dead_code)] // Read through Debug in the assertions only.
+    struct At {
+        #[serde(deserialize_with = "point")]
+        at: Point2,
+    }
+
+    /// The problem with `at` (one line per bad item).
+    fn at_problems(at: Value) -> Vec<(String, String)> {
+        from_args::<At>(&map(json!({ "at": at })))
+            .unwrap_err()
+            .into_iter()
+            .map(|e| (e.field, e.message))
+            .collect()
+    }
+
+    #[test]
+    fn coordinates_are_checked_in_pydantics_order() {
+        let one = |field: &str, message: &str| vec![(field.to_owned(), message.to_owned())];
+        assert_eq!(
+            at_problems(json!([0.1])),
+            one(
+                "at",
+                "List should have at least 2 items after validation, not 1"
+            )
+        );
+        assert_eq!(
+            at_problems(json!("[]")),
+            one(
+                "at",
+                "List should have at least 2 items after validation, not 0"
+            )
+        );
+        // Too many items is found before the items are looked at; too few only after.
+        assert_eq!(
+            at_problems(json!(["x", "y", "z"])),
+            one(
+                "at",
+                "List should have at most 2 items after validation, not 3"
+            )
+        );
+        assert_eq!(
+            at_problems(json!(["x"])),
+            one(
+                "at.0",
+                "Input should be a valid number, unable to parse string as a number"
+            )
+        );
+        assert_eq!(
+            at_problems(json!(0.1)),
+            one("at", "Input should be a valid list")
+        );
+        assert_eq!(
+            at_problems(json!(null)),
+            one("at", "Input should be a valid list")
+        );
+        assert_eq!(
+            at_problems(json!([true, [1]])),
+            vec![
+                (
+                    "at.0".to_owned(),
+                    "Input should be a valid number".to_owned()
+                ),
+                (
+                    "at.1".to_owned(),
+                    "Input should be a valid number".to_owned()
+                ),
+            ]
+        );
+    }
+
+    #[derive(Debug, Deserialize)]
+    struct PickPlace {
+        #[serde(deserialize_with = "pick_place_location")]
+        location: Option<Location>,
+    }
+
+    #[test]
+    fn pick_place_location_refuses_close_to_with_the_python_note() {
+        let read = |v: Value| from_args::<PickPlace>(&map(json!({ "location": v })));
+        assert_eq!(
+            read(json!(" On Top Of")).unwrap().location,
+            Some(Location::OnTopOf)
+        );
+        assert_eq!(read(json!(null)).unwrap().location, None);
+        assert_eq!(from_args::<PickPlace>(&Map::new()).unwrap().location, None);
+        let note = |word: &str| {
+            format!(
+                "Value error, Invalid location '{word}'. Must be one of: left next to, right next \
+                 to, above, below, on top of, inside. Note: 'close to' is not allowed for \
+                 pick_place_object."
+            )
+        };
+        for word in ["close to", "Close To ", "beside"] {
+            let e = read(json!(word)).unwrap_err();
+            assert_eq!(pairs(&e), [("location", note(word).as_str())]);
+        }
+        let e = read(json!(3)).unwrap_err();
+        assert_eq!(pairs(&e), [("location", "Input should be a valid string")]);
     }
 
     #[derive(Debug, Deserialize)]
@@ -743,14 +1014,36 @@ mod tests {
     fn flags_default_and_unknown_arguments_are_named() {
         assert!(from_args::<Sorted>(&Map::new()).unwrap().ascending);
         let e = from_args::<Sorted>(&map(json!({"ascending": "yes", "extra": 1}))).unwrap_err();
-        assert_eq!(e[0].message, "must be true or false, got a string");
         assert_eq!(
-            (e[1].field.as_str(), e[1].message.as_str()),
-            ("extra", "unknown argument; expected ascending")
+            pairs(&e),
+            [
+                (
+                    "ascending",
+                    "Input should be a valid boolean, unable to interpret input"
+                ),
+                ("extra", "Extra inputs are not permitted"),
+            ]
         );
+        let ascending = |v: Value| {
+            from_args::<Sorted>(&map(json!({ "ascending": v })))
+                .unwrap_err()
+                .remove(0)
+                .message
+        };
+        assert_eq!(
+            ascending(json!(2)),
+            "Input should be a valid boolean, unable to interpret input"
+        );
+        assert_eq!(ascending(json!(0.5)), "Input should be a valid boolean");
+        assert_eq!(ascending(json!([true])), "Input should be a valid boolean");
         let e = from_args::<Nothing>(&map(json!({"b": 1, "a": 2}))).unwrap_err();
-        assert_eq!(e[0].field, "a");
-        assert_eq!(e[1].message, "this tool takes no arguments");
+        assert_eq!(
+            pairs(&e),
+            [
+                ("a", "Extra inputs are not permitted"),
+                ("b", "Extra inputs are not permitted"),
+            ]
+        );
         assert!(from_args::<Nothing>(&Map::new()).is_ok());
         assert_eq!(fields_of::<Sorted>(), ["ascending"]);
         assert!(fields_of::<Nothing>().is_empty());
@@ -769,19 +1062,29 @@ mod tests {
         assert_eq!(e[0].field, "count");
         assert!(e[0].message.contains("invalid type"), "{e:?}");
         let e = from_args::<Plain>(&Map::new()).unwrap_err();
-        assert_eq!(
-            (e[0].field.as_str(), e[0].message.as_str()),
-            ("count", "is required")
-        );
+        assert_eq!(pairs(&e), [("count", "Field required")]);
     }
 
     #[test]
     fn item_problems_survive_as_error_text() {
+        let issue = |index: Option<usize>, message: &str| Issue {
+            index,
+            message: message.into(),
+        };
+        let items = Problem(vec![issue(Some(0), "bad x"), issue(Some(1), "bad y")]);
+        assert_eq!(
+            Problem::decode(&items.to_string()),
+            [issue(Some(0), "bad x"), issue(Some(1), "bad y")]
+        );
         assert_eq!(
             Problem::decode("[1]: must be x"),
-            (Some(1), "must be x".into())
+            [issue(Some(1), "must be x")]
         );
-        assert_eq!(Problem::decode("[x]: y"), (None, "[x]: y".into()));
-        assert_eq!(Problem::decode("plain"), (None, "plain".into()));
+        assert_eq!(Problem::decode("[x]: y"), [issue(None, "[x]: y")]);
+        assert_eq!(Problem::decode("plain"), [issue(None, "plain")]);
+        assert_eq!(
+            Problem::decode("[0]: a\u{1e}b"),
+            [issue(None, "[0]: a\u{1e}b")]
+        );
     }
 }

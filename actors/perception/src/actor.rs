@@ -311,7 +311,9 @@ fn run(
             let detections: Detections = match outcome {
                 Ok(Ok((mut detections, status))) => {
                     detections.objects.retain(|o| !arm.is_held_object(o));
-                    if steady {
+                    // Only a view from a known arm pose says whether the workspace can be
+                    // seen (frames before the first arm state come from anywhere).
+                    if steady && arm.heard {
                         let view = WorkspaceView {
                             workspace_id: pipeline
                                 .workspace_for(arm.tool_pose.as_ref())

@@ -38,10 +38,8 @@ impl Tool for ReleaseEmergencyStop {
                 Self::NAME,
                 &[FieldError {
                     field: "confirm".into(),
-                    message: format!(
-                        "must be 'release' to release the emergency stop, got '{}'",
-                        printable(&a.confirm, 40)
-                    ),
+                    // pydantic's `literal_error`, as for a `Literal["release"]`.
+                    message: "Input should be 'release'".into(),
                 }],
             ));
         }

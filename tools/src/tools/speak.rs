@@ -2,7 +2,8 @@
 //!
 //! A bad `text` alone gets the Python server's one-line
 //! `❌ Validation Error: text must be a non-empty string`; a text over
-//! [`MAX_SPEECH_CHARS`] is a validation error of the usual form.
+//! [`MAX_SPEECH_CHARS`] is a validation error of the usual form
+//! (`• text: String should have at most 2000 characters`).
 
 use super::{only_field_invalid, Reply, Tool};
 use crate::args::{self, validation_text, FieldError};
@@ -44,7 +45,8 @@ impl Tool for Speak {
                 Self::NAME,
                 &[FieldError {
                     field: "text".into(),
-                    message: format!("must be at most {MAX_SPEECH_CHARS} characters, got {chars}"),
+                    // pydantic's `string_too_long`.
+                    message: format!("String should have at most {MAX_SPEECH_CHARS} characters"),
                 }],
             ));
         }
