@@ -3,137 +3,11 @@
 //! the world checked against the simulator's ground truth (`sim/world` on the bus).
 
 mod common;
+#[path = "common/lab.rs"]
+mod lab;
 
-use rmcp::model::CallToolRequestParams;
-use robotd_mcp::client::{connect, McpClient};
-use robotd_protocol::diagnostics::{SimObjectState, SimWorldRequest};
-use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::SIM_WORLD;
+use lab::{assert_near, lab, runtime, scene, Lab};
 use serde_json::{json, Value};
-use std::time::Duration;
-
-fn runtime() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap()
-}
-
-fn scene(name: &str) -> String {
-    format!(
-        "robot.scene={}/tests/scenes/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    )
-}
-
-/// A served robotd, an MCP client of it and a bus client of its ground truth.
-struct Lab {
-    _robotd: common::Running,
-    client: McpClient,
-    bus: Bus,
-}
-
-async fn lab(scene_setting: Option<String>) -> Lab {
-    let namespace = common::fresh_namespace("scn");
-    let port = common::free_port();
-    let mut extra = vec![
-        "--set".to_owned(),
-        "robot.time_scale=0.05".to_owned(),
-        "--set".to_owned(),
-        "robot.camera.fps=15".to_owned(),
-    ];
-    if let Some(s) = scene_setting {
-        extra.push("--set".into());
-        extra.push(s);
-    }
-    let extra: Vec<&str> = extra.iter().map(String::as_str).collect();
-    let robotd = common::start_robotd(&namespace, port, &extra);
-    let client = connect(&format!("http://127.0.0.1:{port}/sse"), None)
-        .await
-        .unwrap();
-    let bus = Bus::open(BusOptions::new(&namespace, "scenario-test")).unwrap();
-    Lab {
-        _robotd: robotd,
-        client,
-        bus,
-    }
-}
-
-impl Lab {
-    async fn call(&self, tool: &str, args: Value) -> (String, Value) {
-        let mut params = CallToolRequestParams::new(tool.to_owned());
-        if let Value::Object(map) = args {
-            params = params.with_arguments(map);
-        }
-        let result = self.client.call_tool(params).await.unwrap();
-        let text = result.content[0].as_text().unwrap().text.clone();
-        let data = result.structured_content.unwrap()["data"].clone();
-        eprintln!("{tool}: {}", text.lines().next().unwrap_or(""));
-        (text, data)
-    }
-
-    async fn ok(&self, tool: &str, args: Value) -> Value {
-        let (text, data) = self.call(tool, args).await;
-        assert!(text.starts_with('✓'), "{tool}: {text}");
-        data
-    }
-
-    /// What the camera sees: label → [x, y] of each object (centre of mass).
-    async fn seen(&self) -> Vec<(String, [f64; 2], f64)> {
-        let data = self.ok("get_detected_objects", json!({})).await;
-        data.as_array()
-            .unwrap()
-            .iter()
-            .map(|o| {
-                let c = &o["position"]["center_of_mass"];
-                (
-                    o["label"].as_str().unwrap().to_owned(),
-                    [c["x"].as_f64().unwrap(), c["y"].as_f64().unwrap()],
-                    o["dimensions"]["size_m2"].as_f64().unwrap(),
-                )
-            })
-            .collect()
-    }
-
-    async fn truth(&self) -> Vec<SimObjectState> {
-        let client = self.bus.client(&SIM_WORLD).unwrap();
-        client
-            .request(&SimWorldRequest {}, Duration::from_secs(5))
-            .await
-            .unwrap()
-            .objects
-    }
-
-    async fn truth_of(&self, label: &str) -> SimObjectState {
-        self.truth()
-            .await
-            .into_iter()
-            .find(|o| o.label == label)
-            .unwrap_or_else(|| panic!("no {label} in the world"))
-    }
-
-    async fn move_object(&self, label: &str, from: [f64; 2], to: [f64; 2]) {
-        self.ok(
-            "pick_place_object",
-            json!({"object_name": label, "pick_coordinate": from, "place_coordinate": to}),
-        )
-        .await;
-    }
-}
-
-fn assert_near(o: &SimObjectState, at: [f64; 2], tol: f64) {
-    let d = ((o.x_m - at[0]).powi(2) + (o.y_m - at[1]).powi(2)).sqrt();
-    assert!(
-        d <= tol && !o.held,
-        "{} at ({:.4}, {:.4}), wanted {at:?} (off by {:.1} mm, held {})",
-        o.label,
-        o.x_m,
-        o.y_m,
-        d * 1000.0,
-        o.held
-    );
-}
 
 #[test]
 fn sort_by_size_in_a_line() {
@@ -141,9 +15,9 @@ fn sort_by_size_in_a_line() {
         let lab = lab(Some(scene("sort.toml"))).await;
         let mut seen = lab.seen().await;
         assert_eq!(seen.len(), 3, "{seen:?}");
-        // Sort all objects by size in a line starting at [0.15, −0.05], 8 cm apart.
+        // Sort all objects by size in a line across the sheet at x = 0.25, 6 cm apart.
         seen.sort_by(|a, b| a.2.total_cmp(&b.2));
-        let line: Vec<[f64; 2]> = (0..3).map(|i| [0.15 + 0.08 * i as f64, -0.05]).collect();
+        let line: Vec<[f64; 2]> = (0..3).map(|i| [0.25, -0.07 + 0.06 * i as f64]).collect();
         for ((label, at, _), to) in seen.iter().zip(&line) {
             lab.move_object(label, *at, *to).await;
         }
@@ -161,11 +35,11 @@ fn sort_by_size_in_a_line() {
 fn a_triangle_at_three_corners() {
     runtime().block_on(async {
         let lab = lab(Some(scene("sort.toml"))).await;
-        // A triangle at [0.15, 0.0], [0.25, −0.08], [0.25, 0.08]; the long pencil goes to a
+        // A triangle at [0.175, 0.0], [0.25, −0.08], [0.25, 0.08]; the long pencil goes to a
         // corner where it stays on the sheet, and each move goes to a free spot.
         let corners = [
             ("pencil", [0.25, -0.08]),
-            ("green cylinder", [0.15, 0.0]),
+            ("green cylinder", [0.175, 0.0]),
             ("red cube", [0.25, 0.08]),
         ];
         for (label, to) in corners {
@@ -226,7 +100,7 @@ fn swap_the_two_largest_through_the_largest_free_space() {
 }
 
 #[test]
-fn push_the_too_wide_box_50_mm_right() {
+fn push_the_too_wide_box_right_but_never_off_the_sheet() {
     runtime().block_on(async {
         let lab = lab(Some(scene_file("push.toml"))).await;
         let before = lab.truth_of("large box").await;
@@ -244,6 +118,7 @@ fn push_the_too_wide_box_50_mm_right() {
             "{text}"
         );
         assert!(text.contains("push it instead"), "{text}");
+        // 50 mm would put 2 cm of it beyond the sheet, where the camera would see it cut.
         let (text, _) = lab
             .call(
                 "push_object",
@@ -251,10 +126,19 @@ fn push_the_too_wide_box_50_mm_right() {
                        "direction": "right", "distance": 50.0}),
             )
             .await;
+        assert!(text.contains("would stick out of the sheet"), "{text}");
+        assert_eq!(lab.truth_of("large box").await.y_m, before.y_m);
+        let (text, _) = lab
+            .call(
+                "push_object",
+                json!({"object_name": "large box", "push_coordinate": at,
+                       "direction": "right", "distance": 30.0}),
+            )
+            .await;
         assert_eq!(
             text,
             format!(
-                "✓ Successfully pushed 'large box' from [{:.3}, {:.3}] right by 50.0mm",
+                "✓ Successfully pushed 'large box' from [{:.3}, {:.3}] right by 30.0mm",
                 at[0], at[1]
             )
         );
@@ -266,13 +150,11 @@ fn push_the_too_wide_box_50_mm_right() {
             .filter(|s| s.0 == "large box")
             .collect();
         assert_eq!(boxes.len(), 1, "{boxes:?}");
-        // (The box now reaches 2 cm past the sheet, which is all the camera looks at, so its
-        // seen centre lies inward of the true one.)
-        assert!((boxes[0].1[1] - (at[1] - 0.05)).abs() < 0.015, "{boxes:?}");
+        assert!((boxes[0].1[1] - (at[1] - 0.03)).abs() < 0.005, "{boxes:?}");
         let after = lab.truth_of("large box").await;
         let moved_y = after.y_m - before.y_m;
         assert!(
-            (moved_y + 0.050).abs() <= 0.005 && (after.x_m - before.x_m).abs() <= 0.005,
+            (moved_y + 0.030).abs() <= 0.005 && (after.x_m - before.x_m).abs() <= 0.005,
             "box moved ({:.1}, {:.1}) mm",
             (after.x_m - before.x_m) * 1000.0,
             moved_y * 1000.0
@@ -405,7 +287,8 @@ fn a_place_that_would_hide_a_marker_is_refused_and_says_what_is_held() {
         assert!(
             text.starts_with("❌ Failed to place object: no room left next to 'red cube'")
                 && text.contains("would cover the marker at [0.337, 0.087]")
-                && text.ends_with("'pencil' is still held: put it down with place_object"),
+                && text
+                    .contains("; 'pencil' is still held: put it down with place_object, e.g. at ["),
             "{text}"
         );
         assert!(held(&lab, "pencil").await);
@@ -440,7 +323,9 @@ fn after_a_collision_clearing_the_flag_lets_the_arm_retreat_and_work_again() {
             .await;
         assert!(
             text.contains("collision detected")
-                && text.ends_with("'red cube' is still held: put it down with place_object"),
+                && text.contains(
+                    "; 'red cube' is still held: put it down with place_object, e.g. at ["
+                ),
             "{text}"
         );
         assert!(held(&lab, "red cube").await, "the collision keeps the cube");
@@ -493,14 +378,23 @@ fn a_move_whose_place_cannot_work_never_picks() {
         let lab = lab(None).await;
         let seen = lab.seen().await;
         let at = |label: &str| seen.iter().find(|s| s.0 == label).unwrap().1;
+        // 30 mm up, the square would shove the cube along: refused, nothing moves.
+        let (text, _) = lab
+            .call(
+                "push_object",
+                json!({"object_name": "blue square", "push_coordinate": at("blue square"),
+                       "direction": "up", "distance": 30.0}),
+            )
+            .await;
+        assert!(text.contains("would shove 'red cube' along"), "{text}");
         lab.ok(
             "push_object",
             json!({"object_name": "blue square", "push_coordinate": at("blue square"),
-                   "direction": "up", "distance": 30.0}),
+                   "direction": "up", "distance": 20.0}),
         )
         .await;
-        // The square, pushed up, shoves the cube a little: where the camera sees it now.
         let before = lab.truth_of("red cube").await;
+        assert_near(&before, [0.28, 0.04], 0.0005);
         let cube = lab
             .seen()
             .await
@@ -512,7 +406,7 @@ fn a_move_whose_place_cannot_work_never_picks() {
             .call(
                 "move2by",
                 json!({"object_name": "red cube", "pick_coordinate": cube,
-                       "direction": "left", "distance": 0.02}),
+                       "direction": "down", "distance": 0.04}),
             )
             .await;
         assert!(

@@ -324,6 +324,7 @@ impl SkillReply {
         Self::Failed {
             error,
             still_held: None,
+            put_down_at: None,
         }
     }
 }
@@ -390,6 +391,9 @@ pub enum SkillReply {
         /// The label of the object the gripper still holds after the failure (absent: none).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         still_held: Option<String>,
+        /// A free spot where the held object fits, to put it down (absent: none known).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        put_down_at: Option<Point2>,
     },
 }
 
@@ -453,6 +457,7 @@ mod tests {
         let reply = SkillReply::Failed {
             error: SkillError::arm("collision detected"),
             still_held: Some("pencil".into()),
+            put_down_at: Some(Point2::new(0.25, 0.05)),
         };
         let mut bytes = Vec::new();
         crate::envelope::encode(&crate::envelope::Envelope::new(reply.clone()), &mut bytes)

@@ -131,13 +131,20 @@ pub(crate) async fn run_skill(
         Ok(SkillReply::Failed {
             error,
             still_held: None,
+            ..
         }) => Err(SkillFailure::Failed(error.to_string())),
         Ok(SkillReply::Failed {
             error,
             still_held: Some(label),
-        }) => Err(SkillFailure::Failed(format!(
-            "{error}; '{label}' is still held: put it down with place_object"
-        ))),
+            put_down_at,
+        }) => Err(SkillFailure::Failed(match put_down_at {
+            Some(p) => format!(
+                "{error}; '{label}' is still held: put it down with place_object, e.g. at \
+                 [{:.3}, {:.3}]",
+                p.x_m, p.y_m
+            ),
+            None => format!("{error}; '{label}' is still held: put it down with place_object"),
+        })),
         Err(error) => Err(SkillFailure::Unavailable(format!(
             "the skills actor did not answer: {error}"
         ))),

@@ -87,9 +87,53 @@ pub struct Rect {
 }
 
 impl Rect {
-    /// An object's footprint (its x and y extents, axis-aligned, as the detector reports).
+    /// An object's footprint: its long side along its grasp yaw's x axis (the detector turns
+    /// the gripper across the narrow side), its short side across.
     pub fn of_object(o: &DetectedObject) -> Rect {
-        Rect::footprint(o.xy(), extents(o))
+        Rect::of_object_at(o, o.xy())
+    }
+
+    /// `o`'s footprint moved to `at`, turned as it is now.
+    pub fn of_object_at(o: &DetectedObject, at: Point2) -> Rect {
+        let (w, h) = extents(o);
+        Rect {
+            centre: at,
+            half_x_m: w.max(h) / 2.0,
+            half_y_m: w.min(h) / 2.0,
+            yaw_rad: o.gripper_rotation_rad,
+        }
+    }
+
+    /// The four corners.
+    pub fn corners(&self) -> [Point2; 4] {
+        let [u, v] = self.axes();
+        let c = self.centre;
+        [(1.0, 1.0), (1.0, -1.0), (-1.0, -1.0), (-1.0, 1.0)].map(|(a, b)| {
+            Point2::new(
+                c.x_m + a * self.half_x_m * u.0 + b * self.half_y_m * v.0,
+                c.y_m + a * self.half_x_m * u.1 + b * self.half_y_m * v.1,
+            )
+        })
+    }
+
+    /// Whether `other` lies wholly inside this rectangle.
+    pub fn contains(&self, other: &Rect) -> bool {
+        let [u, v] = self.axes();
+        other.corners().iter().all(|p| {
+            let d = (p.x_m - self.centre.x_m, p.y_m - self.centre.y_m);
+            (d.0 * u.0 + d.1 * u.1).abs() <= self.half_x_m + 1e-9
+                && (d.0 * v.0 + d.1 * v.1).abs() <= self.half_y_m + 1e-9
+        })
+    }
+
+    /// Half the rectangle's extent along the world's x axis.
+    pub fn half_extent_x(&self) -> f64 {
+        self.radius_along((1.0, 0.0))
+    }
+
+    /// Half the rectangle's extent along the world's y axis.
+    pub fn half_extent_y(&self) -> f64 {
+        self.radius_along((0.0, 1.0))
     }
 
     /// An axis-aligned footprint of `extents` (width along y, height along x) at `centre`.
@@ -226,6 +270,23 @@ mod tests {
         };
         assert!(diagonal.overlaps(&Rect::footprint(Point2::new(0.03, 0.03), (0.01, 0.01))));
         assert!(!diagonal.overlaps(&Rect::footprint(Point2::new(0.03, -0.03), (0.01, 0.01))));
+    }
+
+    #[test]
+    fn an_object_footprint_is_turned_by_its_grasp_yaw() {
+        // A pencil lying along y: 120 mm wide (along y), 12 mm high (along x), grasped at 90°.
+        let mut pencil = object("obj-1", 0.25, 0.0, 0.12, 0.012, 0.005);
+        pencil.gripper_rotation_rad = std::f64::consts::FRAC_PI_2;
+        let r = Rect::of_object(&pencil);
+        assert!((r.half_extent_y() - 0.06).abs() < 1e-9);
+        assert!((r.half_extent_x() - 0.006).abs() < 1e-9);
+        assert!(r.overlaps(&Rect::footprint(Point2::new(0.25, 0.05), (0.01, 0.01))));
+        assert!(!r.overlaps(&Rect::footprint(Point2::new(0.27, 0.0), (0.01, 0.01))));
+        // Turned 45°, its axis-aligned box would hide a cube its real footprint misses.
+        pencil.gripper_rotation_rad = std::f64::consts::FRAC_PI_4;
+        let r = Rect::of_object(&pencil);
+        assert!(!r.overlaps(&Rect::footprint(Point2::new(0.29, -0.03), (0.02, 0.02))));
+        assert!(r.overlaps(&Rect::footprint(Point2::new(0.29, 0.04), (0.02, 0.02))));
     }
 
     #[test]

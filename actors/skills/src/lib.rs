@@ -83,6 +83,9 @@ pub struct SkillsSettings {
     pub finger_length_m: f64,
     /// How far the palm reaches from the tool centre across the closing axis, metres.
     pub palm_reach_m: f64,
+    /// Extra release height when stacking onto another object, whose height the camera
+    /// measures to a few millimetres, metres.
+    pub stack_height_margin_m: f64,
     /// A finger's thickness along the closing axis: the open fingers sweep half the maximum
     /// opening plus this each side of the tool centre, metres.
     pub finger_thickness_m: f64,
@@ -129,6 +132,7 @@ impl SkillsSettings {
                 RobotModel::WidowX250 => 0.0175,
             },
             finger_thickness_m: 0.008,
+            stack_height_margin_m: 0.005,
             marker_keep_out_m: 0.02,
             push_gap_m: 0.010,
             push_z_m: 0.012,

@@ -10,8 +10,12 @@
 //!   needs all four); the fingers, opening to release, must not reach a neighbour. Placements
 //!   beside a reference step outwards from the contract's spot until all of that holds, so
 //!   that a later grasp of either object finds room for the fingers.
-//! - **Pushes** ([`resting_spot_problem`]): where the pushed object ends must keep clear of the
-//!   markers.
+//! - **Pushes** ([`push_problem`]): the area the pushed object sweeps must be free of other
+//!   objects (they would be shoved along, unplanned), and where it ends must lie on the sheet and
+//!   keep clear of the markers.
+//!
+//! Objects always come to rest wholly on a workspace sheet: one half off it is seen cut at the
+//! sheet's edge, as a smaller object in the wrong place, and a later grasp of it would miss.
 //!
 //! Pick-and-place skills plan the place with the view taken for the pick, before the pick
 //! starts: a place that cannot work means the pick does not start.
@@ -30,6 +34,14 @@ use std::f64::consts::FRAC_PI_2;
 const SIDE_SEARCH_M: f64 = 0.03;
 /// Step of that search, metres.
 const SIDE_STEP_M: f64 = 0.0025;
+/// How far an object's footprint may reach beyond the workspace rectangle (the marker
+/// centres), metres: the detector looks 16 mm beyond it (the sheet's white border), less a
+/// few millimetres for the object's own measurement.
+const SHEET_BORDER_M: f64 = 0.012;
+/// How far a stacked object may reach beyond the edge of the one below, metres.
+const STACK_OVERHANG_M: f64 = 0.005;
+/// Room kept between the pushing gripper's path and objects it must not touch, metres.
+const PUSH_TOOL_CLEARANCE_M: f64 = 0.002;
 /// Clearances tried when ranking grasp yaws (the largest that fits wins), metres.
 const CLEARANCE_STEPS_M: [f64; 6] = [0.0, 0.002, 0.004, 0.007, 0.01, 0.015];
 
@@ -157,7 +169,7 @@ fn placement_problem(
             at.x_m, at.y_m
         ));
     };
-    let footprint = Rect::footprint(at, extents(held.object));
+    let footprint = Rect::of_object_at(held.object, at);
     if surface_z == 0.0 {
         if let Some(taken) = others
             .iter()
@@ -170,6 +182,9 @@ fn placement_problem(
         }
     }
     if let Some(problem) = marker_problem(settings, &ws, label, &footprint) {
+        return Some(problem);
+    }
+    if let Some(problem) = off_sheet_problem(&ws, label, &footprint) {
         return Some(problem);
     }
     let sweep = finger_sweep(
@@ -185,6 +200,33 @@ fn placement_problem(
         ));
     }
     None
+}
+
+/// Whether the axis-aligned `footprint` sticks out of the workspace rectangle of `ws`.
+fn off_sheet_problem(ws: &WorkspaceInfo, label: &str, footprint: &Rect) -> Option<String> {
+    let (ul, lr) = (ws.upper_left, ws.lower_right);
+    let (x_lo, x_hi) = (ul.x_m.min(lr.x_m), ul.x_m.max(lr.x_m));
+    let (y_lo, y_hi) = (ul.y_m.min(lr.y_m), ul.y_m.max(lr.y_m));
+    let c = footprint.centre;
+    let t = SHEET_BORDER_M;
+    let (hx, hy) = (footprint.half_extent_x(), footprint.half_extent_y());
+    let out = c.x_m - hx < x_lo - t
+        || c.x_m + hx > x_hi + t
+        || c.y_m - hy < y_lo - t
+        || c.y_m + hy > y_hi + t;
+    out.then(|| {
+        format!(
+            "'{label}' at [{:.3}, {:.3}] would stick out of the sheet of workspace '{}' (x {:.3} \
+             … {:.3}, y {:.3} … {:.3}), where the camera would see it cut at the edge",
+            c.x_m,
+            c.y_m,
+            ws.id,
+            x_lo - t,
+            x_hi + t,
+            y_lo - t,
+            y_hi + t
+        )
+    })
 }
 
 /// Whether `footprint` covers a corner marker of `ws` (or the margin the camera needs).
@@ -206,19 +248,127 @@ fn marker_problem(
         })
 }
 
-/// What is wrong with `object` coming to rest at `at` after a push: `None` when nothing is.
-pub(crate) fn resting_spot_problem(
+/// What is wrong with the closed gripper going down at `start` behind `object` and
+/// travelling to `end` at tool height `low_z` (turned by `yaw_rad`): `None` when it touches
+/// nothing but `object` on the way.
+pub(crate) fn push_tool_problem(
     settings: &SkillsSettings,
     object: &DetectedObject,
-    at: Point2,
+    others: &[DetectedObject],
+    start: Point2,
+    end: Point2,
+    yaw_rad: f64,
+    low_z: f64,
 ) -> Option<String> {
-    let ws = workspace_of(settings, "push", at).ok()?;
-    marker_problem(
-        settings,
-        &ws,
-        &object.label,
-        &Rect::footprint(at, extents(object)),
+    // The closed fingers: their two thicknesses along the closing axis, their width across.
+    let fingers = finger_sweep(
+        start,
+        yaw_rad,
+        settings.finger_thickness_m,
+        settings.finger_reach_m,
+    );
+    let path = Rect::footprint(
+        Point2::new((start.x_m + end.x_m) / 2.0, (start.y_m + end.y_m) / 2.0),
+        (
+            2.0 * fingers.half_extent_y() + (end.y_m - start.y_m).abs(),
+            2.0 * fingers.half_extent_x() + (end.x_m - start.x_m).abs(),
+        ),
     )
+    .grown(PUSH_TOOL_CLEARANCE_M);
+    let in_the_way: Vec<DetectedObject> = others
+        .iter()
+        .filter(|o| o.id != object.id)
+        .cloned()
+        .collect();
+    first_in(&path, &in_the_way, low_z).map(|hit| {
+        format!(
+            "pushing '{}', the gripper would hit '{}' on its way from [{:.3}, {:.3}] to \
+             [{:.3}, {:.3}]; move '{}' first",
+            object.label, hit.label, start.x_m, start.y_m, end.x_m, end.y_m, hit.label
+        )
+    })
+}
+
+/// What is wrong with pushing `object` so that it ends at `end`, among `others`: `None` when
+/// nothing is.
+pub(crate) fn push_problem(
+    settings: &SkillsSettings,
+    object: &DetectedObject,
+    others: &[DetectedObject],
+    end: Point2,
+) -> Option<String> {
+    let ws = workspace_of(settings, "push", end).ok()?;
+    let label = &object.label;
+    let start = object.xy();
+    let here = Rect::of_object(object);
+    // Pushes go along x or y: the swept area is the box around both footprints.
+    let swept = Rect::footprint(
+        Point2::new((start.x_m + end.x_m) / 2.0, (start.y_m + end.y_m) / 2.0),
+        (
+            2.0 * here.half_extent_y() + (end.y_m - start.y_m).abs(),
+            2.0 * here.half_extent_x() + (end.x_m - start.x_m).abs(),
+        ),
+    );
+    if let Some(other) = others
+        .iter()
+        .find(|o| o.id != object.id && swept.overlaps(&Rect::of_object(o)))
+    {
+        return Some(format!(
+            "pushing '{label}' to [{:.3}, {:.3}] would shove '{}' along; move it first or push \
+             less far",
+            end.x_m, end.y_m, other.label
+        ));
+    }
+    let footprint = Rect::of_object_at(object, end);
+    marker_problem(settings, &ws, label, &footprint)
+        .or_else(|| off_sheet_problem(&ws, label, &footprint))
+}
+
+/// Tool height for releasing the held object onto a surface at `surface_z`: a stacked
+/// object is released higher by [`SkillsSettings::stack_height_margin_m`], as the height of
+/// what it goes onto is measured by the camera.
+pub(crate) fn release_height(
+    settings: &SkillsSettings,
+    held: &HeldPlan<'_>,
+    surface_z: f64,
+) -> f64 {
+    let margin = if surface_z > 0.0 {
+        settings.stack_height_margin_m
+    } else {
+        0.0
+    };
+    (surface_z + held.tcp_above_base_m + settings.release_gap_m + margin).max(settings.min_tcp_z_m)
+}
+
+/// A spot on the table where the held object fits (no placement problem among `others`),
+/// nearest the centre of its workspace: what a failure that leaves it held suggests.
+pub(crate) fn free_spot(
+    settings: &SkillsSettings,
+    others: &[DetectedObject],
+    held: &HeldPlan<'_>,
+) -> Option<Point2> {
+    const STEP_M: f64 = 0.005;
+    let release_z = release_height(settings, held, 0.0);
+    settings
+        .workspaces
+        .iter()
+        .flat_map(|ws| {
+            let (ul, lr) = (ws.upper_left, ws.lower_right);
+            let (x_lo, x_hi) = (ul.x_m.min(lr.x_m), ul.x_m.max(lr.x_m));
+            let (y_lo, y_hi) = (ul.y_m.min(lr.y_m), ul.y_m.max(lr.y_m));
+            let nx = ((x_hi - x_lo) / STEP_M).floor() as usize;
+            let ny = ((y_hi - y_lo) / STEP_M).floor() as usize;
+            let centre = ws.center();
+            (0..=nx).flat_map(move |i| {
+                (0..=ny).map(move |j| {
+                    let p = Point2::new(x_lo + i as f64 * STEP_M, y_lo + j as f64 * STEP_M);
+                    (p.distance_to(&centre), p)
+                })
+            })
+        })
+        .filter(|(_, p)| placement_problem(settings, others, held, *p, 0.0, release_z).is_none())
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, p)| p)
 }
 
 /// Where the held object goes for a placement at `at` with `location`, among `others` (the
@@ -231,9 +381,7 @@ pub(crate) fn place_target(
     at: Point2,
     location: Location,
 ) -> Result<(Point2, f64), SkillError> {
-    let release_z = |surface_z: f64| {
-        (surface_z + held.tcp_above_base_m + settings.release_gap_m).max(settings.min_tcp_z_m)
-    };
+    let release_z = |surface_z: f64| release_height(settings, held, surface_z);
     let bad = |reason: String| SkillError::BadPlacement { reason };
     if location == Location::None {
         workspace_of(settings, "place", at)?;
@@ -267,7 +415,20 @@ pub(crate) fn place_target(
         }
     };
     let sides: Vec<Location> = match location {
-        Location::OnTopOf => return on_reference(top_z(reference)),
+        Location::OnTopOf => {
+            // A stack stands only when the upper object rests on the lower one's top.
+            let support = Rect::of_object(reference).grown(STACK_OVERHANG_M);
+            if !support.contains(&Rect::of_object_at(held.object, reference.xy())) {
+                return Err(bad(format!(
+                    "'{}' would overhang '{}' on top of it (more than {:.0} mm over its edge); \
+                     stack smaller objects on larger ones",
+                    held.object.label,
+                    reference.label,
+                    STACK_OVERHANG_M * 1000.0
+                )));
+            }
+            return on_reference(top_z(reference));
+        }
         Location::Inside => return on_reference(settings.container_floor_m),
         Location::CloseTo => {
             let mut sides = vec![

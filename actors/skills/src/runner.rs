@@ -73,6 +73,8 @@ pub(crate) struct Runner {
     pub(crate) progress: Publisher<SkillProgress>,
     pub(crate) cancel: Arc<CancelFlag>,
     held: Option<Held>,
+    /// The objects of the last look (to suggest where a held object can be put down).
+    last_seen: Vec<DetectedObject>,
 }
 
 /// One running skill: its id and step counter.
@@ -105,6 +107,7 @@ impl Runner {
             progress,
             cancel,
             held: None,
+            last_seen: Vec::new(),
         }
     }
 
@@ -138,8 +141,26 @@ impl Runner {
             }
             Err(error) => {
                 let still_held = self.held.as_ref().map(|h| h.object.label.clone());
+                let put_down_at = self.held.as_ref().and_then(|held| {
+                    let others: Vec<DetectedObject> = self
+                        .last_seen
+                        .iter()
+                        .filter(|o| o.id != held.object.id)
+                        .cloned()
+                        .collect();
+                    let plan = HeldPlan {
+                        object: &held.object,
+                        yaw_rad: held.yaw_rad,
+                        tcp_above_base_m: held.tcp_above_base_m,
+                    };
+                    plan::free_spot(&self.settings, &others, &plan)
+                });
                 tracing::warn!(skill = name, run_id, %error, ?still_held, "skill failed");
-                SkillReply::Failed { error, still_held }
+                SkillReply::Failed {
+                    error,
+                    still_held,
+                    put_down_at,
+                }
             }
         }
     }
@@ -348,7 +369,7 @@ impl Runner {
     /// Moves to `ws`'s observation pose and returns the objects of the first steady view
     /// taken there.
     async fn look(
-        &self,
+        &mut self,
         run: &mut Run,
         ws: &WorkspaceInfo,
     ) -> Result<Vec<DetectedObject>, SkillError> {
@@ -369,7 +390,10 @@ impl Runner {
             )
             .await?;
         match reply {
-            WorkspaceReply::Objects { objects } => Ok(objects),
+            WorkspaceReply::Objects { objects } => {
+                self.last_seen.clone_from(&objects);
+                Ok(objects)
+            }
             other => Err(SkillError::perception(format!(
                 "unexpected answer {other:?}"
             ))),
@@ -516,14 +540,14 @@ impl Runner {
             .into_iter()
             .filter(|o| o.id != held.object.id)
             .collect();
-        let plan = HeldPlan {
+        let held_plan = HeldPlan {
             object: &held.object,
             yaw_rad: held.yaw_rad,
             tcp_above_base_m: held.tcp_above_base_m,
         };
-        let (target, surface_z) = plan::place_target(&self.settings, &others, &plan, at, location)?;
-        let release_z = (surface_z + held.tcp_above_base_m + self.settings.release_gap_m)
-            .max(self.settings.min_tcp_z_m);
+        let (target, surface_z) =
+            plan::place_target(&self.settings, &others, &held_plan, at, location)?;
+        let release_z = plan::release_height(&self.settings, &held_plan, surface_z);
         let above_z = surface_z
             + top_z(&held.object)
             + held.tcp_above_base_m.max(0.0)
@@ -588,7 +612,8 @@ impl Runner {
         let object = find_object(&objects, name, at, self.settings.pick_radius_m)?;
         let end_of_object = direction.offset(object_xy(&object), distance_m);
         self.workspace("push", end_of_object)?;
-        if let Some(problem) = plan::resting_spot_problem(&self.settings, &object, end_of_object) {
+        if let Some(problem) = plan::push_problem(&self.settings, &object, &objects, end_of_object)
+        {
             return Err(SkillError::BadPlacement { reason: problem });
         }
         let low_z = self
@@ -610,6 +635,11 @@ impl Runner {
             Direction::Left | Direction::Right => FRAC_PI_2,
             Direction::Up | Direction::Down => 0.0,
         };
+        if let Some(problem) =
+            plan::push_tool_problem(&self.settings, &object, &objects, start, end, yaw, low_z)
+        {
+            return Err(SkillError::BadPlacement { reason: problem });
+        }
         let travel_z = top_z(&object) + self.settings.approach_height_m;
         let plan = [
             ("the push approach", down(start, travel_z, yaw)),

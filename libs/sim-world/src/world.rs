@@ -24,6 +24,10 @@ const LEVER_M: f64 = 0.1;
 const MAX_SUB_STEPS: f64 = 100_000.0;
 /// The gripper may touch things: only a penetration deeper than this is a contact.
 pub const CONTACT_TOLERANCE_M: f64 = 0.0001;
+/// A contact that already exists counts again only when a step makes it deeper by more than
+/// this, metres: an arm leaving a contact along a joint-space path wobbles by a few microns,
+/// and must not be stopped by it (a straight push into an object deepens by far more).
+pub const DEEPER_M: f64 = 0.00005;
 /// A carried object may sink this far into another (or the table) before it is a collision,
 /// so that placing it on top of something, or down on the table, works.
 pub const HELD_TOLERANCE_M: f64 = 0.002;
@@ -747,9 +751,10 @@ impl World {
         probe
     }
 
-    /// Contacts that are new or deeper in `after` than in `before`.
+    /// Contacts that are new or deeper in `after` than in `before` (by more than
+    /// [`DEEPER_M`]: an arm leaving a contact along a joint-space path wobbles by microns).
     fn hits(&self, before: &Probe, after: &Probe) -> Vec<Hit> {
-        let deeper = |a: f64, b: f64, tol: f64| a > tol && a > b + 1e-7;
+        let deeper = |a: f64, b: f64, tol: f64| a > tol && a > b + DEEPER_M;
         let mut out = Vec::new();
         if deeper(after.table, before.table, CONTACT_TOLERANCE_M)
             || deeper(after.held_table, before.held_table, HELD_TOLERANCE_M)

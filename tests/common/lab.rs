@@ -1,0 +1,165 @@
+//! A served robotd on the simulator, an MCP client of it and a bus client of the simulator's
+//! ground truth (`sim/world`): the harness of the scenario tests and the long session.
+//! Include it with `mod common; #[path = "common/lab.rs"] mod lab;`.
+
+#![allow(dead_code)]
+
+use crate::common;
+use rmcp::model::CallToolRequestParams;
+use robotd_mcp::client::{connect, McpClient};
+use robotd_protocol::diagnostics::{SimObjectState, SimWorldRequest};
+use robotd_runtime::bus::{Bus, BusOptions};
+use robotd_runtime::catalog::SIM_WORLD;
+use serde_json::Value;
+use std::time::Duration;
+
+/// A two-thread runtime, as the tests' MCP clients need.
+pub fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+/// The setting that loads `tests/scenes/{name}`.
+pub fn scene(name: &str) -> String {
+    format!(
+        "robot.scene={}/tests/scenes/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+/// A served robotd, an MCP client of it and a bus client of its ground truth.
+pub struct Lab {
+    _robotd: common::Running,
+    pub client: McpClient,
+    bus: Bus,
+}
+
+/// Starts robotd on the simulator (motions at `time_scale`, the camera at 15 fps) with
+/// `extra` settings, and connects to it over SSE.
+pub async fn lab_with(time_scale: f64, extra: &[String]) -> Lab {
+    let namespace = common::fresh_namespace("scn");
+    let port = common::free_port();
+    let mut args = vec![
+        "--set".to_owned(),
+        format!("robot.time_scale={time_scale}"),
+        "--set".to_owned(),
+        "robot.camera.fps=15".to_owned(),
+    ];
+    for setting in extra {
+        args.push("--set".into());
+        args.push(setting.clone());
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let robotd = common::start_robotd(&namespace, port, &args);
+    let client = connect(&format!("http://127.0.0.1:{port}/sse"), None)
+        .await
+        .unwrap();
+    let bus = Bus::open(BusOptions::new(&namespace, "scenario-test")).unwrap();
+    Lab {
+        _robotd: robotd,
+        client,
+        bus,
+    }
+}
+
+/// [`lab_with`] at time scale 0.05, with an optional scene setting.
+pub async fn lab(scene_setting: Option<String>) -> Lab {
+    lab_with(0.05, &scene_setting.into_iter().collect::<Vec<_>>()).await
+}
+
+impl Lab {
+    /// Calls `tool`; its reply text and `structuredContent.data` (`Null` when absent).
+    pub async fn call(&self, tool: &str, args: Value) -> (String, Value) {
+        let mut params = CallToolRequestParams::new(tool.to_owned());
+        if let Value::Object(map) = args {
+            params = params.with_arguments(map);
+        }
+        let result = self.client.call_tool(params).await.unwrap();
+        let text = result.content[0].as_text().unwrap().text.clone();
+        let data = result
+            .structured_content
+            .map(|s| s["data"].clone())
+            .unwrap_or(Value::Null);
+        eprintln!("{tool}: {}", text.lines().next().unwrap_or(""));
+        (text, data)
+    }
+
+    /// Calls `tool` and asserts that it succeeded.
+    pub async fn ok(&self, tool: &str, args: Value) -> Value {
+        let (text, data) = self.call(tool, args).await;
+        assert!(text.starts_with('✓'), "{tool}: {text}");
+        data
+    }
+
+    /// What the camera sees: label, [x, y] (centre of mass) and area of each object.
+    pub async fn seen(&self) -> Vec<(String, [f64; 2], f64)> {
+        let data = self.ok("get_detected_objects", serde_json::json!({})).await;
+        seen_in(&data)
+    }
+
+    /// The simulator's ground truth.
+    pub async fn truth(&self) -> Vec<SimObjectState> {
+        let client = self.bus.client(&SIM_WORLD).unwrap();
+        client
+            .request(&SimWorldRequest {}, Duration::from_secs(5))
+            .await
+            .unwrap()
+            .objects
+    }
+
+    /// The ground truth of the object `label`.
+    pub async fn truth_of(&self, label: &str) -> SimObjectState {
+        self.truth()
+            .await
+            .into_iter()
+            .find(|o| o.label == label)
+            .unwrap_or_else(|| panic!("no {label} in the world"))
+    }
+
+    /// Moves `label` from `from` to `to` with `pick_place_object`, asserting success.
+    pub async fn move_object(&self, label: &str, from: [f64; 2], to: [f64; 2]) {
+        self.ok(
+            "pick_place_object",
+            serde_json::json!({"object_name": label, "pick_coordinate": from,
+                               "place_coordinate": to}),
+        )
+        .await;
+    }
+}
+
+/// Label, [x, y] and area of each object in a detection tool's data.
+pub fn seen_in(data: &Value) -> Vec<(String, [f64; 2], f64)> {
+    data.as_array()
+        .map(Vec::as_slice)
+        .unwrap_or_default()
+        .iter()
+        .map(|o| {
+            let c = &o["position"]["center_of_mass"];
+            (
+                o["label"].as_str().unwrap_or_default().to_owned(),
+                [
+                    c["x"].as_f64().unwrap_or_default(),
+                    c["y"].as_f64().unwrap_or_default(),
+                ],
+                o["dimensions"]["size_m2"].as_f64().unwrap_or_default(),
+            )
+        })
+        .collect()
+}
+
+/// Asserts that `o` rests (not held) within `tol` metres of `at`.
+pub fn assert_near(o: &SimObjectState, at: [f64; 2], tol: f64) {
+    let d = ((o.x_m - at[0]).powi(2) + (o.y_m - at[1]).powi(2)).sqrt();
+    assert!(
+        d <= tol && !o.held,
+        "{} at ({:.4}, {:.4}), wanted {at:?} (off by {:.1} mm, held {})",
+        o.label,
+        o.x_m,
+        o.y_m,
+        d * 1000.0,
+        o.held
+    );
+}
