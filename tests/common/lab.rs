@@ -33,7 +33,10 @@ pub fn scene(name: &str) -> String {
 /// A served robotd, an MCP client of it and a bus client of its ground truth.
 pub struct Lab {
     _robotd: common::Running,
+    /// The MCP client (SSE).
     pub client: McpClient,
+    /// `http://127.0.0.1:PORT` of the served robotd.
+    pub url: String,
     bus: Bus,
 }
 
@@ -61,6 +64,7 @@ pub async fn lab_with(time_scale: f64, extra: &[String]) -> Lab {
     Lab {
         _robotd: robotd,
         client,
+        url: format!("http://127.0.0.1:{port}"),
         bus,
     }
 }

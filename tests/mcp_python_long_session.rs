@@ -1,0 +1,99 @@
+//! The long randomized session of `tests/mcp_long_session.rs`, driven by the Python `fastmcp`
+//! client over SSE (tests/python/mcp_long_session.py), twice in a row on one running robotd:
+//! the second session starts from the world the first left. After each, the simulator's ground
+//! truth must agree with what the replies said (what is held, where the last detection put
+//! each object), and no recovery may have failed.
+//!
+//! `LONG_SESSION_CALLS` (default 200 per session here) sets the length.
+
+mod common;
+#[path = "common/lab.rs"]
+mod lab;
+
+use lab::{lab_with, runtime};
+use serde_json::Value;
+use std::process::Command;
+
+fn python() -> String {
+    let venv = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv/bin/python");
+    if std::path::Path::new(venv).exists() {
+        venv.to_owned()
+    } else {
+        "python3".to_owned()
+    }
+}
+
+fn run_session(url: &str, calls: usize, seed: u64) -> Value {
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/python/mcp_long_session.py"
+    );
+    let output = Command::new(python())
+        .arg(script)
+        .arg(url)
+        .arg(calls.to_string())
+        .arg(seed.to_string())
+        .output()
+        .expect("run python (install the test venv with ./scripts/test.sh)");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        output.status.success(),
+        "the fastmcp session failed:\n{stderr}"
+    );
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}\n{stderr}"))
+}
+
+#[test]
+fn a_fastmcp_long_session_twice_on_one_service_agrees_with_the_world() {
+    let calls: usize = std::env::var("LONG_SESSION_CALLS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(200);
+    runtime().block_on(async {
+        let lab = lab_with(0.02, &[]).await;
+        let url = format!("{}/sse", lab.url);
+        for seed in [1, 2] {
+            let report = tokio::task::spawn_blocking({
+                let url = url.clone();
+                move || run_session(&url, calls, seed)
+            })
+            .await
+            .unwrap();
+            eprintln!("fastmcp session (seed {seed}): {report}");
+            assert!(report["calls"].as_u64().unwrap() >= calls as u64);
+            assert!(
+                report["succeeded"].as_u64().unwrap() > calls as u64 / 3,
+                "{report}"
+            );
+            assert_eq!(report["stuck"], serde_json::json!([]), "{report}");
+            let truth = lab.truth().await;
+            let held: Vec<&str> = truth
+                .iter()
+                .filter(|o| o.held)
+                .map(|o| o.label.as_str())
+                .collect();
+            match report["holding"].as_str() {
+                Some(label) => assert_eq!(held, [label], "{report}"),
+                None => assert!(held.is_empty(), "held {held:?}, the replies said nothing"),
+            }
+            // Every object the last detection named by its real label is where it said.
+            for seen in report["seen"].as_array().unwrap() {
+                let label = seen["label"].as_str().unwrap();
+                let at = [
+                    seen["at"][0].as_f64().unwrap(),
+                    seen["at"][1].as_f64().unwrap(),
+                ];
+                if let Some(o) = truth.iter().find(|o| o.label == label) {
+                    let d = (o.x_m - at[0]).hypot(o.y_m - at[1]);
+                    assert!(
+                        d < 0.015 || o.held,
+                        "{label} seen at {at:?}, is at ({:.3}, {:.3})",
+                        o.x_m,
+                        o.y_m
+                    );
+                }
+            }
+        }
+    });
+}
