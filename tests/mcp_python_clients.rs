@@ -7,22 +7,12 @@ mod common;
 use serde_json::Value;
 use std::process::Command;
 
-/// The venv's python (./scripts/test.sh puts it first on PATH).
-fn python() -> String {
-    let venv = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv/bin/python");
-    if std::path::Path::new(venv).exists() {
-        venv.to_owned()
-    } else {
-        "python3".to_owned()
-    }
-}
-
 fn run_client(url: &str) -> Value {
     let script = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/tests/python/mcp_fastmcp_client.py"
     );
-    let output = Command::new(python())
+    let output = Command::new(common::python())
         .arg(script)
         .arg(url)
         .output()

@@ -14,21 +14,12 @@ use lab::{lab_with, runtime};
 use serde_json::Value;
 use std::process::Command;
 
-fn python() -> String {
-    let venv = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv/bin/python");
-    if std::path::Path::new(venv).exists() {
-        venv.to_owned()
-    } else {
-        "python3".to_owned()
-    }
-}
-
 fn run_session(url: &str, calls: usize, seed: u64) -> Value {
     let script = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/tests/python/mcp_long_session.py"
     );
-    let output = Command::new(python())
+    let output = Command::new(common::python())
         .arg(script)
         .arg(url)
         .arg(calls.to_string())

@@ -88,15 +88,6 @@ fn wait_until(what: &str, timeout: Duration, mut done: impl FnMut() -> bool) -> 
     started.elapsed()
 }
 
-fn python() -> String {
-    let venv = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv/bin/python");
-    if std::path::Path::new(venv).exists() {
-        venv.to_owned()
-    } else {
-        "python3".to_owned()
-    }
-}
-
 #[test]
 fn python_tools_read_frames_and_their_detections_reach_the_tools() {
     let redis_port = common::free_port();
@@ -112,7 +103,7 @@ fn python_tools_read_frames_and_their_detections_reach_the_tools() {
     let (ok, _) = call(port, "get_detected_objects", &[]);
     assert!(ok);
 
-    let output = Command::new(python())
+    let output = Command::new(common::python())
         .arg(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/tests/python/redis_client_check.py"

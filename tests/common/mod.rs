@@ -208,3 +208,14 @@ pub fn http_request(
         .unwrap_or_default();
     (status, body)
 }
+
+/// The test venv's python (`./scripts/test.sh` installs tests/python/requirements.txt into
+/// `.venv`), or `python3` when there is none.
+pub fn python() -> String {
+    let venv = concat!(env!("CARGO_MANIFEST_DIR"), "/.venv/bin/python");
+    if std::path::Path::new(venv).exists() {
+        venv.to_owned()
+    } else {
+        "python3".to_owned()
+    }
+}
