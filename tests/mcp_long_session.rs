@@ -22,18 +22,14 @@ use lab::{lab_with, runtime, seen_in, Lab};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use robotd_protocol::diagnostics::SimObjectState;
+use robotd_protocol::{Direction, Location};
 use serde_json::{json, Value};
 use std::collections::BTreeMap;
 
-const LOCATIONS: [&str; 6] = [
-    "left next to",
-    "right next to",
-    "above",
-    "below",
-    "on top of",
-    "inside",
-];
-const DIRECTIONS: [&str; 4] = ["up", "down", "left", "right"];
+/// The relative locations (`Location::STRINGS` starts with the six of `pick_place_object`,
+/// then `close to`, then `none`).
+const RELATIVE: usize = 6;
+const DIRECTIONS: &[&str] = Direction::STRINGS;
 
 /// What the session saw and counted.
 #[derive(Default)]
@@ -145,9 +141,12 @@ impl Session {
             (json!(p), Some(p))
         } else {
             let (_, at) = self.pick_seen().unwrap();
-            let n = if allow_close_to { 7 } else { 6 };
-            let i = self.rng.random_range(0..n);
-            let location = LOCATIONS.get(i).copied().unwrap_or("close to");
+            let n = if allow_close_to {
+                RELATIVE + 1
+            } else {
+                RELATIVE
+            };
+            let location = Location::STRINGS[self.rng.random_range(0..n)];
             (json!({"coordinate": at, "location": location}), None)
         }
     }

@@ -8,23 +8,7 @@ use serde_json::Value;
 use std::process::Command;
 
 fn run_client(url: &str) -> Value {
-    let script = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/python/mcp_fastmcp_client.py"
-    );
-    let output = Command::new(common::python())
-        .arg(script)
-        .arg(url)
-        .output()
-        .expect("run python (install the test venv with ./scripts/test.sh)");
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(
-        output.status.success(),
-        "the fastmcp client failed against {url} (is fastmcp installed? ./scripts/test.sh \
-         installs tests/python/requirements.txt into .venv):\n{stderr}"
-    );
-    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}\n{stderr}"))
+    common::run_python_json("mcp_fastmcp_client.py", &[url.to_owned()])
 }
 
 #[test]

@@ -12,27 +12,12 @@ mod lab;
 
 use lab::{lab_with, runtime};
 use serde_json::Value;
-use std::process::Command;
 
 fn run_session(url: &str, calls: usize, seed: u64) -> Value {
-    let script = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/python/mcp_long_session.py"
-    );
-    let output = Command::new(common::python())
-        .arg(script)
-        .arg(url)
-        .arg(calls.to_string())
-        .arg(seed.to_string())
-        .output()
-        .expect("run python (install the test venv with ./scripts/test.sh)");
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(
-        output.status.success(),
-        "the fastmcp session failed:\n{stderr}"
-    );
-    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}\n{stderr}"))
+    common::run_python_json(
+        "mcp_long_session.py",
+        &[url.to_owned(), calls.to_string(), seed.to_string()],
+    )
 }
 
 #[test]

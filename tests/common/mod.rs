@@ -219,3 +219,22 @@ pub fn python() -> String {
         "python3".to_owned()
     }
 }
+
+/// Runs `tests/python/{script}` with the venv's python and `args`, and reads the one JSON
+/// object it prints; panics with its stderr when it fails.
+pub fn run_python_json(script: &str, args: &[String]) -> serde_json::Value {
+    let path = format!("{}/tests/python/{script}", env!("CARGO_MANIFEST_DIR"));
+    let output = Command::new(python())
+        .arg(&path)
+        .args(args)
+        .output()
+        .expect("run python (install the test venv with ./scripts/test.sh)");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        output.status.success(),
+        "{script} failed (is the test venv installed? ./scripts/test.sh installs \
+         tests/python/requirements.txt into .venv):\n{stderr}"
+    );
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}\n{stderr}"))
+}
