@@ -9,6 +9,7 @@ mod call;
 mod chat;
 mod doctor;
 mod estop;
+mod fake_niryo;
 mod say;
 mod serve;
 
@@ -75,6 +76,9 @@ enum Command {
     Chat(chat::ChatArgs),
     /// Engage the emergency stop of the running robotd (or release it with --release).
     Estop(EstopArgs),
+    /// Serve the simulator behind the Niryo Ned2's TCP protocol: a fake robot for the niryo
+    /// driver and pyniryo scripts (`--set robot.scene=…`, `--set robot.time_scale=…`).
+    FakeNiryo(fake_niryo::FakeNiryoArgs),
     /// The motion audit log.
     Audit {
         #[command(subcommand)]
@@ -335,6 +339,12 @@ fn run() -> Result<std::process::ExitCode> {
         Command::Chat(args) => {
             let config = load_config(&cli.config)?;
             chat::run(config, cli.config.config.as_deref(), args)
+        }
+        Command::FakeNiryo(args) => {
+            let config = load_config(&cli.config)?;
+            let _telemetry = telemetry::init(&config.telemetry, Mode::Command)?;
+            fake_niryo::run(config, args)?;
+            Ok(std::process::ExitCode::SUCCESS)
         }
         Command::Estop(args) => {
             let config = load_config(&cli.config)?;

@@ -301,8 +301,19 @@ impl Runtime {
         let report_health = health.clone();
         let report_safety = hardware.safety.clone();
         let perception_stats = perception.as_ref().map(Perception::stats);
+        let robot_link = hardware.arm_context.driver.clone();
         let health_source: HealthSource = Arc::new(move || {
             let mut report = report_health.report(&report_config, &robot, started);
+            // A real robot can be down while its actors run: say why.
+            match robot_link.connection() {
+                Ok(()) => report["robot"]["connected"] = true.into(),
+                Err(reason) => {
+                    report["robot"]["connected"] = false.into();
+                    report["robot"]["available"] = false.into();
+                    report["robot"]["reason"] = format!("robot not connected: {reason}").into();
+                    report["status"] = "degraded".into();
+                }
+            }
             report["safety"] = safety_report(&report_safety);
             let view = perception_stats.as_ref().and_then(|s| s.workspace_view());
             if view.as_ref().is_some_and(|v| !v.visible) {

@@ -10,9 +10,9 @@
 //! | gripper | `gripper/command`, `gripper/state` | [`GRIPPER_COMMAND`](robotd_runtime::catalog::GRIPPER_COMMAND) |
 //! | camera | `camera/frames` (640×480 RGB, zero-copy) | [`CAMERA_FRAMES`](robotd_runtime::catalog::CAMERA_FRAMES) |
 //!
-//! Drivers: `sim-ned2` (the default) and `sim-widowx` run the simulator of `drivers/sim`; the
-//! real `niryo` and `widowx` drivers are not in this build and are refused at start-up with a
-//! message saying so. A new driver is a crate in `drivers/` plus one arm of the `match` in
+//! Drivers: `sim-ned2` (the default) and `sim-widowx` run the simulator of `drivers/sim`;
+//! `niryo` drives a real Ned2 over TCP (`drivers/niryo`); the real `widowx` driver is not in
+//! this build and is refused at start-up with a message saying so. A new driver is a crate in `drivers/` plus one arm of the `match` in
 //! [`Hardware::start`].
 //!
 //! ```no_run
@@ -49,7 +49,7 @@ use robotd_safety::Safety;
 #[derive(Debug, thiserror::Error)]
 pub enum StartError {
     /// The configured driver is not part of this build.
-    #[error("robot.driver = \"{driver}\" is not available in this build yet (only \"sim-ned2\" and \"sim-widowx\" are); use a simulator or wait for the hardware drivers")]
+    #[error("robot.driver = \"{driver}\" is not available in this build yet (\"sim-ned2\", \"sim-widowx\" and \"niryo\" are); use one of those")]
     DriverNotAvailable {
         /// The configured driver.
         driver: String,
@@ -118,7 +118,15 @@ impl Hardware {
                 hardware.sim = Some(sim.robot);
                 Ok(hardware)
             }
-            RobotDriver::Niryo | RobotDriver::Widowx => Err(StartError::DriverNotAvailable {
+            RobotDriver::Niryo => {
+                let niryo =
+                    robotd_driver_niryo::open(&config.robot, std::time::Duration::from_secs(3))
+                        .await;
+                let mut hardware = Self::start_with(bus, config, niryo.drivers, observer).await?;
+                hardware.tasks.extend(niryo.tasks);
+                Ok(hardware)
+            }
+            RobotDriver::Widowx => Err(StartError::DriverNotAvailable {
                 driver: format!("{:?}", config.robot.driver).to_lowercase(),
             }),
         }

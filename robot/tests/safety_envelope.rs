@@ -50,7 +50,7 @@ impl ArmDriver for Recording {
     fn calibrate(&self) -> DriverFuture<'_, ()> {
         self.inner.calibrate()
     }
-    fn clear_collision(&self) -> Result<(), DriverError> {
+    fn clear_collision(&self) -> DriverFuture<'_, ()> {
         self.inner.clear_collision()
     }
     fn halt(&self) -> Result<(), DriverError> {
@@ -293,7 +293,7 @@ async fn random_motions_from_every_origin_never_leave_the_envelope() {
                 ground_truth_outside += 1;
             }
             if recording.flags().collision_detected {
-                recording.clear_collision().unwrap();
+                recording.clear_collision().await.unwrap();
             }
         }
     }

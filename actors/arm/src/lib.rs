@@ -375,6 +375,7 @@ impl Message<ClearCollisionFlag> for ArmActor {
         let cleared = ctx
             .driver
             .clear_collision()
+            .await
             .map_err(arm_error)
             .and_then(|()| ctx.tool_pose())
             .map(|pose| ArmReply::Ok { pose });
@@ -602,6 +603,7 @@ pub async fn publish_arm_state(
     let mut was_moving = false;
     let mut was_estopped = false;
     let mut published_still_since = None;
+    let mut failing = false;
     loop {
         tokio::select! {
             _ = ticker.tick() => ticks += 1,
@@ -620,8 +622,14 @@ pub async fn publish_arm_state(
             match context.state() {
                 Ok(state) => {
                     publisher.publish(&state)?;
+                    failing = false;
                 }
-                Err(error) => tracing::warn!(%error, "reading the arm state"),
+                // Once per streak: a disconnected robot fails every tick.
+                Err(error) if !failing => {
+                    failing = true;
+                    tracing::warn!(%error, "reading the arm state");
+                }
+                Err(_) => {}
             }
         }
         was_moving = moving;

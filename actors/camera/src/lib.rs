@@ -81,16 +81,21 @@ impl Message<CaptureFrame> for CameraActor {
     }
 }
 
-/// Asks `camera` for a frame `fps` times a second, forever. Failures are logged and cost one
-/// frame; supervision restarts a crashed camera actor meanwhile.
-pub async fn run_camera(camera: Supervised<CameraActor>, fps: f64) {
+/// Asks `camera` for a frame `fps` times a second (or as soon after as `driver` has one),
+/// forever. Failures are logged and cost one frame; supervision restarts a crashed camera
+/// actor meanwhile.
+pub async fn run_camera(camera: Supervised<CameraActor>, driver: Arc<dyn CameraDriver>, fps: f64) {
     let period = Duration::from_secs_f64(1.0 / fps.clamp(0.1, 1000.0));
     let mut ticker = tokio::time::interval(period);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut failures: u64 = 0;
     loop {
         ticker.tick().await;
-        match camera.ask(CaptureFrame).await {
+        let asked = match driver.frame_ready().await {
+            Ok(()) => camera.ask(CaptureFrame).await.map_err(|e| e.to_string()),
+            Err(error) => Err(error.to_string()),
+        };
+        match asked {
             Ok(_) => failures = 0,
             Err(error) => {
                 failures += 1;
@@ -116,11 +121,12 @@ pub async fn start(
 > {
     let frames = Arc::new(bus.frame_publisher(&robotd_runtime::catalog::CAMERA_FRAMES)?);
     let frame_ids = Arc::new(AtomicU64::new(1));
+    let actor_driver = driver.clone();
     let actor = supervisor
         .spawn_actor::<CameraActor>(move || {
-            CameraActor::new(driver.clone(), frames.clone(), frame_ids.clone())
+            CameraActor::new(actor_driver.clone(), frames.clone(), frame_ids.clone())
         })
         .await?;
-    let task = tokio::spawn(run_camera(actor.clone(), fps));
+    let task = tokio::spawn(run_camera(actor.clone(), driver, fps));
     Ok((actor, task))
 }

@@ -55,6 +55,15 @@ pub struct RobotConfig {
     /// and published on `arm/state` (1 to 1000).
     #[serde(default = "defaults::control_rate_hz")]
     pub control_rate_hz: u32,
+    /// Host name or address of a networked robot (the `niryo` driver); required by it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<String>,
+    /// TCP port of a networked robot (40001 on a Ned2).
+    #[serde(default = "defaults::port")]
+    pub port: u16,
+    /// `[robot.niryo]`: settings of the `niryo` driver.
+    #[serde(default)]
+    pub niryo: crate::niryo_config::NiryoConfig,
     /// `[robot.camera]`: the wrist camera.
     #[serde(default)]
     pub camera: CameraConfig,
@@ -169,6 +178,9 @@ mod defaults {
     pub fn noise_stddev() -> f64 {
         2.0
     }
+    pub fn port() -> u16 {
+        40001
+    }
 }
 
 impl Section for RobotConfig {
@@ -200,6 +212,27 @@ impl Section for RobotConfig {
             ids.push(&workspace.id);
         }
         checks.range_f64("camera.fps", self.camera.fps, 0.1..=60.0, "");
+        if self.driver == RobotDriver::Niryo {
+            match self.host.as_deref().map(str::trim) {
+                None | Some("") => checks.problem(
+                    "host",
+                    "the niryo driver needs the robot's address, e.g. robot.host = \"192.168.1.50\"",
+                ),
+                Some(host) if host.contains(char::is_whitespace) || host.contains('/') => checks
+                    .problem(
+                        "host",
+                        format!("'{host}' is not a host name or address (no scheme, path or spaces)"),
+                    ),
+                Some(_) => {}
+            }
+            if self.port == 0 {
+                checks.problem(
+                    "port",
+                    "must be a TCP port from 1 to 65535 (the Ned2 uses 40001)",
+                );
+            }
+        }
+        self.niryo.check(checks);
         checks.range_f64(
             "camera.noise_stddev",
             self.camera.noise_stddev,

@@ -19,7 +19,9 @@
 //! implementing these traits, plus one line where `robotd-robot` chooses the driver.
 
 pub mod config;
+pub mod niryo_config;
 pub use config::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
+pub use niryo_config::NiryoConfig;
 
 use nalgebra::Isometry3;
 use robotd_protocol::geometry::{Pose, RobotModel};
@@ -195,11 +197,16 @@ pub trait ArmDriver: Send + Sync + 'static {
     ) -> DriverFuture<'a, ()>;
     /// Runs the calibration (Ned2) or homing.
     fn calibrate(&self) -> DriverFuture<'_, ()>;
-    /// Clears the collision flag.
-    fn clear_collision(&self) -> Result<(), DriverError>;
+    /// Clears the collision flag (a real robot is asked over its connection).
+    fn clear_collision(&self) -> DriverFuture<'_, ()>;
     /// Stops any motion now and holds position. Safe to call from any task, also while an
     /// [`execute`](Self::execute) is running elsewhere and after the arm actor died.
     fn halt(&self) -> Result<(), DriverError>;
+    /// Whether the robot can be used now: `Err(reason)` while a real robot is not connected
+    /// (`/health`, `get_system_status` and the tools say why). The simulator always can.
+    fn connection(&self) -> Result<(), String> {
+        Ok(())
+    }
 }
 
 /// What a gripper reports.
@@ -240,6 +247,12 @@ pub trait CameraDriver: Send + Sync + 'static {
     fn size(&self) -> (u32, u32);
     /// Intrinsics: fx, fy, cx, cy and the distortion k1, k2, p1, p2, k3.
     fn intrinsics(&self) -> robotd_protocol::camera::CameraIntrinsics;
+    /// Waits until a new frame can be captured. A camera that takes pictures on request (the
+    /// simulator) is always ready and is paced by `robot.camera.fps`; one that receives them
+    /// at the robot's own pace (a Ned2 over TCP) resolves when the next one has arrived.
+    fn frame_ready(&self) -> DriverFuture<'_, ()> {
+        Box::pin(async { Ok(()) })
+    }
     /// Writes one frame (row-major RGB8, width × height × 3 bytes) into `out`, which is the
     /// shared-memory frame on the bus, so the image is written exactly once.
     fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError>;

@@ -369,9 +369,9 @@ impl ArmDriver for SimArm {
         })
     }
 
-    fn clear_collision(&self) -> Result<(), DriverError> {
+    fn clear_collision(&self) -> DriverFuture<'_, ()> {
         self.robot.lock().collision = None;
-        Ok(())
+        Box::pin(async { Ok(()) })
     }
 
     fn halt(&self) -> Result<(), DriverError> {

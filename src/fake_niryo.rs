@@ -1,0 +1,77 @@
+//! `robotd fake-niryo`: the simulator behind the Niryo Ned2's TCP protocol, for trying the
+//! `niryo` driver (and pyniryo scripts) without a robot. The scene and the motion time come
+//! from the usual `[robot]` settings (`--set robot.scene=…`, `--set robot.time_scale=…`).
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use robotd_config::{Config, RobotDriver};
+use robotd_driver_niryo::fake::{FakeFaults, FakeNiryo};
+use std::io::Write;
+
+/// Options of `robotd fake-niryo`.
+#[derive(Debug, Args)]
+pub struct FakeNiryoArgs {
+    /// Address to listen on (IP:port; port 0 picks a free one, printed on stdout).
+    #[arg(long, default_value = "127.0.0.1:40001")]
+    pub listen: String,
+    /// Start uncalibrated, as a robot just switched on (moves are ignored until CALIBRATE).
+    #[arg(long)]
+    pub needs_calibration: bool,
+    /// Fault: close the connection when the N-th command arrives (the command still runs).
+    #[arg(long, value_name = "N")]
+    pub drop_at: Option<u64>,
+    /// Fault: answer the N-th command with garbage.
+    #[arg(long, value_name = "N")]
+    pub garbage_at: Option<u64>,
+    /// Fault: never answer the N-th command.
+    #[arg(long, value_name = "N")]
+    pub silent_at: Option<u64>,
+    /// Count only commands of this name for --drop-at, --garbage-at and --silent-at (e.g.
+    /// MOVE_JOINTS).
+    #[arg(long, value_name = "COMMAND")]
+    pub only: Option<String>,
+    /// Fault: close every connection at once.
+    #[arg(long)]
+    pub refuse_connections: bool,
+}
+
+/// Serves until Ctrl-C.
+pub fn run(mut config: Config, args: FakeNiryoArgs) -> Result<()> {
+    match config.robot.driver {
+        RobotDriver::SimNed2 | RobotDriver::Niryo => config.robot.driver = RobotDriver::SimNed2,
+        other => bail!("fake-niryo simulates a Ned2; robot.driver = {other:?} is another robot"),
+    }
+    // A real lens: the images carry the Ned2's distortion, as GET_CAMERA_INTRINSICS says.
+    config.robot.camera.lens_distortion = true;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    runtime.block_on(async move {
+        let sim = robotd_driver_sim::open(&config.robot)?;
+        let fake = FakeNiryo::new(
+            sim.robot,
+            FakeFaults {
+                refuse_connections: args.refuse_connections,
+                drop_at: args.drop_at,
+                garbage_at: args.garbage_at,
+                silent_at: args.silent_at,
+                needs_calibration: args.needs_calibration,
+                ignore_moves: false,
+                only: args.only.clone(),
+            },
+        );
+        let listener = tokio::net::TcpListener::bind(&args.listen)
+            .await
+            .with_context(|| format!("listening on {}", args.listen))?;
+        let address = listener.local_addr()?;
+        println!("fake-niryo listening on {address}");
+        std::io::stdout().flush()?;
+        tokio::select! {
+            () = fake.serve(listener) => {}
+            _ = tokio::signal::ctrl_c() => {}
+        }
+        Ok(())
+    })
+}
