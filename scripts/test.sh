@@ -3,7 +3,7 @@
 #
 # On a fresh Debian machine with Rust and Python 3 it installs what the tests need (the
 # Debian packages redis-server and espeak-ng, a Python venv in .venv with the test clients of
-# tests/python/requirements.txt), then runs, in this order, stopping at the first failure:
+# tests/python/requirements.txt and requirements-nodeps.txt), then runs, in this order, stopping at the first failure:
 #   cargo fmt --all -- --check
 #   cargo clippy --workspace --all-targets -- -D warnings
 #   cargo nextest run --workspace + cargo test --workspace --doc  (or cargo test --workspace
@@ -66,14 +66,18 @@ done
 section "Python venv (.venv) for the test clients"
 
 REQUIREMENTS="tests/python/requirements.txt"
+# Installed without their dependencies (those are in requirements.txt): pyniryo.
+REQUIREMENTS_NODEPS="tests/python/requirements-nodeps.txt"
 if [ ! -x .venv/bin/python ]; then
     python3 -m venv .venv
 fi
 if [ -f "$REQUIREMENTS" ] && grep -qvE '^[[:space:]]*(#|$)' "$REQUIREMENTS"; then
-    wanted="$(sha256sum "$REQUIREMENTS" | cut -d' ' -f1)"
+    wanted="$(cat "$REQUIREMENTS" "$REQUIREMENTS_NODEPS" | sha256sum | cut -d' ' -f1)"
     installed="$(cat .venv/.requirements.sha256 2>/dev/null || true)"
     if [ "$wanted" != "$installed" ]; then
         .venv/bin/python -m pip install --quiet --disable-pip-version-check -r "$REQUIREMENTS"
+        .venv/bin/python -m pip install --quiet --disable-pip-version-check --no-deps \
+            -r "$REQUIREMENTS_NODEPS"
         echo "$wanted" > .venv/.requirements.sha256
     else
         echo "requirements unchanged, nothing to install"

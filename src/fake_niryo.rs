@@ -6,6 +6,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use robotd_config::{Config, RobotDriver};
 use robotd_driver_niryo::fake::{FakeFaults, FakeNiryo};
+use robotd_runtime::bus::{Bus, BusOptions};
 use std::io::Write;
 
 /// Options of `robotd fake-niryo`.
@@ -30,6 +31,10 @@ pub struct FakeNiryoArgs {
     /// MOVE_JOINTS).
     #[arg(long, value_name = "COMMAND")]
     pub only: Option<String>,
+    /// Also serve the simulator's ground truth (`sim/world`) on the bus namespace, so tests
+    /// can check where every object really is.
+    #[arg(long)]
+    pub ground_truth: bool,
     /// Fault: close every connection at once.
     #[arg(long)]
     pub refuse_connections: bool,
@@ -50,6 +55,13 @@ pub fn run(mut config: Config, args: FakeNiryoArgs) -> Result<()> {
         .context("starting the tokio runtime")?;
     runtime.block_on(async move {
         let sim = robotd_driver_sim::open(&config.robot)?;
+        let _ground_truth = if args.ground_truth {
+            let bus = Bus::open(BusOptions::new(&config.bus.namespace, "fake-niryo"))?;
+            let task = robotd_driver_sim::serve_ground_truth(&bus, sim.robot.clone())?;
+            Some((bus, task))
+        } else {
+            None
+        };
         let fake = FakeNiryo::new(
             sim.robot,
             FakeFaults {

@@ -30,9 +30,20 @@ pub fn scene(name: &str) -> String {
     )
 }
 
+/// Which driver the lab's robotd runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Driver {
+    /// The built-in simulator (`sim-ned2`).
+    Sim,
+    /// The `niryo` driver over TCP against `robotd fake-niryo` (the same simulator behind the
+    /// Ned2's protocol; camera frames cross TCP as JPEGs).
+    Niryo,
+}
+
 /// A served robotd, an MCP client of it and a bus client of its ground truth.
 pub struct Lab {
     _robotd: common::Running,
+    _fake: Option<common::Running>,
     /// The MCP client (SSE).
     pub client: McpClient,
     /// `http://127.0.0.1:PORT` of the served robotd.
@@ -43,26 +54,58 @@ pub struct Lab {
 /// Starts robotd on the simulator (motions at `time_scale`, the camera at 15 fps) with
 /// `extra` settings, and connects to it over SSE.
 pub async fn lab_with(time_scale: f64, extra: &[String]) -> Lab {
+    lab_on(Driver::Sim, time_scale, extra).await
+}
+
+/// [`lab_with`] on `driver`. With [`Driver::Niryo`] the simulator runs in `robotd
+/// fake-niryo` (with `extra` and the time scale) and robotd drives it with
+/// `config/niryo.toml`; the ground truth comes from the fake.
+pub async fn lab_on(driver: Driver, time_scale: f64, extra: &[String]) -> Lab {
     let namespace = common::fresh_namespace("scn");
     let port = common::free_port();
-    let mut args = vec![
+    let mut settings = vec![
         "--set".to_owned(),
         format!("robot.time_scale={time_scale}"),
         "--set".to_owned(),
         "robot.camera.fps=15".to_owned(),
     ];
     for setting in extra {
-        args.push("--set".into());
-        args.push(setting.clone());
+        settings.push("--set".into());
+        settings.push(setting.clone());
     }
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let robotd = common::start_robotd(&namespace, port, &args);
+    let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
+    let (robotd, fake) = match driver {
+        Driver::Sim => (common::start_robotd(&namespace, port, &settings), None),
+        Driver::Niryo => {
+            let mut fake_settings = vec!["--namespace", namespace.as_str()];
+            fake_settings.extend(&settings);
+            let (fake, robot_port) = common::start_fake_niryo(&fake_settings, &["--ground-truth"]);
+            let config = concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml");
+            let robot_port = format!("robot.port={robot_port}");
+            let robotd = common::start_robotd(
+                &namespace,
+                port,
+                &[
+                    "--config",
+                    config,
+                    "--set",
+                    "robot.host=127.0.0.1",
+                    "--set",
+                    &robot_port,
+                    "--set",
+                    "robot.camera.fps=15",
+                ],
+            );
+            (robotd, Some(fake))
+        }
+    };
     let client = connect(&format!("http://127.0.0.1:{port}/sse"), None)
         .await
         .unwrap();
     let bus = Bus::open(BusOptions::new(&namespace, "scenario-test")).unwrap();
     Lab {
         _robotd: robotd,
+        _fake: fake,
         client,
         url: format!("http://127.0.0.1:{port}"),
         bus,

@@ -130,6 +130,43 @@ pub fn start_robotd_with_env(
     running
 }
 
+/// Starts `robotd fake-niryo` (the simulator behind the Ned2's TCP protocol) on a free
+/// loopback port (unless `args` has its own `--listen`) with the global `settings` (e.g. `--set robot.scene=…`) and `args`; returns
+/// it and its port.
+pub fn start_fake_niryo(settings: &[&str], args: &[&str]) -> (Running, u16) {
+    let log_dir = std::env::temp_dir().join(format!("robotd-test-logs-{}", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .arg("--set")
+        .arg(format!("telemetry.log_dir={}", log_dir.display()))
+        .args(settings)
+        .arg("fake-niryo")
+        .args(if args.contains(&"--listen") {
+            &[][..]
+        } else {
+            &["--listen", "127.0.0.1:0"][..]
+        })
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start robotd fake-niryo");
+    let stdout = child.stdout.take().expect("stdout");
+    let running = Running {
+        child,
+        name: "fake-niryo",
+    };
+    let mut first = String::new();
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut first)
+        .expect("fake-niryo's first line");
+    let port = first
+        .trim()
+        .rsplit(':')
+        .next()
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("fake-niryo said {first:?}"));
+    (running, port)
+}
+
 /// Starts the example actor and waits until it serves.
 pub fn start_external_actor(namespace: &str) -> Running {
     let mut child = Command::new(external_actor_binary())
