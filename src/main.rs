@@ -174,6 +174,22 @@ enum BenchCommand {
     Redis(BenchRedisArgs),
     /// What the motion policy adds to a motion command, beside planning the same command.
     Safety(BenchSafetyArgs),
+    /// The niryo driver against the fake Ned2 on loopback: a command round trip beside a raw
+    /// TCP echo of the same bytes, camera images through TCP and decoding.
+    Niryo(BenchNiryoArgs),
+}
+
+#[derive(Debug, Args)]
+struct BenchNiryoArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Round trips per variant.
+    #[arg(long, default_value_t = 2000)]
+    round_trips: usize,
+    /// Camera images fetched.
+    #[arg(long, default_value_t = 100)]
+    images: usize,
 }
 
 #[derive(Debug, Args)]
@@ -415,6 +431,12 @@ fn run() -> Result<std::process::ExitCode> {
                     restarts: args.restarts.max(1),
                 },
             )?;
+            print_figures(args.json, &figures, figures.table())
+        }
+        Command::Bench {
+            what: BenchCommand::Niryo(args),
+        } => {
+            let figures = bench::niryo::run(args.round_trips, args.images)?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {

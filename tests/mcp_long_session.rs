@@ -460,7 +460,9 @@ fn a_long_random_session_never_strands_the_robot_and_every_reply_tells_the_truth
         .and_then(|v| v.parse().ok())
         .unwrap_or(17);
     runtime().block_on(async {
-        let lab = lab_with(0.02, &[]).await;
+        // Motions run 50 times faster than real ones: the per-minute rate limit (made for real
+        // time, tested in safety_service) would refuse what the session is about.
+        let lab = lab_with(0.02, &["safety.llm_motions_per_minute=0".to_owned()]).await;
         let mut session = Session {
             lab,
             rng: SmallRng::seed_from_u64(seed),

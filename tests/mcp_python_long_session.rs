@@ -27,7 +27,9 @@ fn a_fastmcp_long_session_twice_on_one_service_agrees_with_the_world() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(200);
     runtime().block_on(async {
-        let lab = lab_with(0.02, &[]).await;
+        // Motions run 50 times faster than real ones: the per-minute rate limit (made for real
+        // time, tested in safety_service) would refuse what the session is about.
+        let lab = lab_with(0.02, &["safety.llm_motions_per_minute=0".to_owned()]).await;
         let url = format!("{}/sse", lab.url);
         for seed in [1, 2] {
             let report = tokio::task::spawn_blocking({

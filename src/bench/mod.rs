@@ -6,6 +6,7 @@
 //! robotd's bus) and the statistics live in the `bench/` crate (robotd-bench).
 
 pub mod mcp;
+pub mod niryo;
 pub mod perception;
 pub mod redis;
 pub mod safety;

@@ -166,6 +166,18 @@ pub fn nominal_travel_time_s(a: &[f64], b: &[f64], max_velocity_rad_s: &[f64]) -
         * 1.5
 }
 
+/// `Err(OutOfRange)` unless `speed_scale` is in (0, 1], the range [`ArmDriver::execute`]
+/// takes.
+pub fn check_speed_scale(speed_scale: f64) -> Result<(), DriverError> {
+    if speed_scale > 0.0 && speed_scale <= 1.0 {
+        Ok(())
+    } else {
+        Err(DriverError::OutOfRange(format!(
+            "speed scale must be in (0, 1], got {speed_scale}"
+        )))
+    }
+}
+
 /// What an arm driver reports besides joints.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ArmFlags {

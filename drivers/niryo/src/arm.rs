@@ -139,11 +139,7 @@ impl NiryoArm {
         speed_scale: f64,
         control: &MotionControl,
     ) -> Result<(), DriverError> {
-        if !(speed_scale > 0.0 && speed_scale <= 1.0) {
-            return Err(DriverError::OutOfRange(format!(
-                "speed scale must be in (0, 1], got {speed_scale}"
-            )));
-        }
+        robotd_driver::check_speed_scale(speed_scale)?;
         let halts_at_start = self.halts.load(Ordering::SeqCst);
         let known = self.link.known();
         if known.collision {
