@@ -70,9 +70,9 @@ pub fn run(round_trips: usize, images: usize) -> Result<NiryoFigures> {
 }
 
 async fn measure(round_trips: usize, images: usize) -> Result<NiryoFigures> {
-    let sim_config: RobotConfig = toml::from_str(
-        "driver = \"sim-ned2\"\ntime_scale = 0.05\n[camera]\nlens_distortion = true\n",
-    )?;
+    let mut sim_config: RobotConfig = robotd_config::Config::default().robot;
+    sim_config.time_scale = 0.05;
+    sim_config.camera.lens_distortion = true;
     let sim = robotd_driver_sim::open(&sim_config)?;
     let fake = FakeNiryo::new(sim.robot, FakeFaults::default());
     let listener = TcpListener::bind("127.0.0.1:0").await?;
