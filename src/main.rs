@@ -54,7 +54,8 @@ struct ConfigArgs {
 enum Command {
     /// Run the service (the default).
     Serve,
-    /// Check this machine: shared memory, stale bus resources, Redis, espeak-ng, audio, LLM keys.
+    /// Check this machine: shared memory, stale bus resources, Redis, espeak-ng, audio, LLM keys,
+    /// and with the niryo driver the robot (connect, handshake, hardware status).
     Doctor(DoctorArgs),
     /// Measure robotd's machinery beside its raw baseline.
     Bench {
@@ -405,6 +406,8 @@ fn run() -> Result<std::process::ExitCode> {
                 bus_namespace: config.bus.namespace.clone(),
                 config_dir,
                 clean: args.clean,
+                niryo: (config.robot.driver == robotd_config::RobotDriver::Niryo)
+                    .then(|| robotd_driver_niryo::link_settings(&config.robot)),
             })?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report.to_json())?);

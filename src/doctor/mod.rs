@@ -2,8 +2,8 @@
 //!
 //! robotd leans on a few things outside its own process: shared memory in `/dev/shm` for the
 //! iceoryx2 bus, the bus's bookkeeping files (which a crashed process can leave behind), an
-//! optional Redis server for the Python tools, `espeak-ng` and an audio output for speech, and an
-//! LLM provider key for the agent. When one of them is missing robotd still starts, but a
+//! optional Redis server for the Python tools, `espeak-ng` and an audio output for speech, an
+//! LLM provider key for the agent, and with the niryo driver the robot itself. When one of them is missing robotd still starts, but a
 //! feature quietly degrades or an actor keeps failing — and the log line that says why is easy
 //! to miss. The doctor checks each of them up front, in a few seconds, and prints one row per
 //! check:
@@ -44,6 +44,7 @@
 //! | [`espeak`] | `espeak-ng` | the speech program runs |
 //! | [`audio`] | `audio` | a sound card or sound server to play speech on |
 //! | [`llm_keys`] | `llm-keys` | an LLM provider the agent can use |
+//! | [`niryo`] | `niryo` | with the niryo driver: the Ned2 answers (connect, handshake, hardware status) |
 //! | [`secrets`] | — | `secrets.env`, shared by `redis` and `llm-keys` |
 //! | [`report`] | — | rows, the table and the JSON |
 //!
@@ -55,6 +56,7 @@
 //!     config_dir: "config".into(),
 //!     clean: false,
 //!     http_bind: None,
+//!     niryo: None,
 //! };
 //! let report = run(&opts)?;
 //! print!("{}", report.render_table());
@@ -67,6 +69,7 @@ mod bus;
 mod espeak;
 mod health;
 mod llm_keys;
+mod niryo;
 mod redis;
 mod report;
 mod secrets;
@@ -105,6 +108,8 @@ pub struct DoctorOptions {
     /// Where a running robotd serves HTTP (`http.bind`): its `/health` tells how its Redis edge
     /// is doing.
     pub http_bind: Option<String>,
+    /// How to reach the Ned2 when `robot.driver = "niryo"` (`None` for other drivers).
+    pub niryo: Option<robotd_driver_niryo::LinkSettings>,
 }
 
 /// Runs every check and returns the report. Takes a few seconds at most, whatever the network
@@ -120,6 +125,7 @@ pub fn run(opts: &DoctorOptions) -> Result<DoctorReport> {
         espeak::check_espeak(env("PATH").as_deref()),
         audio::check_audio(Path::new("/dev/snd"), &env),
         llm_keys::check_llm_keys(&env, &secrets, &llm_keys::ollama_reachable),
+        niryo::check_niryo(opts.niryo.clone()),
     ];
     Ok(DoctorReport { checks })
 }
@@ -146,6 +152,7 @@ mod tests {
             config_dir: PathBuf::from("/nonexistent"),
             http_bind: None,
             clean: false,
+            niryo: None,
         };
         let start = Instant::now();
         let report = run(&opts).expect("doctor runs");
@@ -160,7 +167,8 @@ mod tests {
                 "redis-edge",
                 "espeak-ng",
                 "audio",
-                "llm-keys"
+                "llm-keys",
+                "niryo"
             ]
         );
         assert!(report.has_problems());

@@ -93,8 +93,8 @@ pub async fn open(config: &RobotConfig, wait_for_robot: Duration) -> NiryoDriver
     }
 }
 
-/// Reads the joints and the collision flag once a second while the arm is not moving, so that
-/// an arm moved by hand (learning mode) or stopped by the robot is noticed.
+/// Reads the joints once a second while the arm is not moving, so that an arm moved by hand
+/// (learning mode) is noticed and camera poses stay right.
 async fn poll_while_idle(arm: Arc<NiryoArm>) {
     use robotd_driver::ArmDriver;
     let mut ticker = tokio::time::interval(Duration::from_secs(1));

@@ -296,29 +296,8 @@ impl Link {
     /// the robot is known.
     async fn connect(&self) -> Result<(), String> {
         let s = &self.settings;
-        let robot = format!("{}:{}", s.host, s.port);
         let mut connection = self.connection.lock().await;
-        let mut stream = tokio::time::timeout(
-            s.connect_timeout,
-            TcpStream::connect((s.host.as_str(), s.port)),
-        )
-        .await
-        .map_err(|_| {
-            format!(
-                "no answer from {robot} within {} ms",
-                s.connect_timeout.as_millis()
-            )
-        })?
-        .map_err(|e| format!("cannot connect to {robot}: {e}"))?;
-        let _ = stream.set_nodelay(true);
-        ask(&mut stream, "HANDSHAKE", vec![Param::Str(CLIENT_VERSION.into())], s.connect_timeout)
-            .await
-            .map_err(|e| {
-                format!("{robot} accepted the connection but did not answer the handshake ({e}); another client (pyniryo, Niryo Studio) may be connected: the robot serves one at a time")
-            })?;
-        let hardware = HardwareStatus::parse(
-            &ask(&mut stream, "GET_HARDWARE_STATUS", vec![], s.query_timeout).await?,
-        )?;
+        let (mut stream, hardware) = greet(s).await.map_err(|e| e.to_string())?;
         let mut calibrated = !hardware.calibration_needed;
         if !calibrated && s.auto_calibrate {
             tracing::info!("the robot needs calibration: calibrating (robot.niryo.auto_calibrate)");
@@ -384,6 +363,58 @@ impl Link {
         *lock(&self.status) = Ok(());
         Ok(())
     }
+}
+
+/// Why [`greet`] failed, by step (each wants another fix).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GreetError {
+    /// No TCP connection (robot off, wrong address, network).
+    #[error("{0}")]
+    Connect(String),
+    /// Connected, but no answer to the handshake (usually: another client is being served).
+    #[error("{0}")]
+    Handshake(String),
+    /// The hardware status was refused or unreadable.
+    #[error("{0}")]
+    Status(String),
+}
+
+/// Connects to the robot of `settings`, greets it and reads its hardware status: the first
+/// steps of every connection, and all that `robotd doctor` does (it moves nothing).
+pub async fn greet(s: &LinkSettings) -> Result<(TcpStream, HardwareStatus), GreetError> {
+    let robot = format!("{}:{}", s.host, s.port);
+    let mut stream = tokio::time::timeout(
+        s.connect_timeout,
+        TcpStream::connect((s.host.as_str(), s.port)),
+    )
+    .await
+    .map_err(|_| {
+        GreetError::Connect(format!(
+            "no answer from {robot} within {} ms",
+            s.connect_timeout.as_millis()
+        ))
+    })?
+    .map_err(|e| GreetError::Connect(format!("cannot connect to {robot}: {e}")))?;
+    let _ = stream.set_nodelay(true);
+    ask(
+        &mut stream,
+        "HANDSHAKE",
+        vec![Param::Str(CLIENT_VERSION.into())],
+        s.connect_timeout,
+    )
+    .await
+    .map_err(|e| {
+        GreetError::Handshake(format!(
+            "{robot} accepted the connection but did not answer the handshake ({e}); another \
+             client (pyniryo, Niryo Studio, a running robotd) may be connected: the robot serves \
+             one at a time"
+        ))
+    })?;
+    let hardware = ask(&mut stream, "GET_HARDWARE_STATUS", vec![], s.query_timeout)
+        .await
+        .and_then(|items| HardwareStatus::parse(&items))
+        .map_err(GreetError::Status)?;
+    Ok((stream, hardware))
 }
 
 /// One command during the connect sequence: its results, or the reason as text.
