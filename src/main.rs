@@ -191,6 +191,9 @@ struct BenchNiryoArgs {
     /// Camera images fetched.
     #[arg(long, default_value_t = 100)]
     images: usize,
+    /// Random scenes for perception through JPEG.
+    #[arg(long, default_value_t = 60)]
+    scenes: usize,
 }
 
 #[derive(Debug, Args)]
@@ -439,7 +442,7 @@ fn run() -> Result<std::process::ExitCode> {
         Command::Bench {
             what: BenchCommand::Niryo(args),
         } => {
-            let figures = bench::niryo::run(args.round_trips, args.images)?;
+            let figures = bench::niryo::run(args.round_trips, args.images, args.scenes)?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {

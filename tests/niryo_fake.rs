@@ -127,3 +127,41 @@ fn serve_starts_without_the_robot_says_why_and_picks_it_up_when_it_appears() {
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
 }
+
+#[test]
+fn bench_niryo_json_reports_every_figure() {
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args([
+            "bench",
+            "niryo",
+            "--json",
+            "--round-trips",
+            "50",
+            "--images",
+            "5",
+            "--scenes",
+            "3",
+        ])
+        .output()
+        .expect("run robotd bench niryo");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let figures: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    for key in [
+        "ratio_p50",
+        "camera_fps",
+        "decode_ms_p50",
+        "jpeg_recall",
+        "jpeg_pos_err_p95_mm",
+        "raw_recall",
+        "jpeg_to_objects_ms_p50",
+    ] {
+        let value = figures[key].as_f64().unwrap_or(f64::NAN);
+        assert!(value.is_finite() && value > 0.0, "{key}: {figures}");
+    }
+    assert!(figures["command"]["p50_us"].as_f64().unwrap() > 0.0);
+    assert!(figures["objects"].as_u64().unwrap() >= 3);
+}

@@ -145,6 +145,12 @@ impl Lab {
         &self.frame
     }
 
+    /// The last captured frame, to change before [`Lab::detect`] (e.g. a JPEG round trip, as
+    /// frames that crossed a network).
+    pub fn frame_mut(&mut self) -> &mut [u8] {
+        &mut self.frame
+    }
+
     /// Runs the pipeline on the last captured frame.
     pub fn detect(
         &mut self,
