@@ -90,6 +90,7 @@ fn file_layers_over_defaults() {
         name = "lab-2"
         [robot]
         driver = "niryo"
+        host = "192.168.1.50"
         [redis]
         url = "redis://localhost:6379/0"
         [actors.camera]
@@ -428,7 +429,7 @@ fn workspaces_come_from_the_configuration_or_the_model() {
     );
 
     let file = TempFile::new(
-        "[robot]\ndriver = \"niryo\"\n\n[[robot.workspaces]]\nid = \"lab_ws\"\n\
+        "[robot]\ndriver = \"niryo\"\nhost = \"10.10.10.10\"\n\n[[robot.workspaces]]\nid = \"lab_ws\"\n\
          upper_left = [0.30, 0.10]\nlower_right = [0.15, -0.10]\n\
          observation_pose = [0.2, 0.0, 0.3, 0.0, 1.57, 0.0]\n",
     );
@@ -437,6 +438,35 @@ fn workspaces_come_from_the_configuration_or_the_model() {
     assert_eq!(infos.len(), 1);
     assert_eq!(infos[0].id, "lab_ws");
     assert_eq!(infos[0].upper_left.x_m, 0.30);
+}
+
+#[test]
+fn the_niryo_driver_needs_a_host_and_sane_settings() {
+    let file = TempFile::new(
+        "[robot]\ndriver = \"niryo\"\nport = 0\n[robot.niryo]\nsegment_rad = 0.0\n\
+         reconnect_max_ms = 60000\ngripper_speed = 5\n",
+    );
+    let error = Config::load_with_env(with_file(&file), no_env()).unwrap_err();
+    let message = error.to_string();
+    let problems = problems_of(error);
+    for (key, says) in [
+        ("robot.host", "needs the robot's address"),
+        ("robot.port", "1 to 65535"),
+        ("robot.niryo.segment_rad", "0"),
+        ("robot.niryo.reconnect_max_ms", "60000"),
+        ("robot.niryo.gripper_speed", "5"),
+    ] {
+        let problem = problems.iter().find(|p| p.key == key).expect(&message);
+        assert!(problem.reason.contains(says), "{key}: {message}");
+    }
+    let spaces = TempFile::new("[robot]\ndriver = \"niryo\"\nhost = \"http://robot/x\"\n");
+    let message = Config::load_with_env(with_file(&spaces), no_env())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("is not a host name or address"),
+        "{message}"
+    );
 }
 
 #[test]
