@@ -169,16 +169,21 @@ async fn measure(round_trips: usize, images: usize) -> Result<NiryoFigures> {
         .await
         .map_err(anyhow::Error::msg)?;
 
-    let mut samples = Vec::with_capacity(round_trips);
+    // Interleaved, one of each per round, so both see the same machine.
+    let request = wire::encode_request("GET_JOINTS", &[])?;
+    let mut echo = Echo::start(request.len()).await?;
+    let (mut commands, mut echoes) = (
+        Vec::with_capacity(round_trips),
+        Vec::with_capacity(round_trips),
+    );
     for _ in 0..round_trips {
         let started = Instant::now();
         link.call("GET_JOINTS", &[], Duration::from_secs(3)).await?;
-        samples.push(started.elapsed());
+        commands.push(started.elapsed());
+        echoes.push(echo.round_trip(&request).await?);
     }
-    let command = Latency::of(&mut samples);
-
-    let request = wire::encode_request("GET_JOINTS", &[])?;
-    let raw_echo = echo_round_trips(&request, round_trips).await?;
+    let command = Latency::of(&mut commands);
+    let raw_echo = Latency::of(&mut echoes);
 
     let camera = NiryoCamera::new(link.clone());
     let started = Instant::now();
@@ -216,33 +221,50 @@ async fn measure(round_trips: usize, images: usize) -> Result<NiryoFigures> {
     })
 }
 
-/// Round trips of `bytes` through a bare echo server on loopback.
-async fn echo_round_trips(bytes: &[u8], count: usize) -> Result<Latency> {
-    let listener = TcpListener::bind("127.0.0.1:0").await?;
-    let address = listener.local_addr()?;
-    let size = bytes.len();
-    let server = tokio::spawn(async move {
-        let Ok((mut stream, _)) = listener.accept().await else {
-            return;
-        };
-        let _ = stream.set_nodelay(true);
-        let mut buffer = vec![0u8; size];
-        while stream.read_exact(&mut buffer).await.is_ok() {
-            if stream.write_all(&buffer).await.is_err() {
+/// A bare echo server on loopback and a client connected to it.
+struct Echo {
+    stream: TcpStream,
+    back: Vec<u8>,
+    server: tokio::task::JoinHandle<()>,
+}
+
+impl Echo {
+    /// Starts the server for messages of `size` bytes and connects to it.
+    async fn start(size: usize) -> Result<Echo> {
+        let listener = TcpListener::bind("127.0.0.1:0").await?;
+        let address = listener.local_addr()?;
+        let server = tokio::spawn(async move {
+            let Ok((mut stream, _)) = listener.accept().await else {
                 return;
+            };
+            let _ = stream.set_nodelay(true);
+            let mut buffer = vec![0u8; size];
+            while stream.read_exact(&mut buffer).await.is_ok() {
+                if stream.write_all(&buffer).await.is_err() {
+                    return;
+                }
             }
-        }
-    });
-    let mut stream = TcpStream::connect(address).await?;
-    stream.set_nodelay(true)?;
-    let mut back = vec![0u8; size];
-    let mut samples = Vec::with_capacity(count);
-    for _ in 0..count {
-        let started = Instant::now();
-        stream.write_all(bytes).await?;
-        stream.read_exact(&mut back).await?;
-        samples.push(started.elapsed());
+        });
+        let stream = TcpStream::connect(address).await?;
+        stream.set_nodelay(true)?;
+        Ok(Echo {
+            stream,
+            back: vec![0u8; size],
+            server,
+        })
     }
-    server.abort();
-    Ok(Latency::of(&mut samples))
+
+    /// One round trip of `bytes`.
+    async fn round_trip(&mut self, bytes: &[u8]) -> Result<Duration> {
+        let started = Instant::now();
+        self.stream.write_all(bytes).await?;
+        self.stream.read_exact(&mut self.back).await?;
+        Ok(started.elapsed())
+    }
+}
+
+impl Drop for Echo {
+    fn drop(&mut self) {
+        self.server.abort();
+    }
 }
