@@ -185,7 +185,7 @@ async fn measure(round_trips: usize, images: usize) -> Result<NiryoFigures> {
     let command = Latency::of(&mut commands);
     let raw_echo = Latency::of(&mut echoes);
 
-    let camera = NiryoCamera::new(link.clone());
+    let camera = NiryoCamera::new(link.clone(), false);
     let started = Instant::now();
     for _ in 0..images {
         camera.fetch().await.map_err(anyhow::Error::msg)?;

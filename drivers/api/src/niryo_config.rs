@@ -31,6 +31,10 @@ pub struct NiryoConfig {
     /// as not done: the robot answers OK without moving when it rejects a target (0.001 to 0.2).
     #[serde(default = "defaults::arrival_tolerance_rad")]
     pub arrival_tolerance_rad: f64,
+    /// The robot already sends undistorted images: describe its frames without distortion
+    /// (false: robotd undoes the distortion the robot reports).
+    #[serde(default)]
+    pub images_rectified: bool,
     /// Gripper finger speed (100 to 1000, the robot's unit).
     #[serde(default = "defaults::gripper_speed")]
     pub gripper_speed: u16,
@@ -51,6 +55,7 @@ impl Default for NiryoConfig {
             reconnect_max_ms: defaults::reconnect_max_ms(),
             segment_rad: defaults::segment_rad(),
             arrival_tolerance_rad: defaults::arrival_tolerance_rad(),
+            images_rectified: false,
             gripper_speed: defaults::gripper_speed(),
             gripper_max_torque_percent: defaults::gripper_max_torque_percent(),
             gripper_hold_torque_percent: defaults::gripper_hold_torque_percent(),

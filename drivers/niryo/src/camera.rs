@@ -10,7 +10,10 @@
 //! Frames are published as the lens made them, with the intrinsics and distortion read from
 //! the robot (`GET_CAMERA_INTRINSICS`, the Ned2's nominal values until it answered):
 //! perception undoes the distortion for the points it measures, exactly as for the
-//! simulator's distorted camera.
+//! simulator's distorted camera. A robot whose software already undistorts its images
+//! (pyniryo notes this for robot software from 5.8.0) is configured with
+//! `robot.niryo.images_rectified = true`: its frames are then described without distortion,
+//! so that nothing is undone twice.
 
 use crate::link::Link;
 use robotd_driver::{CameraDriver, CaptureInfo, DriverError, DriverFuture};
@@ -46,6 +49,7 @@ pub struct NiryoCamera {
     kinematics: Kinematics,
     latest: Mutex<Latest>,
     arrived: Notify,
+    rectified: bool,
 }
 
 impl std::fmt::Debug for NiryoCamera {
@@ -56,12 +60,15 @@ impl std::fmt::Debug for NiryoCamera {
 
 impl NiryoCamera {
     /// The camera driver on `link`; [`NiryoCamera::run_fetcher`] brings its images.
-    pub fn new(link: Arc<Link>) -> Arc<Self> {
+    /// `rectified`: the robot already sends undistorted images (`robot.niryo.images_rectified`),
+    /// so the frames are ideal pinhole images whatever distortion the robot reports.
+    pub fn new(link: Arc<Link>, rectified: bool) -> Arc<Self> {
         Arc::new(Self {
             link,
             kinematics: Kinematics::new(robotd_protocol::geometry::RobotModel::Ned2),
             latest: Mutex::new(Latest::default()),
             arrived: Notify::new(),
+            rectified,
         })
     }
 
@@ -162,6 +169,9 @@ impl CameraDriver for NiryoCamera {
             intrinsics.cx = cx;
             intrinsics.cy = cy;
             intrinsics.distortion = distortion;
+        }
+        if self.rectified {
+            intrinsics.distortion = [0.0; 5];
         }
         intrinsics
     }

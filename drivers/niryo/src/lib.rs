@@ -74,7 +74,7 @@ pub async fn open(config: &RobotConfig, wait_for_robot: Duration) -> NiryoDriver
             arrival_tolerance_rad: config.niryo.arrival_tolerance_rad,
         },
     ));
-    let camera = NiryoCamera::new(link.clone());
+    let camera = NiryoCamera::new(link.clone(), config.niryo.images_rectified);
     let mut tasks = vec![tokio::spawn(link.clone().run_reconnector())];
     if let Err(reason) = link.wait_connected(wait_for_robot).await {
         tracing::warn!(%reason, "the Niryo robot is not connected yet; robotd keeps trying");

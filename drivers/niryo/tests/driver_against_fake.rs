@@ -381,3 +381,21 @@ async fn a_stop_takes_effect_at_the_end_of_the_current_segment() {
     let parked = fake.sim().joints()[3];
     assert!(parked - start < 0.5, "the arm stopped part-way ({parked})");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn rectified_images_are_described_without_distortion() {
+    let (_fake, address) = fake(FakeFaults::default()).await;
+    let raw = open(address.port(), "").await;
+    assert_eq!(raw.link.status(), Ok(()));
+    assert_eq!(raw.drivers.camera.intrinsics().distortion[0], -0.4146402);
+    // A second fake: the first one serves `raw` (one client at a time, as the robot).
+    let (_fake2, address) = fake(FakeFaults::default()).await;
+    let rectified = open(address.port(), "images_rectified = true").await;
+    assert_eq!(rectified.link.status(), Ok(()));
+    let intrinsics = rectified.drivers.camera.intrinsics();
+    assert_eq!(intrinsics.distortion, [0.0; 5]);
+    assert_eq!(
+        intrinsics.fx, 508.069,
+        "the camera matrix is still the robot's"
+    );
+}
