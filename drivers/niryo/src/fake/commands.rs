@@ -55,8 +55,11 @@ fn enum_name<'a>(value: &'a Value, allowed: &[&str]) -> Result<&'a str, String> 
     if allowed.contains(&given) {
         Ok(given)
     } else {
+        // As the robot prints a Python list: ['MANUAL', 'AUTO'].
+        let names: Vec<String> = allowed.iter().map(|a| format!("'{a}'")).collect();
         Err(format!(
-            "Expected one of the following: {allowed:?}.\nGiven: {}",
+            "Expected one of the following: [{}].\nGiven: {}",
+            names.join(", "),
             value
                 .as_str()
                 .map(str::to_owned)
