@@ -64,6 +64,9 @@ pub struct RobotConfig {
     /// `[robot.niryo]`: settings of the `niryo` driver.
     #[serde(default)]
     pub niryo: crate::niryo_config::NiryoConfig,
+    /// `[robot.widowx]`: settings of the `widowx` driver (serial device, servos, camera).
+    #[serde(default)]
+    pub widowx: crate::widowx_config::WidowxConfig,
     /// `[robot.camera]`: the wrist camera.
     #[serde(default)]
     pub camera: CameraConfig,
@@ -233,6 +236,7 @@ impl Section for RobotConfig {
             }
         }
         self.niryo.check(checks);
+        self.widowx.check(checks);
         checks.range_f64(
             "camera.noise_stddev",
             self.camera.noise_stddev,

@@ -20,8 +20,10 @@
 
 pub mod config;
 pub mod niryo_config;
+pub mod widowx_config;
 pub use config::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
 pub use niryo_config::NiryoConfig;
+pub use widowx_config::WidowxConfig;
 
 use nalgebra::Isometry3;
 use robotd_protocol::geometry::{Pose, RobotModel};

@@ -12,7 +12,7 @@
 //! The world's ground truth is for the simulator and the tests only: perception sees pixels.
 
 use crate::faults::FaultInjector;
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 use robotd_driver::{
     ArmDriver, ArmFlags, CameraDriver, CaptureInfo, DriverError, DriverFuture, GripperDriver,
     GripperStatus, Motion, MotionControl,
@@ -140,6 +140,14 @@ impl SimRobot {
             opening_m: opening,
         });
         Ok(())
+    }
+
+    /// Moves the arm to `q` in one step through the world, as a real arm's servos would
+    /// (what holds is carried): `Err(Collision)` and nothing moved when the step runs into
+    /// an object or the table. For fakes that serve the simulator behind a real robot's
+    /// protocol, which move the arm as their servos report it (`robotd fake-widowx`).
+    pub fn step_arm(&self, q: &[f64]) -> Result<(), DriverError> {
+        self.step_to(q)
     }
 
     /// The arm driver of this robot.
@@ -474,32 +482,13 @@ impl std::fmt::Debug for SimCamera {
 }
 
 impl SimCamera {
-    /// Where the camera is for joints `q`: the Ned2's wrist camera, or (WidowX, whose camera
-    /// docs/robot-models.md does not place) a camera looking along the tool 5 cm behind the tool centre.
+    /// Where the camera is for joints `q` (the model's wrist camera, see
+    /// [`Kinematics::camera_pose`]).
     fn camera_pose(&self, q: &[f64]) -> Result<Isometry3<f64>, DriverError> {
-        if let Some(pose) = self.robot.kinematics.camera_pose(q) {
-            return Ok(pose);
-        }
-        let tcp = self
-            .robot
+        self.robot
             .kinematics
-            .tool_pose(q)
-            .map_err(|e| DriverError::Hardware(e.to_string()))?;
-        // Optical z along the tool (its x), image x along the tool's y.
-        let tool_x = tcp.rotation * Vector3::x();
-        let tool_y = tcp.rotation * Vector3::y();
-        let z = tool_x;
-        let x = tool_y;
-        let y = z.cross(&x);
-        let rotation =
-            UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_basis_unchecked(&[
-                x, y, z,
-            ]));
-        let position = tcp.translation.vector - tool_x * 0.05;
-        Ok(Isometry3::from_parts(
-            Translation3::from(position),
-            rotation,
-        ))
+            .camera_pose(q)
+            .ok_or_else(|| DriverError::Hardware(format!("no camera pose for joints {q:?}")))
     }
 
     /// What the camera can see: sheets, markers and objects of the world.

@@ -276,14 +276,18 @@ impl Kinematics {
     }
 
     /// Pose of the wrist camera's optical frame (z = viewing direction, x = image right,
-    /// y = image down) for joints `q`; `None` for a robot without a modelled camera (WidowX)
-    /// or invalid joints.
+    /// y = image down) for joints `q`; `None` for invalid joints.
     ///
     /// The Ned2's `camera_link` looks along its x axis (at the observation pose it points
     /// straight at the table); image "up" is its y axis, so the far side of a workspace is at
-    /// the top of the image, as on the real robot.
+    /// the top of the image, as on the real robot. The WidowX has no camera in its model:
+    /// robotd assumes one on the wrist, 5 cm behind the tool centre, looking along the tool
+    /// with image x along the tool's y (the simulator's and `robotd fake-widowx`'s camera).
     pub fn camera_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
         self.check_joints(q).ok()?;
+        if self.model() == RobotModel::WidowX250 {
+            return self.tool_mounted_camera_pose(q);
+        }
         let chains = self.lock();
         let camera = chains.camera.as_ref()?;
         let dof = camera.dof();
@@ -296,6 +300,24 @@ impl Kinematics {
             1.0, 0.0, 0.0,
         ));
         Some(link * UnitQuaternion::from_rotation_matrix(&optical))
+    }
+
+    /// A camera looking along the tool, 5 cm behind the tool centre (see [`Self::camera_pose`]).
+    fn tool_mounted_camera_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
+        let tcp = self.tool_pose(q).ok()?;
+        let tool_x = tcp.rotation * nalgebra::Vector3::x();
+        let tool_y = tcp.rotation * nalgebra::Vector3::y();
+        let (x, z) = (tool_y, tool_x);
+        let y = z.cross(&x);
+        let rotation =
+            UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_basis_unchecked(&[
+                x, y, z,
+            ]));
+        let position = tcp.translation.vector - tool_x * 0.05;
+        Some(Isometry3::from_parts(
+            Translation3::from(position),
+            rotation,
+        ))
     }
 
     /// Joints that put the tool centre point at `target`, inside the joint limits. Tries the

@@ -1,0 +1,269 @@
+//! The MJPEG camera driver: one stream, the newest decoded frame, the reason when there is none.
+
+use bytes::Bytes;
+use futures::StreamExt;
+use nalgebra::Isometry3;
+use robotd_driver::{CameraDriver, CaptureInfo, DriverError, DriverFuture};
+use robotd_protocol::camera::CameraIntrinsics;
+use robotd_protocol::envelope::unix_now_ns;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// Where the camera is when a frame arrives (e.g. from the arm's joints); `None` when unknown.
+pub type PoseSource = Arc<dyn Fn() -> Option<Isometry3<f64>> + Send + Sync>;
+
+/// The newest frame, or why there is none.
+struct Latest {
+    frame: Result<Frame, String>,
+    /// Counts frames, so `frame_ready` can wait for a new one.
+    sequence: u64,
+    /// The sequence `capture_into` last handed out.
+    taken: u64,
+}
+
+struct Frame {
+    rgb: Vec<u8>,
+    info: CaptureInfo,
+}
+
+/// An MJPEG-over-HTTP camera.
+pub struct MjpegCamera {
+    url: String,
+    intrinsics: CameraIntrinsics,
+    pose: PoseSource,
+    latest: Mutex<Latest>,
+    arrived: tokio::sync::Notify,
+}
+
+impl std::fmt::Debug for MjpegCamera {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MjpegCamera")
+            .field("url", &self.url)
+            .finish_non_exhaustive()
+    }
+}
+
+impl MjpegCamera {
+    /// A camera on the stream at `url` whose frames are `intrinsics.width × height`.
+    pub fn new(url: &str, intrinsics: CameraIntrinsics, pose: PoseSource) -> Arc<Self> {
+        Arc::new(Self {
+            url: url.to_owned(),
+            intrinsics,
+            pose,
+            latest: Mutex::new(Latest {
+                frame: Err(format!("connecting to the camera stream {url}")),
+                sequence: 0,
+                taken: 0,
+            }),
+            arrived: tokio::sync::Notify::new(),
+        })
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Latest> {
+        self.latest.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn set_problem(&self, reason: String) {
+        let mut latest = self.lock();
+        if latest.frame.as_ref().err() != Some(&reason) {
+            tracing::warn!(url = %self.url, %reason, "camera stream");
+        }
+        latest.frame = Err(reason);
+        drop(latest);
+        self.arrived.notify_waiters();
+    }
+
+    /// Reads the stream for as long as robotd runs (spawn it on the runtime).
+    pub async fn run_receiver(self: Arc<Self>) {
+        robotd_runtime::telemetry::install_tls_provider();
+        let client = match reqwest::Client::builder()
+            .connect_timeout(Duration::from_secs(3))
+            .build()
+        {
+            Ok(client) => client,
+            Err(e) => {
+                self.set_problem(format!("cannot create an HTTP client: {e}"));
+                return;
+            }
+        };
+        let mut backoff = Duration::from_millis(100);
+        loop {
+            let problem = self.receive(&client, &mut backoff).await;
+            self.set_problem(problem);
+            tokio::time::sleep(backoff).await;
+            backoff = (backoff * 2).min(Duration::from_secs(2));
+        }
+    }
+
+    /// One connection: frames until it fails; returns why it ended.
+    async fn receive(&self, client: &reqwest::Client, backoff: &mut Duration) -> String {
+        let url = &self.url;
+        let response = match client.get(url).send().await {
+            Ok(r) => r,
+            Err(e) => return format!("camera stream {url} unreachable: {e}"),
+        };
+        if !response.status().is_success() {
+            return format!("camera stream {url} answered HTTP {}", response.status());
+        }
+        let content_type = response
+            .headers()
+            .get(reqwest::header::CONTENT_TYPE)
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("")
+            .to_owned();
+        let Some(boundary) = boundary_of(&content_type) else {
+            return format!(
+                "{url} is not an MJPEG stream (Content-Type '{content_type}', expected \
+                 multipart/x-mixed-replace with a boundary)"
+            );
+        };
+        let chunks = futures::stream::unfold(response, |mut response| async move {
+            match response.chunk().await {
+                Ok(Some(bytes)) => Some((Ok::<Bytes, reqwest::Error>(bytes), response)),
+                Ok(None) => None,
+                Err(e) => Some((Err(e), response)),
+            }
+        });
+        let parts = multipart_stream::ParserBuilder::new()
+            .max_body_bytes(crate::MAX_FRAME_BYTES)
+            .parse(Box::pin(chunks), &boundary);
+        let mut parts = Box::pin(parts);
+        while let Some(part) = parts.next().await {
+            let part = match part {
+                Ok(part) => part,
+                Err(e) => return format!("camera stream {url}: {e}"),
+            };
+            match self.decode(&part.body) {
+                Ok(rgb) => {
+                    *backoff = Duration::from_millis(100);
+                    self.publish(rgb);
+                }
+                Err(reason) => {
+                    // One bad frame is not a broken stream: say so and wait for the next.
+                    self.set_problem(reason);
+                }
+            }
+        }
+        format!("camera stream {url} ended")
+    }
+
+    fn decode(&self, jpeg: &[u8]) -> Result<Vec<u8>, String> {
+        let image = image::load_from_memory_with_format(jpeg, image::ImageFormat::Jpeg)
+            .map_err(|e| format!("a frame of {} is not a JPEG: {e}", self.url))?;
+        let (w, h) = (image.width(), image.height());
+        if (w, h) != (self.intrinsics.width, self.intrinsics.height) {
+            return Err(format!(
+                "the camera sends {w}×{h} frames but its intrinsics are for {}×{}; set \
+                 robot.widowx.camera_intrinsics for this camera",
+                self.intrinsics.width, self.intrinsics.height
+            ));
+        }
+        Ok(image.into_rgb8().into_raw())
+    }
+
+    fn publish(&self, rgb: Vec<u8>) {
+        let info = CaptureInfo {
+            camera_pose: (self.pose)().unwrap_or_else(Isometry3::identity),
+            timestamp_unix_ns: unix_now_ns(),
+        };
+        let mut latest = self.lock();
+        latest.frame = Ok(Frame { rgb, info });
+        latest.sequence += 1;
+        drop(latest);
+        self.arrived.notify_waiters();
+    }
+}
+
+/// The `boundary` parameter of a multipart Content-Type, without quotes or a leading `--`.
+fn boundary_of(content_type: &str) -> Option<String> {
+    let mut parts = content_type.split(';');
+    let kind = parts.next()?.trim();
+    if !kind.eq_ignore_ascii_case("multipart/x-mixed-replace") {
+        return None;
+    }
+    parts.find_map(|p| {
+        let (key, value) = p.split_once('=')?;
+        if !key.trim().eq_ignore_ascii_case("boundary") {
+            return None;
+        }
+        let value = value.trim().trim_matches('"');
+        let value = value.strip_prefix("--").unwrap_or(value);
+        (!value.is_empty()).then(|| value.to_owned())
+    })
+}
+
+impl CameraDriver for MjpegCamera {
+    fn size(&self) -> (u32, u32) {
+        (self.intrinsics.width, self.intrinsics.height)
+    }
+
+    fn intrinsics(&self) -> CameraIntrinsics {
+        self.intrinsics.clone()
+    }
+
+    fn frame_ready(&self) -> DriverFuture<'_, ()> {
+        Box::pin(async move {
+            let mut waited_on_problem = false;
+            loop {
+                let arrived = self.arrived.notified();
+                let problem = {
+                    let latest = self.lock();
+                    let fresh = latest.sequence != latest.taken;
+                    match &latest.frame {
+                        Ok(_) if fresh => return Ok(()),
+                        Err(reason) if !fresh => Some(reason.clone()),
+                        _ => None,
+                    }
+                };
+                match problem {
+                    Some(reason) if waited_on_problem => return Err(DriverError::Hardware(reason)),
+                    Some(_) => {
+                        // Do not spin on a dead stream: wait a while for news first.
+                        waited_on_problem = true;
+                        let _ = tokio::time::timeout(Duration::from_secs(1), arrived).await;
+                    }
+                    None => arrived.await,
+                }
+            }
+        })
+    }
+
+    fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
+        let mut latest = self.lock();
+        let sequence = latest.sequence;
+        let frame = match &latest.frame {
+            Ok(frame) => frame,
+            Err(reason) => return Err(DriverError::Hardware(reason.clone())),
+        };
+        if out.len() != frame.rgb.len() {
+            return Err(DriverError::Hardware(format!(
+                "frame buffer of {} bytes for a {}-byte frame",
+                out.len(),
+                frame.rgb.len()
+            )));
+        }
+        out.copy_from_slice(&frame.rgb);
+        let info = frame.info;
+        latest.taken = sequence;
+        Ok(info)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::boundary_of;
+
+    #[test]
+    fn boundaries_are_read_as_servers_write_them() {
+        assert_eq!(
+            boundary_of("multipart/x-mixed-replace; boundary=frame").as_deref(),
+            Some("frame")
+        );
+        assert_eq!(
+            boundary_of("multipart/x-mixed-replace;boundary=\"--myboundary\"").as_deref(),
+            Some("myboundary")
+        );
+        assert_eq!(boundary_of("image/jpeg"), None);
+        assert_eq!(boundary_of("multipart/x-mixed-replace"), None);
+    }
+}

@@ -1,0 +1,264 @@
+//! The WidowX arm driver: robotd's own trajectories streamed to the servos, one goal per tick.
+//!
+//! A motion is interpolated in joint space (a smooth cubic for a joint motion, linear between
+//! the dense waypoints of a straight tool path), timed by the joints' velocity limits and the
+//! policy's speed scale, and handed to the bus thread one goal per control tick. At every
+//! tick the stop and e-stop are checked (a stop holds the arm where it is at once, within one
+//! tick), the servos' positions are compared with what was sent, and a new servo fault ends
+//! the motion. X-series servos cannot feel a collision; a joint that lags its goal by more than
+//! `tracking_tolerance_rad` for two ticks is one, and the arm is held there. At the end the arm
+//! must have arrived within `arrival_tolerance_rad`.
+
+use crate::bus::ServoBus;
+use crate::control_table::{rad_to_ticks, ticks_to_rad};
+use robotd_driver::{ArmDriver, ArmFlags, DriverError, DriverFuture, Motion, MotionControl};
+use robotd_kinematics::Kinematics;
+use robotd_protocol::geometry::RobotModel;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// How the arm driver moves.
+#[derive(Debug, Clone)]
+pub struct ArmSettings {
+    /// Velocity limit per joint, rad/s.
+    pub max_velocity_rad_s: Vec<f64>,
+    /// Lag that counts as blocked, rad.
+    pub tracking_tolerance_rad: f64,
+    /// Allowed final error, rad.
+    pub arrival_tolerance_rad: f64,
+}
+
+/// Ticks allowed for the servos to settle on the final goal.
+const SETTLE_TICKS: u32 = 50;
+
+/// The WidowX arm.
+pub struct WidowxArm {
+    bus: Arc<ServoBus>,
+    kinematics: Kinematics,
+    settings: ArmSettings,
+    moving: AtomicBool,
+    collision: Mutex<Option<String>>,
+    halts: AtomicU64,
+}
+
+impl WidowxArm {
+    /// An arm on `bus`.
+    pub fn new(bus: Arc<ServoBus>, settings: ArmSettings) -> Self {
+        Self {
+            bus,
+            kinematics: Kinematics::new(RobotModel::WidowX250),
+            settings,
+            moving: AtomicBool::new(false),
+            collision: Mutex::new(None),
+            halts: AtomicU64::new(0),
+        }
+    }
+
+    fn present(&self) -> Result<Vec<f64>, DriverError> {
+        self.bus
+            .connection()
+            .map_err(|r| DriverError::Hardware(format!("robot not connected: {r}")))?;
+        let ticks = self
+            .bus
+            .snapshot()
+            .and_then(|s| s.joint_ticks())
+            .ok_or_else(|| {
+                DriverError::Hardware("no joint positions from the servos yet".into())
+            })?;
+        Ok(ticks.iter().map(|t| ticks_to_rad(*t)).collect())
+    }
+
+    fn collision_pending(&self) -> bool {
+        self.collision.lock().map(|c| c.is_some()).unwrap_or(true)
+    }
+
+    fn hold_after(&self, error: DriverError) -> DriverError {
+        self.bus.hold();
+        error
+    }
+
+    async fn run(
+        &self,
+        motion: Motion,
+        speed_scale: f64,
+        control: &MotionControl,
+    ) -> Result<(), DriverError> {
+        robotd_driver::check_speed_scale(speed_scale)?;
+        if self.collision_pending() {
+            return Err(DriverError::CollisionPending);
+        }
+        let (waypoints, smooth) = match motion {
+            Motion::Joints(q) => (vec![q], true),
+            Motion::JointPath(path) => (path, false),
+        };
+        for q in &waypoints {
+            self.kinematics
+                .check_joints(q)
+                .map_err(|e| DriverError::OutOfRange(e.to_string()))?;
+        }
+        let Some(target) = waypoints.last().cloned() else {
+            return Ok(());
+        };
+        let halts = self.halts.load(Ordering::SeqCst);
+        let faults = self.bus.last_fault().map_or(0, |f| f.generation);
+        let mut from = self.present()?;
+        let mut sent: Option<Vec<f64>> = None;
+        let mut lagging_ticks = 0;
+        for to in waypoints {
+            let nominal =
+                robotd_driver::nominal_travel_time_s(&from, &to, &self.settings.max_velocity_rad_s);
+            let duration = nominal / speed_scale;
+            let started = tokio::time::Instant::now();
+            loop {
+                self.bus.next_tick().await?;
+                self.check_interrupts(control, halts, faults)?;
+                let present = self.present()?;
+                if let Some(sent) = &sent {
+                    let (joint, lag) = worst(&present, sent);
+                    if lag > self.settings.tracking_tolerance_rad {
+                        lagging_ticks += 1;
+                    } else {
+                        lagging_ticks = 0;
+                    }
+                    if lagging_ticks >= 2 {
+                        let what = format!(
+                            "an obstacle (joint {} stopped {lag:.2} rad short of its goal)",
+                            joint + 1
+                        );
+                        tracing::warn!(%what, "the WidowX arm is blocked: holding it");
+                        *self.collision.lock().unwrap_or_else(|p| p.into_inner()) =
+                            Some(what.clone());
+                        return Err(self.hold_after(DriverError::Collision { what }));
+                    }
+                }
+                let tau = if duration <= 0.0 {
+                    1.0
+                } else {
+                    (started.elapsed().as_secs_f64() / duration).min(1.0)
+                };
+                let s = if smooth {
+                    tau * tau * (3.0 - 2.0 * tau)
+                } else {
+                    tau
+                };
+                let q: Vec<f64> = from.iter().zip(&to).map(|(a, b)| a + (b - a) * s).collect();
+                self.bus.set_joint_goal(to_ticks(&q));
+                sent = Some(q);
+                if tau >= 1.0 {
+                    break;
+                }
+            }
+            from = to;
+        }
+        for _ in 0..SETTLE_TICKS {
+            self.bus.next_tick().await?;
+            self.check_interrupts(control, halts, faults)?;
+            let (_, error) = worst(&self.present()?, &target);
+            if error <= self.settings.arrival_tolerance_rad {
+                return Ok(());
+            }
+        }
+        let (joint, error) = worst(&self.present()?, &target);
+        Err(self.hold_after(DriverError::Hardware(format!(
+            "the arm did not arrive: joint {} is {error:.3} rad from its target",
+            joint + 1
+        ))))
+    }
+
+    fn check_interrupts(
+        &self,
+        control: &MotionControl,
+        halts: u64,
+        faults: u64,
+    ) -> Result<(), DriverError> {
+        if let Err(stop) = control.check() {
+            return Err(self.hold_after(stop));
+        }
+        if self.halts.load(Ordering::SeqCst) != halts {
+            return Err(DriverError::Stopped {
+                reason: "the arm was halted".into(),
+            });
+        }
+        if let Some(fault) = self.bus.last_fault().filter(|f| f.generation != faults) {
+            return Err(DriverError::Hardware(fault.to_string()));
+        }
+        Ok(())
+    }
+}
+
+/// The joint with the largest |a − b| and that difference.
+fn worst(a: &[f64], b: &[f64]) -> (usize, f64) {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .enumerate()
+        .fold(
+            (0, 0.0),
+            |best, (i, d)| if d > best.1 { (i, d) } else { best },
+        )
+}
+
+fn to_ticks(q: &[f64]) -> [i32; 6] {
+    let mut out = [2048; 6];
+    for (slot, rad) in out.iter_mut().zip(q) {
+        *slot = rad_to_ticks(*rad);
+    }
+    out
+}
+
+impl ArmDriver for WidowxArm {
+    fn model(&self) -> RobotModel {
+        RobotModel::WidowX250
+    }
+
+    fn joints(&self) -> Result<Vec<f64>, DriverError> {
+        self.present()
+    }
+
+    fn flags(&self) -> ArmFlags {
+        ArmFlags {
+            moving: self.moving.load(Ordering::SeqCst),
+            collision_detected: self.collision_pending(),
+            // Absolute encoders: a WidowX never needs calibrating.
+            calibrated: true,
+        }
+    }
+
+    fn execute<'a>(
+        &'a self,
+        motion: Motion,
+        speed_scale: f64,
+        control: &'a MotionControl,
+    ) -> DriverFuture<'a, ()> {
+        Box::pin(async move {
+            self.moving.store(true, Ordering::SeqCst);
+            let result = self.run(motion, speed_scale, control).await;
+            self.moving.store(false, Ordering::SeqCst);
+            result
+        })
+    }
+
+    fn calibrate(&self) -> DriverFuture<'_, ()> {
+        Box::pin(async {
+            // The servos' encoders are absolute: there is nothing to calibrate, only to check.
+            self.present().map(|_| ())
+        })
+    }
+
+    fn clear_collision(&self) -> DriverFuture<'_, ()> {
+        Box::pin(async {
+            *self.collision.lock().unwrap_or_else(|p| p.into_inner()) = None;
+            Ok(())
+        })
+    }
+
+    fn halt(&self) -> Result<(), DriverError> {
+        self.halts.fetch_add(1, Ordering::SeqCst);
+        self.bus.hold();
+        Ok(())
+    }
+
+    fn connection(&self) -> Result<(), String> {
+        self.bus.connection()
+    }
+}

@@ -1,0 +1,161 @@
+//! The real WidowX 250 s over DYNAMIXEL Protocol 2.0 (no ROS), and a fake servo bus that serves
+//! the simulator behind the same protocol on a pseudo-terminal.
+//!
+//! `robot.driver = "widowx"` selects it; `[robot.widowx]` names the serial device of the U2D2
+//! adapter and the camera stream. [`open`] starts the bus thread and returns the drivers at
+//! once, whether or not the servos answer: until they do, every command fails with "robot not
+//! connected: <reason>", and the thread keeps reopening the port.
+//!
+//! - [`control_table`]: servo IDs, models, control-table addresses, units;
+//! - [`startup`]: ping and model check of every servo, the settings written, torque on;
+//! - [`bus`]: the bus thread and its control loop (sync write of goals, sync read of positions,
+//!   hardware-error recovery, reconnection), on the `dynamixel2` crate;
+//! - [`arm`], [`gripper`]: the driver traits on top of it;
+//! - the camera: an MJPEG-over-HTTP stream (`robotd-driver-mjpeg`), posed on the wrist;
+//! - [`fake`]: the simulator as nine servos on a pty (`robotd fake-widowx`), which the vendor's
+//!   dynamixel-sdk accepts.
+//!
+//! Wire-level facts the design follows: `docs/dynamixel.md`.
+
+pub mod arm;
+pub mod bus;
+pub mod control_table;
+pub mod fake;
+pub mod gripper;
+pub mod startup;
+
+pub use arm::WidowxArm;
+pub use bus::{BusSettings, ServoBus};
+pub use gripper::WidowxGripper;
+
+use robotd_driver::{
+    CameraDriver, CaptureInfo, DriverError, RobotConfig, RobotDrivers, WidowxConfig,
+};
+use robotd_kinematics::Kinematics;
+use robotd_protocol::camera::CameraIntrinsics;
+use robotd_protocol::geometry::RobotModel;
+use std::sync::Arc;
+
+/// The serial bus as the driver uses it.
+pub type DxlBus = dynamixel2::Bus<Vec<u8>, Vec<u8>>;
+
+/// The drivers of a WidowX and the bus they share.
+pub struct WidowxDrivers {
+    /// The drivers for the actors.
+    pub drivers: RobotDrivers,
+    /// The servo bus (status, counters).
+    pub bus: Arc<ServoBus>,
+    /// The camera receiver; abort it to let go of the stream.
+    pub tasks: Vec<tokio::task::JoinHandle<()>>,
+}
+
+/// The bus settings of `[robot]`.
+pub fn bus_settings(config: &RobotConfig) -> BusSettings {
+    let widowx = &config.widowx;
+    BusSettings {
+        device: widowx.device.clone(),
+        baud_rate: widowx.baud_rate,
+        control_period: config.control_period(),
+        reconnect_max: widowx.reconnect_max(),
+        startup: startup::StartupSettings {
+            profile_velocity: widowx.profile_velocity,
+            profile_acceleration: widowx.profile_acceleration,
+        },
+    }
+}
+
+/// The camera's intrinsics: `[robot.widowx] camera_intrinsics`, else the simulated wrist
+/// camera's (640×480, undistorted).
+pub fn camera_intrinsics(widowx: &WidowxConfig) -> CameraIntrinsics {
+    widowx.camera_intrinsics.clone().unwrap_or_else(|| {
+        let mut intrinsics = CameraIntrinsics::from(robotd_render::Intrinsics::ned2());
+        intrinsics.distortion = [0.0; 5];
+        intrinsics
+    })
+}
+
+/// Opens the WidowX of `[robot]` (on the current tokio runtime).
+pub fn open(config: &RobotConfig) -> WidowxDrivers {
+    let widowx = &config.widowx;
+    let bus = ServoBus::start(bus_settings(config));
+    let kinematics = Kinematics::new(RobotModel::WidowX250);
+    let arm = Arc::new(WidowxArm::new(
+        bus.clone(),
+        arm::ArmSettings {
+            max_velocity_rad_s: kinematics
+                .joint_limits()
+                .iter()
+                .map(|l| l.max_velocity_rad_s)
+                .collect(),
+            tracking_tolerance_rad: widowx.tracking_tolerance_rad,
+            arrival_tolerance_rad: widowx.arrival_tolerance_rad,
+        },
+    ));
+    let gripper = Arc::new(WidowxGripper::new(
+        bus.clone(),
+        gripper::GripperSettings {
+            closed_ticks: widowx.gripper_closed_ticks.into(),
+            open_ticks: widowx.gripper_open_ticks.into(),
+            pwm: widowx.gripper_pwm as i16,
+            hold_pwm: widowx.gripper_hold_pwm as i16,
+            holding_load: widowx.gripper_holding_load as i16,
+            max_width_m: robotd_driver_sim::gripper_max_width(RobotModel::WidowX250),
+        },
+    ));
+    let intrinsics = camera_intrinsics(widowx);
+    let mut tasks = Vec::new();
+    let camera: Arc<dyn CameraDriver> = match &widowx.camera_url {
+        Some(url) => {
+            let pose_arm = arm.clone();
+            let pose: robotd_driver_mjpeg::PoseSource = Arc::new(move || {
+                use robotd_driver::ArmDriver;
+                let q = pose_arm.joints().ok()?;
+                kinematics.camera_pose(&q)
+            });
+            let camera = robotd_driver_mjpeg::MjpegCamera::new(url, intrinsics, pose);
+            tasks.push(tokio::spawn(camera.clone().run_receiver()));
+            camera
+        }
+        None => Arc::new(NoCamera { intrinsics }),
+    };
+    WidowxDrivers {
+        drivers: RobotDrivers {
+            model: RobotModel::WidowX250,
+            arm,
+            gripper,
+            camera,
+        },
+        bus,
+        tasks,
+    }
+}
+
+/// A WidowX without a configured camera: every capture says how to add one.
+struct NoCamera {
+    intrinsics: CameraIntrinsics,
+}
+
+impl CameraDriver for NoCamera {
+    fn size(&self) -> (u32, u32) {
+        (self.intrinsics.width, self.intrinsics.height)
+    }
+    fn intrinsics(&self) -> CameraIntrinsics {
+        self.intrinsics.clone()
+    }
+    fn frame_ready(&self) -> robotd_driver::DriverFuture<'_, ()> {
+        Box::pin(async {
+            tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+            Err(no_camera())
+        })
+    }
+    fn capture_into(&self, _out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
+        Err(no_camera())
+    }
+}
+
+fn no_camera() -> DriverError {
+    DriverError::Hardware(
+        "no camera configured: set robot.widowx.camera_url to the MJPEG stream of the camera"
+            .into(),
+    )
+}
