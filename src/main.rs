@@ -10,6 +10,7 @@ mod chat;
 mod doctor;
 mod estop;
 mod fake_niryo;
+mod fake_widowx;
 mod say;
 mod serve;
 
@@ -80,6 +81,10 @@ enum Command {
     /// Serve the simulator behind the Niryo Ned2's TCP protocol: a fake robot for the niryo
     /// driver and pyniryo scripts (`--set robot.scene=…`, `--set robot.time_scale=…`).
     FakeNiryo(fake_niryo::FakeNiryoArgs),
+    /// Serve the simulator behind the WidowX's servo bus (DYNAMIXEL Protocol 2.0 on a
+    /// pseudo-terminal) and its camera (MJPEG over HTTP): a fake arm for the widowx driver and
+    /// dynamixel-sdk scripts.
+    FakeWidowx(fake_widowx::FakeWidowxArgs),
     /// The motion audit log.
     Audit {
         #[command(subcommand)]
@@ -364,6 +369,12 @@ fn run() -> Result<std::process::ExitCode> {
             let config = load_config(&cli.config)?;
             let _telemetry = telemetry::init(&config.telemetry, Mode::Command)?;
             fake_niryo::run(config, args)?;
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::FakeWidowx(args) => {
+            let config = load_config(&cli.config)?;
+            let _telemetry = telemetry::init(&config.telemetry, Mode::Command)?;
+            fake_widowx::run(config, args)?;
             Ok(std::process::ExitCode::SUCCESS)
         }
         Command::Estop(args) => {

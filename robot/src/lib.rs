@@ -11,8 +11,8 @@
 //! | camera | `camera/frames` (640×480 RGB, zero-copy) | [`CAMERA_FRAMES`](robotd_runtime::catalog::CAMERA_FRAMES) |
 //!
 //! Drivers: `sim-ned2` (the default) and `sim-widowx` run the simulator of `drivers/sim`;
-//! `niryo` drives a real Ned2 over TCP (`drivers/niryo`); the real `widowx` driver is not in
-//! this build and is refused at start-up with a message saying so. A new driver is a crate in `drivers/` plus one arm of the `match` in
+//! `niryo` drives a real Ned2 over TCP (`drivers/niryo`); `widowx` a real WidowX 250 s over
+//! its DYNAMIXEL servo bus (`drivers/widowx`). A new driver is a crate in `drivers/` plus one arm of the `match` in
 //! [`Hardware::start`].
 //!
 //! ```no_run
@@ -48,12 +48,6 @@ use robotd_safety::Safety;
 /// Why the robot's actors could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum StartError {
-    /// The configured driver is not part of this build.
-    #[error("robot.driver = \"{driver}\" is not available in this build yet (\"sim-ned2\", \"sim-widowx\" and \"niryo\" are); use one of those")]
-    DriverNotAvailable {
-        /// The configured driver.
-        driver: String,
-    },
     /// The simulator's scene is missing, malformed or for another robot.
     #[error(transparent)]
     Scene(#[from] robotd_driver_sim::SceneError),
@@ -126,9 +120,21 @@ impl Hardware {
                 hardware.tasks.extend(niryo.tasks);
                 Ok(hardware)
             }
-            RobotDriver::Widowx => Err(StartError::DriverNotAvailable {
-                driver: format!("{:?}", config.robot.driver).to_lowercase(),
-            }),
+            RobotDriver::Widowx => {
+                let widowx = robotd_driver_widowx::open(&config.robot);
+                // Give the servos a moment, so the arm's first state is real; a bus that is
+                // not there yet is not an error (the drivers say why until it answers).
+                let deadline = std::time::Instant::now() + std::time::Duration::from_secs(3);
+                while widowx.drivers.arm.joints().is_err() && std::time::Instant::now() < deadline {
+                    tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+                }
+                if let Err(reason) = widowx.bus.connection() {
+                    tracing::warn!(%reason, "the WidowX is not connected yet; robotd keeps trying");
+                }
+                let mut hardware = Self::start_with(bus, config, widowx.drivers, observer).await?;
+                hardware.tasks.extend(widowx.tasks);
+                Ok(hardware)
+            }
         }
     }
 

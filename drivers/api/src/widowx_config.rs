@@ -60,6 +60,12 @@ pub struct WidowxConfig {
     /// and the tools that look are then unavailable).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera_url: Option<String>,
+    /// How old a frame is when it arrives, ms (0 to 2000): capture, encoding and transfer. A
+    /// stream does not say when a frame was taken, so robotd dates each frame this much before
+    /// its arrival; a frame that arrives just after the arm stopped is then not taken for a
+    /// view of the arm at rest. Measure it on your camera (film a clock) and round up.
+    #[serde(default = "defaults::camera_latency_ms")]
+    pub camera_latency_ms: u64,
     /// The camera's intrinsics and distortion (OpenCV order); default: the simulated wrist
     /// camera's (640×480, no distortion), which is what `robotd fake-widowx` serves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -82,6 +88,7 @@ impl Default for WidowxConfig {
             gripper_hold_pwm: defaults::gripper_hold_pwm(),
             gripper_holding_load: defaults::gripper_holding_load(),
             camera_url: None,
+            camera_latency_ms: defaults::camera_latency_ms(),
             camera_intrinsics: None,
         }
     }
@@ -161,6 +168,12 @@ impl WidowxConfig {
             1..=1000,
             "",
         );
+        checks.range_u64(
+            "widowx.camera_latency_ms",
+            self.camera_latency_ms,
+            0..=2000,
+            "",
+        );
         if let Some(url) = &self.camera_url {
             if !(url.starts_with("http://") || url.starts_with("https://")) || url.contains(' ') {
                 checks.problem(
@@ -210,5 +223,8 @@ mod defaults {
     }
     pub fn gripper_holding_load() -> u16 {
         100
+    }
+    pub fn camera_latency_ms() -> u64 {
+        150
     }
 }

@@ -29,6 +29,7 @@ struct Frame {
 /// An MJPEG-over-HTTP camera.
 pub struct MjpegCamera {
     url: String,
+    latency: Duration,
     intrinsics: CameraIntrinsics,
     pose: PoseSource,
     latest: Mutex<Latest>,
@@ -44,10 +45,17 @@ impl std::fmt::Debug for MjpegCamera {
 }
 
 impl MjpegCamera {
-    /// A camera on the stream at `url` whose frames are `intrinsics.width × height`.
-    pub fn new(url: &str, intrinsics: CameraIntrinsics, pose: PoseSource) -> Arc<Self> {
+    /// A camera on the stream at `url` whose frames are `intrinsics.width × height` and arrive
+    /// `latency` after they were taken (each frame is dated that much before its arrival).
+    pub fn new(
+        url: &str,
+        intrinsics: CameraIntrinsics,
+        latency: Duration,
+        pose: PoseSource,
+    ) -> Arc<Self> {
         Arc::new(Self {
             url: url.to_owned(),
+            latency,
             intrinsics,
             pose,
             latest: Mutex::new(Latest {
@@ -164,7 +172,7 @@ impl MjpegCamera {
     fn publish(&self, rgb: Vec<u8>) {
         let info = CaptureInfo {
             camera_pose: (self.pose)().unwrap_or_else(Isometry3::identity),
-            timestamp_unix_ns: unix_now_ns(),
+            timestamp_unix_ns: unix_now_ns().saturating_sub(self.latency.as_nanos() as u64),
         };
         let mut latest = self.lock();
         latest.frame = Ok(Frame { rgb, info });
@@ -211,8 +219,8 @@ impl CameraDriver for MjpegCamera {
                     let fresh = latest.sequence != latest.taken;
                     match &latest.frame {
                         Ok(_) if fresh => return Ok(()),
-                        Err(reason) if !fresh => Some(reason.clone()),
-                        _ => None,
+                        Err(reason) => Some(reason.clone()),
+                        Ok(_) => None,
                     }
                 };
                 match problem {

@@ -44,16 +44,22 @@ pub async fn serve(
     let address = listener.local_addr()?;
     let period = Duration::from_secs_f64(1.0 / fps.clamp(0.1, 120.0));
     let task = tokio::spawn(async move {
+        // The clients' streams live in this set: dropping the server (aborting this task)
+        // ends them all, as unplugging a camera would.
+        let mut clients = tokio::task::JoinSet::new();
         loop {
-            let Ok((stream, _)) = listener.accept().await else {
-                continue;
-            };
-            let camera = camera.clone();
-            tokio::spawn(async move {
-                if let Err(e) = stream_to(stream, camera, period).await {
-                    tracing::debug!(error = %e, "MJPEG client left");
+            tokio::select! {
+                accepted = listener.accept() => {
+                    let Ok((stream, _)) = accepted else { continue };
+                    let camera = camera.clone();
+                    clients.spawn(async move {
+                        if let Err(e) = stream_to(stream, camera, period).await {
+                            tracing::debug!(error = %e, "MJPEG client left");
+                        }
+                    });
                 }
-            });
+                Some(_) = clients.join_next(), if !clients.is_empty() => {}
+            }
         }
     });
     Ok(MjpegServer { address, task })

@@ -112,7 +112,12 @@ pub fn open(config: &RobotConfig) -> WidowxDrivers {
                 let q = pose_arm.joints().ok()?;
                 kinematics.camera_pose(&q)
             });
-            let camera = robotd_driver_mjpeg::MjpegCamera::new(url, intrinsics, pose);
+            let camera = robotd_driver_mjpeg::MjpegCamera::new(
+                url,
+                intrinsics,
+                std::time::Duration::from_millis(widowx.camera_latency_ms),
+                pose,
+            );
             tasks.push(tokio::spawn(camera.clone().run_receiver()));
             camera
         }

@@ -281,8 +281,8 @@ impl Kinematics {
     /// The Ned2's `camera_link` looks along its x axis (at the observation pose it points
     /// straight at the table); image "up" is its y axis, so the far side of a workspace is at
     /// the top of the image, as on the real robot. The WidowX has no camera in its model:
-    /// robotd assumes one on the wrist, 5 cm behind the tool centre, looking along the tool
-    /// with image x along the tool's y (the simulator's and `robotd fake-widowx`'s camera).
+    /// robotd assumes one on the wrist, 5 cm behind and above the tool centre, looking down
+    /// the tool's −z (the simulator's and `robotd fake-widowx`'s camera).
     pub fn camera_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
         self.check_joints(q).ok()?;
         if self.model() == RobotModel::WidowX250 {
@@ -302,18 +302,22 @@ impl Kinematics {
         Some(link * UnitQuaternion::from_rotation_matrix(&optical))
     }
 
-    /// A camera looking along the tool, 5 cm behind the tool centre (see [`Self::camera_pose`]).
+    /// The WidowX's assumed wrist camera (see [`Self::camera_pose`]): 5 cm behind and 5 cm
+    /// above the tool centre, looking along the tool's −z (straight down when the gripper is level, as at
+    /// the `widowx_ws` observation pose), with the tool's forward direction at the top of the
+    /// image, so the far side of a workspace is up, as on the Ned2.
     fn tool_mounted_camera_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
         let tcp = self.tool_pose(q).ok()?;
         let tool_x = tcp.rotation * nalgebra::Vector3::x();
         let tool_y = tcp.rotation * nalgebra::Vector3::y();
-        let (x, z) = (tool_y, tool_x);
-        let y = z.cross(&x);
+        let tool_z = tcp.rotation * nalgebra::Vector3::z();
+        // Optical frame: z = viewing direction, y = image down, x = image right.
+        let (x, y, z) = (-tool_y, -tool_x, -tool_z);
         let rotation =
             UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_basis_unchecked(&[
                 x, y, z,
             ]));
-        let position = tcp.translation.vector - tool_x * 0.05;
+        let position = tcp.translation.vector - tool_x * 0.05 + tool_z * 0.05;
         Some(Isometry3::from_parts(
             Translation3::from(position),
             rotation,
