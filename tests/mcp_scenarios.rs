@@ -8,9 +8,11 @@ mod lab;
 
 use lab::{assert_near, lab_on, runtime, scene, Driver, Lab};
 
-/// Runs the scenario `$name(lab)` twice, as `$name::sim` on the built-in simulator and as
+/// Runs the scenario `$name(lab)` three times: as `$name::sim` on the built-in simulator, as
 /// `$name::niryo` through the niryo driver against `robotd fake-niryo` (the same simulator
-/// behind the Ned2's TCP protocol): one scenario list, two drivers.
+/// behind the Ned2's TCP protocol) and as `$name::widowx` through the widowx driver against
+/// `robotd fake-widowx` (a WidowX behind its servo bus, on the same sheet): one scenario list,
+/// three drivers.
 macro_rules! on_both_drivers {
     ($name:ident, $scene:expr) => {
         mod $name {
@@ -22,6 +24,10 @@ macro_rules! on_both_drivers {
             #[test]
             fn niryo() {
                 run(Driver::Niryo, $scene, super::$name);
+            }
+            #[test]
+            fn widowx() {
+                run(Driver::Widowx, $scene, super::$name);
             }
         }
     };

@@ -38,12 +38,18 @@ pub enum Driver {
     /// The `niryo` driver over TCP against `robotd fake-niryo` (the same simulator behind the
     /// Ned2's protocol; camera frames cross TCP as JPEGs).
     Niryo,
+    /// The `widowx` driver over its DYNAMIXEL servo bus against `robotd fake-widowx` (the same
+    /// simulator behind nine servos on a pseudo-terminal; camera frames cross HTTP as MJPEG).
+    /// The sheet is the Ned2's (`niryo_ws`, seen from the WidowX's observation pose), so every
+    /// scenario's coordinates mean the same on both arms.
+    Widowx,
 }
 
 /// A served robotd, an MCP client of it and a bus client of its ground truth.
 pub struct Lab {
     _robotd: common::Running,
     _fake: Option<common::Running>,
+    _files: Option<tempfile::TempDir>,
     /// The MCP client (SSE).
     pub client: McpClient,
     /// `http://127.0.0.1:PORT` of the served robotd.
@@ -74,8 +80,28 @@ pub async fn lab_on(driver: Driver, time_scale: f64, extra: &[String]) -> Lab {
         settings.push(setting.clone());
     }
     let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
+    let mut files = None;
     let (robotd, fake) = match driver {
         Driver::Sim => (common::start_robotd(&namespace, port, &settings), None),
+        Driver::Widowx => {
+            let dir = tempfile::tempdir().unwrap();
+            let config = widowx_lab_config(dir.path(), extra);
+            let config = config.to_str().unwrap();
+            let device = dir.path().join("ttyDXL");
+            let (fake, camera_url) = common::start_fake_widowx(
+                &["--namespace", namespace.as_str(), "--config", config],
+                &device,
+                &["--ground-truth"],
+            );
+            let camera_url = format!("robot.widowx.camera_url={camera_url}");
+            let robotd = common::start_robotd(
+                &namespace,
+                port,
+                &["--config", config, "--set", &camera_url],
+            );
+            files = Some(dir);
+            (robotd, Some(fake))
+        }
         Driver::Niryo => {
             let mut fake_settings = vec!["--namespace", namespace.as_str()];
             fake_settings.extend(&settings);
@@ -106,10 +132,58 @@ pub async fn lab_on(driver: Driver, time_scale: f64, extra: &[String]) -> Lab {
     Lab {
         _robotd: robotd,
         _fake: fake,
+        _files: files,
         client,
         url: format!("http://127.0.0.1:{port}"),
         bus,
     }
+}
+
+/// The config of a WidowX lab in `dir`: the scene of `extra`'s `robot.scene=…` (or the Ned2's
+/// default scene) moved to the WidowX, on the Ned2's sheet seen from the WidowX's observation
+/// pose, the servo bus at `dir/ttyDXL`.
+fn widowx_lab_config(dir: &std::path::Path, extra: &[String]) -> std::path::PathBuf {
+    let scene_path = extra
+        .iter()
+        .find_map(|s| s.strip_prefix("robot.scene="))
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenes/default.toml")
+        });
+    let scene = std::fs::read_to_string(&scene_path).unwrap();
+    assert!(
+        scene.contains("robot = \"ned2\""),
+        "{}: a Ned2 scene",
+        scene_path.display()
+    );
+    let scene = scene.replace("robot = \"ned2\"", "robot = \"widowx250\"");
+    let scene_file = dir.join("scene.toml");
+    std::fs::write(&scene_file, scene).unwrap();
+    let config = format!(
+        r#"[robot]
+driver = "widowx"
+control_rate_hz = 100
+scene = "{scene}"
+
+[robot.camera]
+fps = 15.0
+
+[[robot.workspaces]]
+id = "niryo_ws"
+upper_left = [0.337, 0.087]
+lower_right = [0.163, -0.087]
+observation_pose = [0.30, 0.0, 0.25, 0.0, 0.0, 0.0]
+
+[robot.widowx]
+device = "{device}"
+camera_latency_ms = 100
+"#,
+        scene = scene_file.display(),
+        device = dir.join("ttyDXL").display(),
+    );
+    let path = dir.join("robot.toml");
+    std::fs::write(&path, config).unwrap();
+    path
 }
 
 /// [`lab_with`] at time scale 0.05, with an optional scene setting.

@@ -167,6 +167,45 @@ pub fn start_fake_niryo(settings: &[&str], args: &[&str]) -> (Running, u16) {
     (running, port)
 }
 
+/// Starts `robotd fake-widowx` (the simulator behind the WidowX's servo bus on a pty and its
+/// MJPEG camera) with the global `settings`, its device at `device` and its camera on a free
+/// loopback port; returns it and the camera's URL.
+pub fn start_fake_widowx(
+    settings: &[&str],
+    device: &std::path::Path,
+    args: &[&str],
+) -> (Running, String) {
+    let log_dir = std::env::temp_dir().join(format!("robotd-test-logs-{}", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .arg("--set")
+        .arg(format!("telemetry.log_dir={}", log_dir.display()))
+        .args(settings)
+        .arg("fake-widowx")
+        .arg("--device")
+        .arg(device)
+        .args(["--camera-listen", "127.0.0.1:0"])
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start robotd fake-widowx");
+    let stdout = child.stdout.take().expect("stdout");
+    let running = Running {
+        child,
+        name: "fake-widowx",
+    };
+    let mut first = String::new();
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut first)
+        .expect("fake-widowx's first line");
+    let url = first
+        .split_whitespace()
+        .last()
+        .filter(|u| u.starts_with("http://"))
+        .unwrap_or_else(|| panic!("fake-widowx said {first:?}"))
+        .to_owned();
+    (running, url)
+}
+
 /// Starts the example actor and waits until it serves.
 pub fn start_external_actor(namespace: &str) -> Running {
     let mut child = Command::new(external_actor_binary())

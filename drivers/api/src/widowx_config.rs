@@ -29,8 +29,9 @@ pub struct WidowxConfig {
     /// 214.577 rev/min², 0 to 32767.
     #[serde(default)]
     pub profile_acceleration: u32,
-    /// How far (radians) a joint may lag behind its goal before robotd counts it as blocked
-    /// (the servos cannot feel a collision any other way) and holds the arm (0.02 to 1).
+    /// How far (radians) a joint may lag behind its goal of three ticks before, for 100 ms,
+    /// before robotd counts it as blocked (the servos cannot feel a collision any other way)
+    /// and holds the arm (0.02 to 1).
     #[serde(default = "defaults::tracking_tolerance_rad")]
     pub tracking_tolerance_rad: f64,
     /// How far (radians, per joint) the arm may end from its target (0.001 to 0.2).

@@ -28,6 +28,10 @@ pub struct ArmSettings {
     pub arrival_tolerance_rad: f64,
 }
 
+/// How many ticks old the goal is that the servos are compared with.
+const LAG_TICKS: usize = 3;
+/// How long a joint must lag before it counts as blocked.
+const BLOCKED_AFTER: std::time::Duration = std::time::Duration::from_millis(100);
 /// Ticks allowed for the servos to settle on the final goal.
 const SETTLE_TICKS: u32 = 50;
 
@@ -102,8 +106,10 @@ impl WidowxArm {
         let halts = self.halts.load(Ordering::SeqCst);
         let faults = self.bus.last_fault().map_or(0, |f| f.generation);
         let mut from = self.present()?;
-        let mut sent: Option<Vec<f64>> = None;
-        let mut lagging_ticks = 0;
+        // Goals sent, newest last; the servos are compared with one a few ticks old, so that
+        // the bus's own delay is not taken for a blocked joint.
+        let mut sent: std::collections::VecDeque<Vec<f64>> = std::collections::VecDeque::new();
+        let mut lagging_since: Option<tokio::time::Instant> = None;
         for to in waypoints {
             let nominal =
                 robotd_driver::nominal_travel_time_s(&from, &to, &self.settings.max_velocity_rad_s);
@@ -113,22 +119,19 @@ impl WidowxArm {
                 self.bus.next_tick().await?;
                 self.check_interrupts(control, halts, faults)?;
                 let present = self.present()?;
-                if let Some(sent) = &sent {
-                    let (joint, lag) = worst(&present, sent);
-                    if lag > self.settings.tracking_tolerance_rad {
-                        lagging_ticks += 1;
-                    } else {
-                        lagging_ticks = 0;
-                    }
-                    if lagging_ticks >= 2 {
-                        let what = format!(
-                            "an obstacle (joint {} stopped {lag:.2} rad short of its goal)",
-                            joint + 1
-                        );
-                        tracing::warn!(%what, "the WidowX arm is blocked: holding it");
-                        *self.collision.lock().unwrap_or_else(|p| p.into_inner()) =
-                            Some(what.clone());
-                        return Err(self.hold_after(DriverError::Collision { what }));
+                if sent.len() > LAG_TICKS {
+                    sent.pop_front();
+                }
+                if let Some(reference) = sent.front() {
+                    let (joint, lag) = worst(&present, reference);
+                    if lag <= self.settings.tracking_tolerance_rad {
+                        lagging_since = None;
+                    } else if lagging_since
+                        .get_or_insert_with(tokio::time::Instant::now)
+                        .elapsed()
+                        >= BLOCKED_AFTER
+                    {
+                        return Err(self.blocked(joint, lag));
                     }
                 }
                 let tau = if duration <= 0.0 {
@@ -143,19 +146,29 @@ impl WidowxArm {
                 };
                 let q: Vec<f64> = from.iter().zip(&to).map(|(a, b)| a + (b - a) * s).collect();
                 self.bus.set_joint_goal(to_ticks(&q));
-                sent = Some(q);
+                sent.push_back(q);
                 if tau >= 1.0 {
                     break;
                 }
             }
             from = to;
         }
+        let mut blocked_since: Option<tokio::time::Instant> = None;
         for _ in 0..SETTLE_TICKS {
             self.bus.next_tick().await?;
             self.check_interrupts(control, halts, faults)?;
-            let (_, error) = worst(&self.present()?, &target);
+            let (joint, error) = worst(&self.present()?, &target);
             if error <= self.settings.arrival_tolerance_rad {
                 return Ok(());
+            }
+            // Still far from the goal the servos have had for a while: something holds it.
+            if error > self.settings.tracking_tolerance_rad
+                && blocked_since
+                    .get_or_insert_with(tokio::time::Instant::now)
+                    .elapsed()
+                    >= BLOCKED_AFTER
+            {
+                return Err(self.blocked(joint, error));
             }
         }
         let (joint, error) = worst(&self.present()?, &target);
@@ -163,6 +176,17 @@ impl WidowxArm {
             "the arm did not arrive: joint {} is {error:.3} rad from its target",
             joint + 1
         ))))
+    }
+
+    /// Records a blocked joint as a collision and holds the arm.
+    fn blocked(&self, joint: usize, lag: f64) -> DriverError {
+        let what = format!(
+            "an obstacle (joint {} stopped {lag:.2} rad short of its goal)",
+            joint + 1
+        );
+        tracing::warn!(%what, "the WidowX arm is blocked: holding it");
+        *self.collision.lock().unwrap_or_else(|p| p.into_inner()) = Some(what.clone());
+        self.hold_after(DriverError::Collision { what })
     }
 
     fn check_interrupts(

@@ -356,8 +356,17 @@ impl ServoBus {
                         .into()
                 }
             };
-            for (count, position) in silent.iter_mut().zip(&snapshot.positions) {
-                *count = if position.is_some() { 0 } else { *count + 1 };
+            let mut snapshot = snapshot;
+            let previous = self.snapshot();
+            for (index, count) in silent.iter_mut().enumerate() {
+                if snapshot.positions[index].is_some() {
+                    *count = 0;
+                } else {
+                    // A reply lost or late this tick: the last position stands, for a few
+                    // ticks (SILENT_TICKS) before the servo counts as gone.
+                    *count += 1;
+                    snapshot.positions[index] = previous.as_ref().and_then(|p| p.positions[index]);
+                }
             }
             let alerts: Vec<u8> = ALL_IDS
                 .iter()
