@@ -183,6 +183,20 @@ enum BenchCommand {
     /// The niryo driver against the fake Ned2 on loopback: a command round trip beside a raw
     /// TCP echo of the same bytes, camera images through TCP and decoding.
     Niryo(BenchNiryoArgs),
+    /// The widowx driver against the fake servo bus on a pty: a sync read of the nine servos
+    /// beside a raw pty echo of the same bytes, the 100 Hz control loop, a servo fault's
+    /// recovery.
+    Widowx(BenchWidowxArgs),
+}
+
+#[derive(Debug, Args)]
+struct BenchWidowxArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Round trips per variant.
+    #[arg(long, default_value_t = 2000)]
+    round_trips: usize,
 }
 
 #[derive(Debug, Args)]
@@ -454,6 +468,12 @@ fn run() -> Result<std::process::ExitCode> {
             what: BenchCommand::Niryo(args),
         } => {
             let figures = bench::niryo::run(args.round_trips, args.images, args.scenes)?;
+            print_figures(args.json, &figures, figures.table())
+        }
+        Command::Bench {
+            what: BenchCommand::Widowx(args),
+        } => {
+            let figures = bench::widowx::run(args.round_trips)?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {

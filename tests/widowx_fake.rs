@@ -97,3 +97,29 @@ fn serve_without_the_arm_says_why_and_picks_it_up_when_it_appears() {
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+#[test]
+fn bench_widowx_json_reports_every_figure() {
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["bench", "widowx", "--json", "--round-trips", "50"])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let figures: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    for key in ["ratio_p50", "control_rate_hz", "fault_recovery_ms"] {
+        assert!(figures[key].as_f64().unwrap() > 0.0, "{key}: {figures}");
+    }
+    assert!(
+        figures["sync_read"]["p50_us"].as_f64().unwrap() > 0.0,
+        "{figures}"
+    );
+    assert!(figures["ticks"].as_u64().unwrap() > 50, "{figures}");
+    assert!(
+        figures["fault_recovery_ms"].as_f64().unwrap() < 1000.0,
+        "{figures}"
+    );
+}

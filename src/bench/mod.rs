@@ -11,6 +11,7 @@ pub mod perception;
 pub mod redis;
 pub mod safety;
 pub mod sim;
+pub mod widowx;
 
 pub use robotd_bench::bus;
 pub use robotd_bench::stats::Latency;

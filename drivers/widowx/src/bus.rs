@@ -495,6 +495,18 @@ impl From<TickSnapshot> for Snapshot {
     }
 }
 
+/// Sync-reads Present Position of the nine servos once, as the control loop does every tick
+/// (for `robotd bench widowx`): by servo (index = ID − 1), `None` for a missing reply.
+pub fn read_present_positions(bus: &mut DxlBus) -> Result<[Option<i32>; 9], String> {
+    let mut snapshot = TickSnapshot {
+        positions: [None; 9],
+        alerts: [false; 9],
+        tick: 0,
+    };
+    sync_read_positions(bus, &mut snapshot)?;
+    Ok(snapshot.positions)
+}
+
 /// Sync-reads Present Position of every servo into `snapshot`, with one deadline for all the
 /// replies (as the vendor SDK does): a lost reply costs one timeout per tick, not one per
 /// servo after it. `Err` = the port failed.

@@ -196,6 +196,74 @@ impl Drop for FakeServoBus {
     }
 }
 
+/// A bare pseudo-terminal that answers every `request_len` bytes it reads with `reply_len`
+/// bytes: the raw baseline of `robotd bench widowx` (the same bytes over the same kind of
+/// device, with no protocol and no servos behind it).
+pub struct EchoPty {
+    link: PathBuf,
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl EchoPty {
+    /// Starts it at `link`.
+    pub fn start(link: &Path, request_len: usize, reply_len: usize) -> std::io::Result<Self> {
+        let (master, slave_path) = open_pty()?;
+        let _ = std::fs::remove_file(link);
+        std::os::unix::fs::symlink(&slave_path, link)?;
+        let keep_open = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&slave_path)?;
+        make_raw(&keep_open)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let running = stop.clone();
+        let mut master = std::fs::File::from(master);
+        let thread = std::thread::Builder::new()
+            .name("echo-pty".into())
+            .spawn(move || {
+                use rustix::event::{poll, PollFd, PollFlags, Timespec};
+                let _keep_open = keep_open;
+                let reply = vec![0x55u8; reply_len];
+                let mut buffer = [0u8; 512];
+                let mut pending = 0usize;
+                let timeout = Timespec {
+                    tv_sec: 0,
+                    tv_nsec: 20_000_000,
+                };
+                while !running.load(Ordering::SeqCst) {
+                    let mut fds = [PollFd::new(&master, PollFlags::IN)];
+                    if !matches!(poll(&mut fds, Some(&timeout)), Ok(n) if n > 0) {
+                        continue;
+                    }
+                    let Ok(n) = master.read(&mut buffer) else {
+                        continue;
+                    };
+                    pending += n;
+                    while pending >= request_len.max(1) {
+                        pending -= request_len.max(1);
+                        let _ = master.write_all(&reply);
+                    }
+                }
+            })?;
+        Ok(Self {
+            link: link.to_path_buf(),
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for EchoPty {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+        let _ = std::fs::remove_file(&self.link);
+    }
+}
+
 fn open_pty() -> std::io::Result<(OwnedFd, PathBuf)> {
     use rustix::pty::{grantpt, openpt, ptsname, unlockpt, OpenptFlags};
     let master = openpt(OpenptFlags::RDWR | OpenptFlags::NOCTTY | OpenptFlags::CLOEXEC)?;
