@@ -56,7 +56,7 @@ enum Command {
     /// Run the service (the default).
     Serve,
     /// Check this machine: shared memory, stale bus resources, Redis, espeak-ng, audio, LLM keys,
-    /// and with the niryo driver the robot (connect, handshake, hardware status).
+    /// and with the niryo or widowx driver the robot (connect and status, or the nine servos).
     Doctor(DoctorArgs),
     /// Measure robotd's machinery beside its raw baseline.
     Bench {
@@ -436,6 +436,12 @@ fn run() -> Result<std::process::ExitCode> {
                 clean: args.clean,
                 niryo: (config.robot.driver == robotd_config::RobotDriver::Niryo)
                     .then(|| robotd_driver_niryo::link_settings(&config.robot)),
+                widowx: (config.robot.driver == robotd_config::RobotDriver::Widowx).then(|| {
+                    (
+                        config.robot.widowx.device.clone(),
+                        config.robot.widowx.baud_rate,
+                    )
+                }),
             })?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report.to_json())?);

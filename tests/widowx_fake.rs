@@ -123,3 +123,54 @@ fn bench_widowx_json_reports_every_figure() {
         "{figures}"
     );
 }
+
+/// The `widowx` row of `robotd doctor --json` for the servo bus at `device`.
+fn doctor_widowx_row(device: &std::path::Path) -> serde_json::Value {
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args([
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/widowx.toml"),
+        ])
+        .arg("--set")
+        .arg(format!("robot.widowx.device={}", device.display()))
+        .args(["doctor", "--json"])
+        .output()
+        .unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    report["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "widowx")
+        .cloned()
+        .unwrap_or_else(|| panic!("no widowx row: {report}"))
+}
+
+#[test]
+fn doctor_checks_the_servo_bus() {
+    let dir = tempfile::tempdir().unwrap();
+    let device = dir.path().join("ttyDXL");
+    let missing = doctor_widowx_row(&device);
+    assert_eq!(missing["status"], "problem", "{missing}");
+    assert!(
+        missing["found"]
+            .as_str()
+            .unwrap()
+            .contains("does not exist"),
+        "{missing}"
+    );
+    assert!(
+        missing["fix"].as_str().unwrap().contains("udev rule"),
+        "{missing}"
+    );
+    let (_fake, _) = common::start_fake_widowx(&[], &device, &[]);
+    let present = doctor_widowx_row(&device);
+    assert_eq!(present["status"], "ok", "{present}");
+    assert!(
+        present["found"]
+            .as_str()
+            .unwrap()
+            .starts_with("9 servos answer"),
+        "{present}"
+    );
+}

@@ -3,7 +3,7 @@
 //! robotd leans on a few things outside its own process: shared memory in `/dev/shm` for the
 //! iceoryx2 bus, the bus's bookkeeping files (which a crashed process can leave behind), an
 //! optional Redis server for the Python tools, `espeak-ng` and an audio output for speech, an
-//! LLM provider key for the agent, and with the niryo driver the robot itself. When one of them is missing robotd still starts, but a
+//! LLM provider key for the agent, and with the niryo or widowx driver the robot itself. When one of them is missing robotd still starts, but a
 //! feature quietly degrades or an actor keeps failing — and the log line that says why is easy
 //! to miss. The doctor checks each of them up front, in a few seconds, and prints one row per
 //! check:
@@ -45,6 +45,7 @@
 //! | [`audio`] | `audio` | a sound card or sound server to play speech on |
 //! | [`llm_keys`] | `llm-keys` | an LLM provider the agent can use |
 //! | [`niryo`] | `niryo` | with the niryo driver: the Ned2 answers (connect, handshake, hardware status) |
+//! | [`widowx`] | `widowx` | with the widowx driver: the serial port opens, the nine servos answer with the right models, no latched hardware error |
 //! | [`secrets`] | — | `secrets.env`, shared by `redis` and `llm-keys` |
 //! | [`report`] | — | rows, the table and the JSON |
 //!
@@ -57,6 +58,7 @@
 //!     clean: false,
 //!     http_bind: None,
 //!     niryo: None,
+//!     widowx: None,
 //! };
 //! let report = run(&opts)?;
 //! print!("{}", report.render_table());
@@ -76,6 +78,7 @@ mod secrets;
 mod shm;
 #[cfg(test)]
 mod test_support;
+mod widowx;
 
 pub use report::{Check, DoctorReport, Status};
 
@@ -110,6 +113,8 @@ pub struct DoctorOptions {
     pub http_bind: Option<String>,
     /// How to reach the Ned2 when `robot.driver = "niryo"` (`None` for other drivers).
     pub niryo: Option<robotd_driver_niryo::LinkSettings>,
+    /// The servo bus (device, baud rate) when `robot.driver = "widowx"` (`None` otherwise).
+    pub widowx: Option<(PathBuf, u32)>,
 }
 
 /// Runs every check and returns the report. Takes a few seconds at most, whatever the network
@@ -126,6 +131,7 @@ pub fn run(opts: &DoctorOptions) -> Result<DoctorReport> {
         audio::check_audio(Path::new("/dev/snd"), &env),
         llm_keys::check_llm_keys(&env, &secrets, &llm_keys::ollama_reachable),
         niryo::check_niryo(opts.niryo.clone()),
+        widowx::check_widowx(opts.widowx.clone()),
     ];
     Ok(DoctorReport { checks })
 }
@@ -153,6 +159,7 @@ mod tests {
             http_bind: None,
             clean: false,
             niryo: None,
+            widowx: None,
         };
         let start = Instant::now();
         let report = run(&opts).expect("doctor runs");
@@ -168,7 +175,8 @@ mod tests {
                 "espeak-ng",
                 "audio",
                 "llm-keys",
-                "niryo"
+                "niryo",
+                "widowx"
             ]
         );
         assert!(report.has_problems());

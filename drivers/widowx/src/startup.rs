@@ -113,6 +113,51 @@ pub fn bring_up(bus: &mut DxlBus, settings: StartupSettings) -> Result<(), Start
     Ok(())
 }
 
+/// What [`survey`] found on one servo.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServoSurvey {
+    /// Servo ID.
+    pub id: u8,
+    /// Its model, or why it could not be pinged / is the wrong model.
+    pub model: Result<u16, StartupError>,
+    /// Its Hardware Error Status (0 = none), when readable.
+    pub hardware_error: Option<u8>,
+}
+
+/// Pings every servo, checks its model and reads its hardware error, writing nothing (for
+/// `robotd doctor`).
+pub fn survey(bus: &mut DxlBus) -> Vec<ServoSurvey> {
+    ALL_IDS
+        .iter()
+        .map(|&id| {
+            let model = match bus.ping(id) {
+                Err(e) => Err(StartupError::Missing {
+                    id,
+                    reason: e.to_string(),
+                }),
+                Ok(ping) if !accepted_models(id).contains(&ping.data.model) => {
+                    Err(StartupError::WrongModel {
+                        id,
+                        found: ping.data.model,
+                        expected: accepted_models(id).to_vec(),
+                    })
+                }
+                Ok(ping) => Ok(ping.data.model),
+            };
+            let hardware_error = model
+                .is_ok()
+                .then(|| bus.read_u8(id, address::HARDWARE_ERROR_STATUS).ok())
+                .flatten()
+                .map(|r| r.data);
+            ServoSurvey {
+                id,
+                model,
+                hardware_error,
+            }
+        })
+        .collect()
+}
+
 /// Writes the goal of joint servo `id` to where it is, so that torque-on holds it there.
 pub fn hold_here(bus: &mut DxlBus, id: u8) -> Result<(), StartupError> {
     let present =
