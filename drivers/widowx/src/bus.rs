@@ -341,6 +341,7 @@ impl ServoBus {
         let period = self.settings.control_period;
         let mut next = Instant::now();
         let mut silent = [0u32; 9];
+        let mut recovery_attempts: [Option<Instant>; 9] = [None; 9];
         let mut tick: u64 = 0;
         loop {
             if self.stop.load(Ordering::SeqCst) {
@@ -383,7 +384,13 @@ impl ServoBus {
                 );
             }
             for id in alerts {
-                self.recover(bus, id);
+                // A servo that stays faulted after its reboot is retried once a second, not
+                // every tick.
+                let attempt = &mut recovery_attempts[usize::from(id - 1)];
+                if attempt.is_none_or(|at| at.elapsed() >= Duration::from_secs(1)) {
+                    *attempt = Some(Instant::now());
+                    self.recover(bus, id);
+                }
             }
             self.stats.ticks.fetch_add(1, Ordering::Relaxed);
             self.ticks.send_modify(|t| *t += 1);
