@@ -470,6 +470,35 @@ fn the_niryo_driver_needs_a_host_and_sane_settings() {
 }
 
 #[test]
+fn the_widowx_driver_settings_are_refused_with_their_key_and_reason() {
+    let file = TempFile::new(
+        "[robot]\ndriver = \"widowx\"\n[robot.widowx]\ndevice = \"\"\nbaud_rate = 9600\n\
+         gripper_closed_ticks = 2000\ngripper_open_ticks = 2050\ngripper_pwm = 900\n\
+         camera_url = \"rtsp://cam/stream\"\ncamera_latency_ms = 5000\n",
+    );
+    let error = Config::load_with_env(with_file(&file), no_env()).unwrap_err();
+    let message = error.to_string();
+    let problems = problems_of(error);
+    for (key, says) in [
+        ("robot.widowx.device", "must name the serial device"),
+        ("robot.widowx.baud_rate", "9600"),
+        ("robot.widowx.gripper_open_ticks", "100 ticks away"),
+        ("robot.widowx.gripper_pwm", "900"),
+        ("robot.widowx.camera_url", "not an http:// or https:// URL"),
+        ("robot.widowx.camera_latency_ms", "5000"),
+    ] {
+        let problem = problems.iter().find(|p| p.key == key).expect(&message);
+        assert!(problem.reason.contains(says), "{key}: {message}");
+    }
+    let fine = TempFile::new("[robot]\ndriver = \"widowx\"\n");
+    let config = Config::load_with_env(with_file(&fine), no_env()).unwrap();
+    assert_eq!(
+        config.robot.widowx.device,
+        std::path::PathBuf::from("/dev/ttyDXL")
+    );
+}
+
+#[test]
 fn bad_workspaces_are_refused_naming_each_one() {
     let file = TempFile::new(
         "[[robot.workspaces]]\nid = \"a\"\nupper_left = [0.1, 0.1]\nlower_right = [0.3, -0.1]\n\
