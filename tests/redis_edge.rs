@@ -166,8 +166,16 @@ fn python_tools_read_frames_and_their_detections_reach_the_tools() {
     // The external detection is now a world object where the pencil's pixels lie.
     let pencil = &report["pencil"]["position"]["center_of_mass"];
     let (px, py) = (pencil["x"].as_f64().unwrap(), pencil["y"].as_f64().unwrap());
-    let (ok, found) = call(port, "get_detected_objects", &["label=screwdriver"]);
-    assert!(ok, "{found}");
+    // The answer travels through Redis and the edge's consumer: ask until it has arrived.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+    let found = loop {
+        let (ok, found) = call(port, "get_detected_objects", &["label=screwdriver"]);
+        assert!(ok, "{found}");
+        if found["data"][0].is_object() || std::time::Instant::now() > deadline {
+            break found;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    };
     let screwdriver = &found["data"][0];
     assert_eq!(screwdriver["label"], "screwdriver", "{found}");
     let at = &screwdriver["position"]["center_of_mass"];

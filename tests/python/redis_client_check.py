@@ -5,8 +5,8 @@ Usage: python redis_client_check.py REDIS_PORT
 
 1. Reads the newest `robot_camera` entry and decodes its JPEG; reports the fields, the image
    size and mode, and the metadata.
-2. Finds the pencil in robotd's own newest `detected_objects` entry (its relative box).
-3. Acts as an external open-vocabulary detector: answers the newest camera frame with a
+2. Finds the pencil in robotd's own newest steady `detected_objects` entry (its relative box).
+3. Acts as an external open-vocabulary detector: answers that entry's camera frame with a
    vision-format detection of a "screwdriver" at the pencil's pixels (box and mask), naming
    the frame, and announces the label on `detectable_labels`.
 
@@ -46,17 +46,21 @@ def main(port: int) -> None:
     report["image"] = {"format": image.format, "size": list(image.size), "mode": image.mode}
     report["camera_metadata"] = json.loads(camera["metadata"])
 
-    def has_pencil(fields):
-        return any(o.get("label") == "pencil" for o in json.loads(fields.get("objects", "[]")))
+    def has_steady_pencil(fields):
+        # A view taken with the arm at rest: the frame robotd keeps for answers like ours.
+        pose = json.loads(fields.get("camera_pose", "{}"))
+        objects = json.loads(fields.get("objects", "[]"))
+        return pose.get("steady") is True and any(o.get("label") == "pencil" for o in objects)
 
-    ours = newest(r, "detected_objects", has_pencil)
+    ours = newest(r, "detected_objects", has_steady_pencil)
+    ours_pose = json.loads(ours["camera_pose"])
     pencil = next(o for o in json.loads(ours["objects"]) if o["label"] == "pencil")
     report["robotd_object_keys"] = sorted(pencil.keys())
     report["pencil"] = pencil
 
-    # The detector's answer to the newest frame, as OWLv2/YOLOE pipelines write it.
+    # The detector's answer to the frame the pencil was seen in, as OWLv2/YOLOE pipelines write
+    # it (answering another frame would put the pencil's box where the camera then looked).
     frame = newest(r, "robot_camera")
-    meta = json.loads(frame["metadata"])
     w, h = int(frame["width"]), int(frame["height"])
     box = pencil["image_coordinates"]["bounding_box_rel"]
     x0, y0 = int(box["u_min"] * w), int(box["v_min"] * h)
@@ -84,11 +88,11 @@ def main(port: int) -> None:
             "objects": json.dumps([detection]),
             "camera_pose": json.dumps(
                 {
-                    "timestamp": float(frame["timestamp"]),
+                    "timestamp": float(ours_pose["timestamp"]),
                     "object_count": 1,
                     "detection_method": "yoloe",
                     "model_id": "yoloe-11s-test",
-                    "frame_id": meta["frame_id"],
+                    "frame_id": ours_pose["frame_id"],
                 }
             ),
         },
@@ -107,7 +111,7 @@ def main(port: int) -> None:
         maxlen=1,
         approximate=True,
     )
-    report["sent_frame_id"] = meta["frame_id"]
+    report["sent_frame_id"] = ours_pose["frame_id"]
     report["sent_box"] = [x0, y0, x1, y1]
     print(json.dumps(report))
 
