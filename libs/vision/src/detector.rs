@@ -18,11 +18,13 @@
 //!    (first guess the table, then the label rule's height) to name it by the label table.
 
 use crate::camera::Camera;
-use crate::components::Components;
+use crate::components::{Blob, Components};
 use crate::footprint::{measure, Footprint, Sighting};
 use crate::labels::{hue_signature, HeightRule, LabelTable, ShapeClass};
 use crate::plane::TablePlane;
 use crate::rect::{normalise_half_turn, normalise_quarter_turn};
+use crate::shade::LocalMean;
+use crate::spans::sheet_spans;
 use robotd_protocol::objects::{DetectedObject, RelBox, RelPoint};
 use robotd_protocol::workspace::WorkspaceInfo;
 
@@ -91,6 +93,9 @@ pub struct ColourDetectorSettings {
     pub unknown_height_m: f64,
     /// Objects whose centre lies farther than this outside the workspace are dropped, metres.
     pub outside_tolerance_m: f64,
+    /// Dark objects are looked for only this far inside the workspace rectangle, metres,
+    /// where the sheet is plain white (clear of the markers and the border's stripes).
+    pub plain_inset_m: f64,
 }
 
 impl Default for ColourDetectorSettings {
@@ -101,14 +106,24 @@ impl Default for ColourDetectorSettings {
             min_top_px: 12,
             unknown_height_m: 0.02,
             outside_tolerance_m: 0.01,
+            plain_inset_m: 0.012,
         }
     }
 }
 
 /// Pixels need at least this much chroma (max − min of r, g, b) to be part of an object.
 const MIN_CHROMA: u8 = 35;
+/// Pixels without hue are part of an object when darker than this share (per cent) of the
+/// sheet around them: black plastic, a dark wrapper — not the shadows objects cast.
+const DARK_OBJECT_PERCENT: u32 = 45;
 /// A pixel's hue signature must be this close to a colour of the table to take its class.
 const MAX_HUE_DISTANCE: f32 = 0.45;
+
+/// The label of an object whose colour is not in the label table (or that is much darker than
+/// the sheet): reported with its geometry, for an external detector or the user to name.
+pub const UNKNOWN_LABEL: &str = "unknown object";
+/// The confidence given to such objects.
+const UNKNOWN_CONFIDENCE: f64 = 0.3;
 
 /// Top faces closer to square than this (long/short) are treated as squares for the gripper
 /// rotation: it is reported modulo 90°.
@@ -121,6 +136,8 @@ pub struct ColourDetector {
     settings: ColourDetectorSettings,
     classes: Vec<u8>,
     spans: Vec<(u16, u16)>,
+    inner_spans: Vec<(u16, u16)>,
+    shade: LocalMean,
     components: Components,
 }
 
@@ -132,6 +149,8 @@ impl ColourDetector {
             settings,
             classes: Vec::new(),
             spans: Vec::new(),
+            inner_spans: Vec::new(),
+            shade: LocalMean::default(),
             components: Components::new(),
         }
     }
@@ -141,57 +160,10 @@ impl ColourDetector {
         &self.table
     }
 
-    /// For each image row, the columns `[start, end)` inside the sheet.
-    fn sheet_spans(&mut self, sheet: &SheetView<'_>, width: usize, height: usize) {
-        let ws = sheet.workspace;
-        let m = self.settings.sheet_margin_m;
-        let (x0, x1) = (ws.lower_right.x_m - m, ws.upper_left.x_m + m);
-        let (y0, y1) = (ws.lower_right.y_m - m, ws.upper_left.y_m + m);
-        // The sheet's outline, sampled densely enough to follow the lens's curvature.
-        let corners = [[x1, y1], [x1, y0], [x0, y0], [x0, y1]];
-        let mut outline = Vec::with_capacity(64);
-        for k in 0..4 {
-            let (a, b) = (corners[k], corners[(k + 1) % 4]);
-            for s in 0..16 {
-                let t = f64::from(s) / 16.0;
-                let p = [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
-                outline.push(sheet.camera.raw_of(sheet.plane.table_to_pixel(p[0], p[1])));
-            }
-        }
-        self.spans.clear();
-        self.spans.resize(height, (0, 0));
-        let mut lo = vec![f64::INFINITY; height];
-        let mut hi = vec![f64::NEG_INFINITY; height];
-        let n = outline.len();
-        for k in 0..n {
-            let (a, b) = (outline[k], outline[(k + 1) % n]);
-            if !(a.iter().chain(&b).all(|c| c.is_finite())) {
-                continue;
-            }
-            let (v_min, v_max) = (a[1].min(b[1]), a[1].max(b[1]));
-            let first = v_min.ceil().max(0.0) as usize;
-            let last = (v_max.floor().min(height as f64 - 1.0)).max(-1.0);
-            if last < 0.0 {
-                continue;
-            }
-            for v in first..=last as usize {
-                let vf = v as f64;
-                let u = if (b[1] - a[1]).abs() < 1e-9 {
-                    a[0]
-                } else {
-                    a[0] + (b[0] - a[0]) * (vf - a[1]) / (b[1] - a[1])
-                };
-                lo[v] = lo[v].min(u);
-                hi[v] = hi[v].max(u);
-            }
-        }
-        for v in 0..height {
-            if lo[v] <= hi[v] {
-                let start = lo[v].ceil().clamp(0.0, width as f64) as u16;
-                let end = (hi[v].floor() + 1.0).clamp(0.0, width as f64) as u16;
-                self.spans[v] = (start, end.max(start));
-            }
-        }
+    /// The class of pixels that belong to an object of no colour in the table: another hue,
+    /// or much darker than the sheet.
+    fn unknown_class(&self) -> u8 {
+        (self.table.colours.len() + 1).min(255) as u8
     }
 
     fn classify_pixels(&mut self, frame: &FrameView<'_>) {
@@ -199,6 +171,9 @@ impl ColourDetector {
         self.classes.clear();
         self.classes.resize(w * h, 0);
         let signatures: Vec<[f32; 3]> = self.table.colours.iter().map(|c| c.signature).collect();
+        let unknown = self.unknown_class();
+        self.shade.compute(frame.rgb, w, h);
+        let dark_half = (w.min(h) / 6).max(8);
         for v in 0..h {
             let (start, end) = self.spans[v];
             let row = v * w;
@@ -209,6 +184,15 @@ impl ColourDetector {
                 let min = p[0].min(p[1]).min(p[2]);
                 let chroma = max - min;
                 if chroma < MIN_CHROMA || u32::from(chroma) * 4 < u32::from(max) {
+                    // No hue: the white sheet, its grey stripes and logo, shadows — or a dark
+                    // object, far darker than the sheet around it (only where the sheet is
+                    // plain: inside its markers, clear of the stripes and the markers).
+                    let (a, b) = self.inner_spans[v];
+                    if (a as usize..b as usize).contains(&u)
+                        && self.shade.darker_than(u, v, dark_half, DARK_OBJECT_PERCENT)
+                    {
+                        self.classes[i] = unknown;
+                    }
                     continue;
                 }
                 let inv = 1.0 / f32::from(chroma);
@@ -224,12 +208,37 @@ impl ColourDetector {
                         best = (k, d);
                     }
                 }
-                if best.1 <= MAX_HUE_DISTANCE * MAX_HUE_DISTANCE {
-                    self.classes[i] = best.0 as u8 + 1;
+                self.classes[i] = if best.1 <= MAX_HUE_DISTANCE * MAX_HUE_DISTANCE {
+                    best.0 as u8 + 1
+                } else {
+                    unknown
+                };
+            }
+        }
+    }
+}
+
+/// Which blobs to leave out because another blob covers the same object: a dark or
+/// unknown-coloured blob touches or overlaps a coloured one (their boxes, grown by two pixels,
+/// intersect) — a pad's black rim around its colour, a wrapper's coloured letters on black, the
+/// deep shadow at a cube's foot. The larger of the two stands for the object.
+fn hidden_by_overlap(blobs: &[Blob], unknown: u8) -> Vec<bool> {
+    let touch = |a: &Blob, b: &Blob| {
+        a.u_min <= b.u_max + 2 && b.u_min <= a.u_max + 2 && a.v_min <= b.v_max + 2 && b.v_min <= a.v_max + 2
+    };
+    let mut hidden = vec![false; blobs.len()];
+    for (i, u) in blobs.iter().enumerate().filter(|(_, b)| b.class == unknown) {
+        for (j, c) in blobs.iter().enumerate().filter(|(_, b)| b.class != unknown) {
+            if touch(u, c) {
+                if u.area > c.area {
+                    hidden[j] = true;
+                } else {
+                    hidden[i] = true;
                 }
             }
         }
     }
+    hidden
 }
 
 /// The pixels of a blob that belong to its top face: nearly as bright and as saturated as the
@@ -294,7 +303,8 @@ impl Detector for ColourDetector {
                 ),
             });
         }
-        self.sheet_spans(sheet, w, h);
+        sheet_spans(sheet, self.settings.sheet_margin_m, w, h, &mut self.spans);
+        sheet_spans(sheet, -self.settings.plain_inset_m, w, h, &mut self.inner_spans);
         self.classify_pixels(frame);
         self.components
             .label(&self.classes, w, h, self.settings.min_blob_px);
@@ -302,16 +312,22 @@ impl Detector for ColourDetector {
         let timestamp = frame.timestamp_unix_ns as f64 / 1e9;
         let ws = sheet.workspace;
         let mut objects = Vec::new();
-        for blob in self.components.blobs() {
+        let unknown = self.unknown_class();
+        let blobs = self.components.blobs();
+        let hidden = hidden_by_overlap(blobs, unknown);
+        for (blob, _) in blobs.iter().zip(&hidden).filter(|(_, hide)| !**hide) {
             let pixels = self.components.pixels(blob);
-            let top = top_face(frame.rgb, pixels);
+            // A dark or unknown-coloured object has no reliable brightest face: all of it.
+            let top = if blob.class == unknown {
+                pixels.to_vec()
+            } else {
+                top_face(frame.rgb, pixels)
+            };
             if top.len() < self.settings.min_top_px {
                 continue;
             }
             let colour = usize::from(blob.class - 1);
-            let Some(colour_ref) = self.table.colours.get(colour) else {
-                continue;
-            };
+            let colour_ref = self.table.colours.get(colour);
 
             // Measure on the table first, then at the height of the rule that names it.
             let mut height_m = 0.0;
@@ -359,7 +375,8 @@ impl Detector for ColourDetector {
             }
             let mean = mean.map(|s| s / top.len() as f32);
             let hue_distance = hue_signature(mean)
-                .map(|s| {
+                .zip(colour_ref)
+                .map(|(s, colour_ref)| {
                     s.iter()
                         .zip(&colour_ref.signature)
                         .map(|(a, b)| (a - b) * (a - b))
@@ -368,12 +385,16 @@ impl Detector for ColourDetector {
                 })
                 .unwrap_or(1.0);
             let shape_fit = if rule.is_some() { 1.0 } else { 0.6 };
-            let confidence =
-                (f64::from(1.0 - hue_distance / MAX_HUE_DISTANCE) * shape_fit).clamp(0.05, 0.99);
+            let confidence = if colour_ref.is_none() {
+                UNKNOWN_CONFIDENCE
+            } else {
+                (f64::from(1.0 - hue_distance / MAX_HUE_DISTANCE) * shape_fit).clamp(0.05, 0.99)
+            };
 
-            let (label, class_id) = match rule {
-                Some(r) => (self.table.rules[r].label.clone(), r as i64),
-                None => (format!("{} {}", colour_ref.name, shape.noun()), -1),
+            let (label, class_id) = match (rule, colour_ref) {
+                (Some(r), _) => (self.table.rules[r].label.clone(), r as i64),
+                (None, Some(c)) => (format!("{} {}", c.name, shape.noun()), -1),
+                (None, None) => (UNKNOWN_LABEL.to_owned(), -1),
             };
             // A square looks the same turned by 90°: report the smallest such rotation.
             let aspect = fp.rect.long / fp.rect.short.max(1e-6);

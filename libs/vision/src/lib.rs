@@ -48,5 +48,9 @@ pub mod markers;
 pub mod pipeline;
 pub mod plane;
 pub mod rect;
+pub mod shade;
+pub mod spans;
+pub mod still;
+pub mod warped;
 
 pub use pipeline::{Pipeline, PipelineError, SheetStatus};

@@ -1,0 +1,78 @@
+//! Local brightness: the mean grey level of the square around a pixel, in constant time.
+//!
+//! Real light is uneven — the arm's shadow, a lamp's glare, a lens that darkens the corners —
+//! so "dark" and "bright" must be judged against the neighbourhood, not a fixed level. A
+//! summed-area table (integral image) holds at each position the sum of all grey levels above
+//! and to the left; any square's sum is then four look-ups, whatever its size.
+//!
+//! ```
+//! use robotd_vision::shade::LocalMean;
+//!
+//! let rgb = [[10u8, 10, 10], [200, 200, 200]].repeat(8).concat(); // 4×4, alternating
+//! let mut shade = LocalMean::default();
+//! shade.compute(&rgb, 4, 4);
+//! assert_eq!(shade.grey(0, 0), 10);
+//! assert!((shade.mean(1, 1, 1) - 105.0).abs() < 25.0);
+//! ```
+
+/// Grey levels of a frame and their summed-area table.
+#[derive(Debug, Default, Clone)]
+pub struct LocalMean {
+    grey: Vec<u8>,
+    integral: Vec<u64>,
+    width: usize,
+    height: usize,
+}
+
+impl LocalMean {
+    /// Computes the grey levels (Rec. 601 luma) and their summed-area table of an RGB8 frame.
+    pub fn compute(&mut self, rgb: &[u8], width: usize, height: usize) {
+        let n = width * height;
+        self.width = width;
+        self.height = height;
+        self.grey.clear();
+        self.grey.extend(rgb[..n * 3].chunks_exact(3).map(|p| {
+            ((u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8) as u8
+        }));
+        // One zero row and column in front: (width + 1) × (height + 1).
+        let stride = width + 1;
+        self.integral.clear();
+        self.integral.resize(stride * (height + 1), 0);
+        for v in 0..height {
+            let mut row_sum = 0u64;
+            for u in 0..width {
+                row_sum += u64::from(self.grey[v * width + u]);
+                self.integral[(v + 1) * stride + u + 1] = self.integral[v * stride + u + 1] + row_sum;
+            }
+        }
+    }
+
+    /// The grey level of pixel `(u, v)`.
+    pub fn grey(&self, u: usize, v: usize) -> u8 {
+        self.grey[v * self.width + u]
+    }
+
+    /// The sum of grey levels and the pixel count of the square of half-side `half` around
+    /// `(u, v)`, clipped to the frame.
+    pub fn sum(&self, u: usize, v: usize, half: usize) -> (u64, u64) {
+        let (u0, u1) = (u.saturating_sub(half), (u + half + 1).min(self.width));
+        let (v0, v1) = (v.saturating_sub(half), (v + half + 1).min(self.height));
+        let stride = self.width + 1;
+        let sum = self.integral[v1 * stride + u1] + self.integral[v0 * stride + u0]
+            - self.integral[v0 * stride + u1]
+            - self.integral[v1 * stride + u0];
+        (sum, ((v1 - v0) * (u1 - u0)) as u64)
+    }
+
+    /// The mean grey level of the square of half-side `half` around `(u, v)`.
+    pub fn mean(&self, u: usize, v: usize, half: usize) -> f64 {
+        let (sum, count) = self.sum(u, v, half);
+        sum as f64 / count.max(1) as f64
+    }
+
+    /// Whether pixel `(u, v)` is darker than `percent` % of its neighbourhood's mean.
+    pub fn darker_than(&self, u: usize, v: usize, half: usize, percent: u32) -> bool {
+        let (sum, count) = self.sum(u, v, half);
+        u64::from(self.grey(u, v)) * 100 * count < sum * u64::from(percent)
+    }
+}
