@@ -82,16 +82,20 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
 
     let workspaces = config.robot.workspace_infos();
     let workspace = match &args.workspace {
-        Some(id) => workspaces.iter().find(|w| &w.id == id).cloned().with_context(|| {
-            format!(
-                "no workspace '{id}' is configured (configured: {})",
-                workspaces
-                    .iter()
-                    .map(|w| w.id.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        })?,
+        Some(id) => workspaces
+            .iter()
+            .find(|w| &w.id == id)
+            .cloned()
+            .with_context(|| {
+                format!(
+                    "no workspace '{id}' is configured (configured: {})",
+                    workspaces
+                        .iter()
+                        .map(|w| w.id.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })?,
         None => workspaces
             .first()
             .cloned()
@@ -221,10 +225,17 @@ fn pinhole(width: usize, height: usize) -> CameraIntrinsics {
 }
 
 /// The camera intrinsics to use, and how to describe them.
-fn camera_for(args: &DetectArgs, width: usize, height: usize) -> Result<(CameraIntrinsics, String)> {
+fn camera_for(
+    args: &DetectArgs,
+    width: usize,
+    height: usize,
+) -> Result<(CameraIntrinsics, String)> {
     let (intrinsics, name) = match (&args.camera, &args.intrinsics) {
         (Some(CameraModel::Ned2), _) => (Intrinsics::ned2().into(), "ned2".to_owned()),
-        (None, Some(path)) => (read_intrinsics(path)?, format!("intrinsics from {}", path.display())),
+        (None, Some(path)) => (
+            read_intrinsics(path)?,
+            format!("intrinsics from {}", path.display()),
+        ),
         (None, None) => (
             pinhole(width, height),
             "pinhole guessed from the image size (no --camera or --intrinsics)".to_owned(),

@@ -18,8 +18,9 @@
 //!    (first guess the table, then the label rule's height) to name it by the label table.
 
 use crate::camera::Camera;
-use crate::components::{Blob, Components};
+use crate::components::Components;
 use crate::footprint::{measure, Footprint, Sighting};
+use crate::groups::group_fragments;
 use crate::labels::{hue_signature, HeightRule, LabelTable, ShapeClass};
 use crate::plane::TablePlane;
 use crate::rect::{normalise_half_turn, normalise_quarter_turn};
@@ -218,27 +219,17 @@ impl ColourDetector {
     }
 }
 
-/// Which blobs to leave out because another blob covers the same object: a dark or
-/// unknown-coloured blob touches or overlaps a coloured one (their boxes, grown by two pixels,
-/// intersect) — a pad's black rim around its colour, a wrapper's coloured letters on black, the
-/// deep shadow at a cube's foot. The larger of the two stands for the object.
-fn hidden_by_overlap(blobs: &[Blob], unknown: u8) -> Vec<bool> {
-    let touch = |a: &Blob, b: &Blob| {
-        a.u_min <= b.u_max + 2 && b.u_min <= a.u_max + 2 && a.v_min <= b.v_max + 2 && b.v_min <= a.v_max + 2
-    };
-    let mut hidden = vec![false; blobs.len()];
-    for (i, u) in blobs.iter().enumerate().filter(|(_, b)| b.class == unknown) {
-        for (j, c) in blobs.iter().enumerate().filter(|(_, b)| b.class != unknown) {
-            if touch(u, c) {
-                if u.area > c.area {
-                    hidden[j] = true;
-                } else {
-                    hidden[i] = true;
-                }
-            }
-        }
+/// How many pixels a metre on the table spans at the workspace's centre (raw image).
+fn pixels_per_metre(sheet: &SheetView<'_>) -> f64 {
+    let c = sheet.workspace.center();
+    let at = |x: f64, y: f64| sheet.camera.raw_of(sheet.plane.table_to_pixel(x, y));
+    let (a, b) = (at(c.x_m, c.y_m), at(c.x_m + 0.01, c.y_m));
+    let d = (a[0] - b[0]).hypot(a[1] - b[1]) / 0.01;
+    if d.is_finite() {
+        d
+    } else {
+        1000.0
     }
-    hidden
 }
 
 /// The pixels of a blob that belong to its top face: nearly as bright and as saturated as the
@@ -304,7 +295,13 @@ impl Detector for ColourDetector {
             });
         }
         sheet_spans(sheet, self.settings.sheet_margin_m, w, h, &mut self.spans);
-        sheet_spans(sheet, -self.settings.plain_inset_m, w, h, &mut self.inner_spans);
+        sheet_spans(
+            sheet,
+            -self.settings.plain_inset_m,
+            w,
+            h,
+            &mut self.inner_spans,
+        );
         self.classify_pixels(frame);
         self.components
             .label(&self.classes, w, h, self.settings.min_blob_px);
@@ -313,15 +310,16 @@ impl Detector for ColourDetector {
         let ws = sheet.workspace;
         let mut objects = Vec::new();
         let unknown = self.unknown_class();
-        let blobs = self.components.blobs();
-        let hidden = hidden_by_overlap(blobs, unknown);
-        for (blob, _) in blobs.iter().zip(&hidden).filter(|(_, hide)| !**hide) {
-            let pixels = self.components.pixels(blob);
+        // Fragments 2 mm apart are one object; small dark pieces 8 mm from a larger one join it.
+        let px_per_m = pixels_per_metre(sheet);
+        let gap = (0.002 * px_per_m).round().clamp(2.0, 50.0) as u32;
+        let absorb_gap = (0.008 * px_per_m).round().clamp(2.0, 150.0) as u32;
+        for blob in group_fragments(&self.components, unknown, w, gap, absorb_gap) {
             // A dark or unknown-coloured object has no reliable brightest face: all of it.
             let top = if blob.class == unknown {
-                pixels.to_vec()
+                blob.pixels.clone()
             } else {
-                top_face(frame.rgb, pixels)
+                top_face(frame.rgb, &blob.pixels)
             };
             if top.len() < self.settings.min_top_px {
                 continue;

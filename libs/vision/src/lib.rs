@@ -43,6 +43,7 @@ pub mod components;
 pub mod detector;
 pub mod external;
 pub mod footprint;
+pub mod groups;
 pub mod labels;
 pub mod markers;
 pub mod pipeline;

@@ -95,7 +95,10 @@ impl MarkerFinder {
             .iter()
             .filter(|b| {
                 let (w, h) = (b.box_width(), b.box_height());
-                (2..=max_side).contains(&w) && (2..=max_side).contains(&h) && w <= 3 * h && h <= 3 * w
+                (2..=max_side).contains(&w)
+                    && (2..=max_side).contains(&h)
+                    && w <= 3 * h
+                    && h <= 3 * w
             })
             .copied()
             .collect();

@@ -42,7 +42,8 @@ impl LocalMean {
             let mut row_sum = 0u64;
             for u in 0..width {
                 row_sum += u64::from(self.grey[v * width + u]);
-                self.integral[(v + 1) * stride + u + 1] = self.integral[v * stride + u + 1] + row_sum;
+                self.integral[(v + 1) * stride + u + 1] =
+                    self.integral[v * stride + u + 1] + row_sum;
             }
         }
     }

@@ -11,11 +11,11 @@ use crate::detector::SheetView;
 /// For each image row, the columns `[start, end)` whose pixels see the workspace rectangle grown
 /// by `margin_m` (shrunk when negative), written to `spans`.
 pub fn sheet_spans(
-sheet: &SheetView<'_>,
-margin_m: f64,
-width: usize,
-height: usize,
-spans: &mut Vec<(u16, u16)>,
+    sheet: &SheetView<'_>,
+    margin_m: f64,
+    width: usize,
+    height: usize,
+    spans: &mut Vec<(u16, u16)>,
 ) {
     let ws = sheet.workspace;
     let m = margin_m;

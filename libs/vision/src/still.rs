@@ -44,7 +44,9 @@ pub enum StillError {
         reason: String,
     },
     /// The image is larger than [`MAX_SIDE`] a side.
-    #[error("{path} is {width}x{height} pixels; at most {MAX_SIDE} a side is accepted (scale it down)")]
+    #[error(
+        "{path} is {width}x{height} pixels; at most {MAX_SIDE} a side is accepted (scale it down)"
+    )]
     TooLarge {
         /// The file.
         path: String,
@@ -113,10 +115,17 @@ mod tests {
 
     #[test]
     fn bad_input_is_an_error_naming_the_file() {
-        let missing = load(Path::new("no/such/photo.jpg")).unwrap_err().to_string();
+        let missing = load(Path::new("no/such/photo.jpg"))
+            .unwrap_err()
+            .to_string();
         assert!(missing.contains("no/such/photo.jpg"), "{missing}");
-        let text = decode(b"hello, not a picture", "notes.txt").unwrap_err().to_string();
-        assert!(text.contains("notes.txt") && text.contains("not an image"), "{text}");
+        let text = decode(b"hello, not a picture", "notes.txt")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            text.contains("notes.txt") && text.contains("not an image"),
+            "{text}"
+        );
         // A JPEG header that claims 60000 x 60000 pixels is refused before decoding.
         let mut huge = vec![0xFF, 0xD8, 0xFF, 0xC0, 0x00, 0x11, 0x08];
         huge.extend_from_slice(&60000u16.to_be_bytes());
@@ -124,7 +133,10 @@ mod tests {
         huge.extend_from_slice(&[3, 1, 0x22, 0, 2, 0x11, 1, 3, 0x11, 1]);
         let err = decode(&huge, "huge.jpg").unwrap_err().to_string();
         assert!(err.contains("huge.jpg"), "{err}");
-        assert!(err.contains("8192") || err.contains("not an image"), "{err}");
+        assert!(
+            err.contains("8192") || err.contains("not an image"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -132,7 +144,10 @@ mod tests {
         let rgb = vec![200u8; 16 * 8 * 3];
         let jpeg = robotd_render::encode_jpeg(&rgb, 16, 8, 90).unwrap();
         let image = decode(&jpeg, "small.jpg").unwrap();
-        assert_eq!((image.width, image.height, image.rgb.len()), (16, 8, 16 * 8 * 3));
+        assert_eq!(
+            (image.width, image.height, image.rgb.len()),
+            (16, 8, 16 * 8 * 3)
+        );
         assert!(image.rgb.iter().all(|&c| c.abs_diff(200) < 6));
     }
 }
