@@ -52,8 +52,8 @@ impl std::fmt::Display for SheetStatus {
             ),
             Self::MarkersMissing { seen } => write!(
                 f,
-                "only {seen} of the 4 workspace markers are in view (one may be covered by an \
-                 object, in shadow or out of the picture)"
+                "no workspace in view: only {seen} of the 4 workspace markers were found (one \
+                 may be covered by an object, in shadow or out of the picture)"
             ),
             Self::Degenerate => write!(
                 f,

@@ -8,11 +8,14 @@
 //! ```
 //! use robotd_vision::shade::LocalMean;
 //!
-//! let rgb = [[10u8, 10, 10], [200, 200, 200]].repeat(8).concat(); // 4×4, alternating
+//! // A 5×5 white patch with one dark pixel in the middle.
+//! let mut rgb = vec![200u8; 5 * 5 * 3];
+//! rgb[(2 * 5 + 2) * 3..][..3].fill(20);
 //! let mut shade = LocalMean::default();
-//! shade.compute(&rgb, 4, 4);
-//! assert_eq!(shade.grey(0, 0), 10);
-//! assert!((shade.mean(1, 1, 1) - 105.0).abs() < 25.0);
+//! shade.compute(&rgb, 5, 5);
+//! assert_eq!(shade.grey(2, 2), 20);
+//! assert!((shade.mean(2, 2, 2) - (24.0 * 200.0 + 20.0) / 25.0).abs() < 1e-9);
+//! assert!(shade.darker_than(2, 2, 2, 62) && !shade.darker_than(0, 0, 2, 62));
 //! ```
 
 /// Grey levels of a frame and their summed-area table.
