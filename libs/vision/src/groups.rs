@@ -83,17 +83,17 @@ pub fn group_fragments(
     let mut area = vec![0u32; n];
     let mut unknown_area = vec![0u32; n];
     let mut boxes = vec![[u32::MAX, u32::MAX, 0, 0]; n];
-    for i in 0..n {
+    for (i, blob) in blobs.iter().enumerate() {
         let r = root(&mut parent, i);
-        area[r] += blobs[i].area;
-        if blobs[i].class == unknown {
-            unknown_area[r] += blobs[i].area;
+        area[r] += blob.area;
+        if blob.class == unknown {
+            unknown_area[r] += blob.area;
         }
         let b = &mut boxes[r];
-        b[0] = b[0].min(blobs[i].u_min);
-        b[1] = b[1].min(blobs[i].v_min);
-        b[2] = b[2].max(blobs[i].u_max);
-        b[3] = b[3].max(blobs[i].v_max);
+        b[0] = b[0].min(blob.u_min);
+        b[1] = b[1].min(blob.v_min);
+        b[2] = b[2].max(blob.u_max);
+        b[3] = b[3].max(blob.v_max);
     }
     let roots: Vec<usize> = (0..n).filter(|&i| parent[i] == i).collect();
     for &small in roots.iter().filter(|&&r| unknown_area[r] * 2 > area[r]) {

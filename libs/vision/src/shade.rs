@@ -76,6 +76,10 @@ impl LocalMean {
 
     /// Whether pixel `(u, v)` is darker than `percent` % of its neighbourhood's mean.
     pub fn darker_than(&self, u: usize, v: usize, half: usize, percent: u32) -> bool {
+        // No mean is above 255: a pixel at or above `percent` % of 255 is never darker.
+        if u32::from(self.grey(u, v)) * 100 >= 255 * percent {
+            return false;
+        }
         let (sum, count) = self.sum(u, v, half);
         u64::from(self.grey(u, v)) * 100 * count < sum * u64::from(percent)
     }
