@@ -9,8 +9,12 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// The variable naming the photos' folder. robotd reads every other `ROBOTD_*` variable as a
+/// configuration key and refuses unknown ones, so it is removed from robotd's environment.
+const PHOTOS_VAR: &str = "ROBOTD_REAL_IMAGES";
+
 fn photos() -> Option<PathBuf> {
-    let dir = std::env::var_os("ROBOTD_REAL_IMAGES")
+    let dir = std::env::var_os(PHOTOS_VAR)
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/real_images"));
     if dir.is_dir() {
@@ -42,6 +46,7 @@ fn detect(args: &[&str], image: &Path) -> Value {
     let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
         .arg("detect")
         .arg(image)
+        .env_remove(PHOTOS_VAR)
         .args(["--json"])
         .args(args)
         .output()
@@ -202,6 +207,7 @@ fn bad_input_is_refused_with_the_reason_never_a_panic() {
         let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
             .arg("detect")
             .arg(file)
+            .env_remove(PHOTOS_VAR)
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&output.stderr);
