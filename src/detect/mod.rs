@@ -105,7 +105,15 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
         Some(path) => LabelTable::load(path)?,
         None => LabelTable::builtin(),
     };
-    let (intrinsics, camera) = camera_for(args, width, height)?;
+    let looks_warped =
+        args.warped || robotd_vision::warped::looks_warped(&image.rgb, width, height);
+    let (intrinsics, camera) = match camera_for(args, width, height) {
+        Ok(found) => found,
+        // A warped image has no camera of its own: the size of the camera's frames does not
+        // matter for it.
+        Err(_) if looks_warped => (pinhole(width, height), "warped".into()),
+        Err(error) => return Err(error),
+    };
     let frame = FrameView {
         rgb: &image.rgb,
         width,
@@ -131,9 +139,9 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
         },
     };
 
-    // The sheet from its markers.
-    let t0 = Instant::now();
+    // The sheet from its markers (setting up the camera's undistortion table is not timed).
     let mut pipeline = pipeline_for(&intrinsics, &workspace, &table)?;
+    let t0 = Instant::now();
     let markers = pipeline.find_markers(&frame);
     let located = if args.warped {
         None
@@ -149,7 +157,7 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
             corners = Some(four);
             sheet = Some((pipeline, plane));
         }
-        Some(Err(status)) if !robotd_vision::warped::looks_warped(&image.rgb, width, height) => {
+        Some(Err(status)) if !looks_warped => {
             report.status = status.to_string();
         }
         _ => {
