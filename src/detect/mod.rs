@@ -161,8 +161,13 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
             report.status = status.to_string();
         }
         _ => {
-            // Already the workspace square: a distortion-free camera of the image's size.
-            let warped = pipeline_for(&pinhole(width, height), &workspace, &table)?;
+            // Already the workspace square: a virtual distortion-free camera straight above the
+            // workspace's centre, at its observation pose's height (where the real camera that
+            // took the picture about was), so raised objects' parallax is corrected about right.
+            let across_m = (workspace.upper_left.y_m - workspace.lower_right.y_m).abs();
+            let height_m = workspace.observation_pose.z_m.max(0.05);
+            let f = height_m * width as f64 / across_m.max(1e-3);
+            let warped = pipeline_for(&pinhole_with(width, height, f), &workspace, &table)?;
             match warped.warped_plane(&workspace) {
                 Some(plane) => {
                     report.mode = "warped".into();
@@ -219,7 +224,11 @@ fn ms(since: Instant) -> f64 {
 
 /// A distortion-free pinhole for an image of this size, about 53° across its wider side.
 fn pinhole(width: usize, height: usize) -> CameraIntrinsics {
-    let f = width.max(height) as f64;
+    pinhole_with(width, height, width.max(height) as f64)
+}
+
+/// A distortion-free pinhole for an image of this size with focal length `f` pixels.
+fn pinhole_with(width: usize, height: usize, f: f64) -> CameraIntrinsics {
     Intrinsics {
         width: width as u32,
         height: height as u32,
