@@ -338,4 +338,59 @@ mod tests {
         assert!(assign_corners(&no_origin).is_none());
         assert!(finder.find_markers(&[245; 30], 5, 2).is_empty());
     }
+
+    /// A real Niryo marker: dark between the given radii (fractions of `r`) on light grey.
+    fn draw_bands(
+        img: &mut [u8],
+        width: usize,
+        c: [f64; 2],
+        r: f64,
+        bands: &[(f64, f64)],
+        ink: u8,
+    ) {
+        let height = img.len() / 3 / width;
+        for v in 0..height {
+            for u in 0..width {
+                let d = (u as f64 - c[0]).hypot(v as f64 - c[1]) / r;
+                if bands.iter().any(|&(a, b)| d >= a && d <= b) {
+                    img[(v * width + u) * 3..][..3].fill(ink);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_real_sheets_reference_has_one_ring_fewer_even_in_shade() {
+        let (w, h) = (320, 240);
+        let mut img = vec![0u8; w * h * 3];
+        // Lit from the left: the sheet goes from 230 down to 120.
+        for v in 0..h {
+            for u in 0..w {
+                img[(v * w + u) * 3..][..3].fill((230 - 110 * u / w) as u8);
+            }
+        }
+        let reference = [(0.0, 0.3), (0.5, 0.7), (0.85, 1.0)];
+        let other = [(0.0, 0.08), (0.25, 0.4), (0.55, 0.7), (0.85, 1.0)];
+        let centres = [[60.0, 50.0], [260.0, 52.0], [58.0, 190.0], [262.0, 188.0]];
+        for (k, c) in centres.iter().enumerate() {
+            // Printed black is dark grey, and darker still in the shade on the right.
+            let ink = if c[0] > 160.0 { 35 } else { 70 };
+            draw_bands(
+                &mut img,
+                w,
+                *c,
+                18.0,
+                if k == 0 { &reference } else { &other },
+                ink,
+            );
+        }
+        let mut finder = MarkerFinder::new();
+        let markers = finder.find_markers(&img, w, h);
+        assert_eq!(markers.len(), 4, "{markers:?}");
+        let [first, _] = assign_corners(&markers).unwrap();
+        assert!((first[0].centre_px[0] - 60.0).abs() < 0.5, "{first:?}");
+        assert!((first[0].centre_px[1] - 50.0).abs() < 0.5, "{first:?}");
+        assert!(first[0].rings < first[1].rings);
+        assert!((first[3].centre_px[0] - 262.0).abs() < 0.5, "diagonal last");
+    }
 }
