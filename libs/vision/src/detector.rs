@@ -138,6 +138,7 @@ pub struct ColourDetector {
     classes: Vec<u8>,
     spans: Vec<(u16, u16)>,
     inner_spans: Vec<(u16, u16)>,
+    dark_candidates: Vec<u32>,
     shade: LocalMean,
     components: Components,
 }
@@ -151,6 +152,7 @@ impl ColourDetector {
             classes: Vec::new(),
             spans: Vec::new(),
             inner_spans: Vec::new(),
+            dark_candidates: Vec::new(),
             shade: LocalMean::default(),
             components: Components::new(),
         }
@@ -173,8 +175,7 @@ impl ColourDetector {
         self.classes.resize(w * h, 0);
         let signatures: Vec<[f32; 3]> = self.table.colours.iter().map(|c| c.signature).collect();
         let unknown = self.unknown_class();
-        self.shade.compute(frame.rgb, w, h);
-        let dark_half = (w.min(h) / 6).max(8);
+        self.dark_candidates.clear();
         for v in 0..h {
             let (start, end) = self.spans[v];
             let row = v * w;
@@ -189,10 +190,12 @@ impl ColourDetector {
                     // object, far darker than the sheet around it (only where the sheet is
                     // plain: inside its markers, clear of the stripes and the markers).
                     let (a, b) = self.inner_spans[v];
+                    let grey =
+                        (u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8;
                     if (a as usize..b as usize).contains(&u)
-                        && self.shade.darker_than(u, v, dark_half, DARK_OBJECT_PERCENT)
+                        && grey * 100 < 255 * DARK_OBJECT_PERCENT
                     {
-                        self.classes[i] = unknown;
+                        self.dark_candidates.push(i as u32);
                     }
                     continue;
                 }
@@ -214,6 +217,18 @@ impl ColourDetector {
                 } else {
                     unknown
                 };
+            }
+        }
+        // Only pixels dark enough to be part of a dark object need the sheet's brightness
+        // around them (on the simulator's sheets there are none).
+        if !self.dark_candidates.is_empty() {
+            self.shade.compute(frame.rgb, w, h);
+            let half = (w.min(h) / 6).max(8);
+            for &i in &self.dark_candidates {
+                let (u, v) = (i as usize % w, i as usize / w);
+                if self.shade.darker_than(u, v, half, DARK_OBJECT_PERCENT) {
+                    self.classes[i as usize] = unknown;
+                }
             }
         }
     }

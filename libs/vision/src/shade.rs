@@ -22,7 +22,7 @@
 #[derive(Debug, Default, Clone)]
 pub struct LocalMean {
     grey: Vec<u8>,
-    integral: Vec<u64>,
+    integral: Vec<u32>,
     width: usize,
     height: usize,
 }
@@ -37,16 +37,19 @@ impl LocalMean {
         self.grey.extend(rgb[..n * 3].chunks_exact(3).map(|p| {
             ((u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8) as u8
         }));
-        // One zero row and column in front: (width + 1) × (height + 1).
+        // One zero row and column in front: (width + 1) × (height + 1). The sums wrap around
+        // 2³²; a square's sum, taken with wrapping arithmetic too, is still exact as long as
+        // it is below 2³² (squares of fewer than 16.8 million pixels).
         let stride = width + 1;
         self.integral.clear();
         self.integral.resize(stride * (height + 1), 0);
         for v in 0..height {
-            let mut row_sum = 0u64;
+            let (above, row) = self.integral[v * stride..(v + 2) * stride].split_at_mut(stride);
+            let grey = &self.grey[v * width..(v + 1) * width];
+            let mut row_sum = 0u32;
             for u in 0..width {
-                row_sum += u64::from(self.grey[v * width + u]);
-                self.integral[(v + 1) * stride + u + 1] =
-                    self.integral[v * stride + u + 1] + row_sum;
+                row_sum = row_sum.wrapping_add(u32::from(grey[u]));
+                row[u + 1] = above[u + 1].wrapping_add(row_sum);
             }
         }
     }
@@ -62,10 +65,11 @@ impl LocalMean {
         let (u0, u1) = (u.saturating_sub(half), (u + half + 1).min(self.width));
         let (v0, v1) = (v.saturating_sub(half), (v + half + 1).min(self.height));
         let stride = self.width + 1;
-        let sum = self.integral[v1 * stride + u1] + self.integral[v0 * stride + u0]
-            - self.integral[v0 * stride + u1]
-            - self.integral[v1 * stride + u0];
-        (sum, ((v1 - v0) * (u1 - u0)) as u64)
+        let sum = self.integral[v1 * stride + u1]
+            .wrapping_add(self.integral[v0 * stride + u0])
+            .wrapping_sub(self.integral[v0 * stride + u1])
+            .wrapping_sub(self.integral[v1 * stride + u0]);
+        (u64::from(sum), ((v1 - v0) * (u1 - u0)) as u64)
     }
 
     /// The mean grey level of the square of half-side `half` around `(u, v)`.
