@@ -11,11 +11,17 @@
 //! 1. looks only inside the sheet (the workspace rectangle grown by a margin, projected into
 //!    the image): outside lies the table, whose brown would look like an orange object;
 //! 2. classifies each pixel with enough hue by its nearest colour of the label table (by hue
-//!    signature, so shading and anti-aliasing against the white sheet do not change it);
-//! 3. groups touching pixels of one colour into blobs;
-//! 4. keeps of each blob its top face — the pixels nearly as bright and as saturated as the
-//!    blob's brightest, since side faces are lit less — and measures it at the object's height
+//!    signature, so shading and anti-aliasing against the white sheet do not change it); a
+//!    pixel whose hue is far from every colour of the table, or (where the sheet is plain,
+//!    inside its markers) one much darker than the sheet around it ([`crate::shade`]), is of
+//!    the *unknown* class;
+//! 3. groups touching pixels of one class into blobs, and blobs that are fragments of one object
+//!    (a wrapper's letters, a pad's rim, a cube's deep shadow) into one ([`crate::groups`]);
+//! 4. keeps of each coloured object its top face — the pixels nearly as bright and as saturated
+//!    as its brightest, since side faces are lit less — and measures it at the object's height
 //!    (first guess the table, then the label rule's height) to name it by the label table.
+//!    Unknown objects are measured on all their pixels and reported as [`UNKNOWN_LABEL`] with
+//!    their geometry, for an external detector or the user to name.
 
 use crate::camera::Camera;
 use crate::components::Components;
