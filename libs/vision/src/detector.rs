@@ -445,3 +445,86 @@ impl Detector for ColourDetector {
         Ok(objects)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::Pipeline;
+    use robotd_protocol::geometry::{Point2, Pose, RobotModel};
+    use robotd_render::Intrinsics;
+
+    #[test]
+    fn objects_of_unknown_colour_and_dark_objects_are_reported_not_dropped() {
+        // A 200×200 image that is the workspace square: a red, a lime (between the table's
+        // yellow and green) and a black square on a white sheet lit unevenly.
+        let n = 200;
+        let mut rgb = vec![0u8; n * n * 3];
+        for v in 0..n {
+            for u in 0..n {
+                let light = (235 - 60 * u / n) as u8;
+                let colour = match (u / 50, v / 50) {
+                    (0, 1) => [200, 30, 30],
+                    (2, 1) => [120, 230, 10],
+                    (1, 3) => [30, 30, 30],
+                    _ => [light, light, light],
+                };
+                let inside = (u % 50) > 10 && (v % 50) > 10;
+                let p = if inside {
+                    colour
+                } else {
+                    [light, light, light]
+                };
+                rgb[(v * n + u) * 3..][..3].copy_from_slice(&p);
+            }
+        }
+        let workspace = WorkspaceInfo {
+            id: "ws".into(),
+            robot: RobotModel::Ned2,
+            upper_left: Point2::new(0.337, 0.087),
+            lower_right: Point2::new(0.163, -0.087),
+            observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
+        };
+        let intrinsics = Intrinsics {
+            width: n as u32,
+            height: n as u32,
+            fx: 300.0,
+            fy: 300.0,
+            cx: 99.5,
+            cy: 99.5,
+            distortion: [0.0; 5],
+        };
+        let detector =
+            ColourDetector::new(LabelTable::builtin(), ColourDetectorSettings::default());
+        let mut pipeline = Pipeline::new(
+            &intrinsics.into(),
+            vec![workspace.clone()],
+            Box::new(detector),
+        )
+        .unwrap();
+        let plane = pipeline.warped_plane(&workspace).unwrap();
+        let frame = FrameView {
+            rgb: &rgb,
+            width: n,
+            height: n,
+            frame_id: 1,
+            timestamp_unix_ns: 0,
+        };
+        let objects = pipeline.detect_on(&frame, &workspace, plane).unwrap();
+        let mut labels: Vec<&str> = objects.iter().map(|o| o.label.as_str()).collect();
+        labels.sort();
+        assert_eq!(
+            labels,
+            ["red cube", UNKNOWN_LABEL, UNKNOWN_LABEL],
+            "{objects:#?}"
+        );
+        for o in &objects {
+            // 39 px of 200 across a 174 mm square: 34 mm on the table, less at the height the
+            // object is measured at (3 cm for a red cube, 2 cm for unknown objects).
+            assert!((0.028..0.036).contains(&o.dimensions.width_m), "{o:#?}");
+            assert!(workspace.contains(
+                Point2::new(o.position.center.x_m, o.position.center.y_m),
+                0.0
+            ));
+        }
+    }
+}
