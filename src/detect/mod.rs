@@ -21,13 +21,16 @@
 //! not a failure; unreadable files, non-images, images over 8192 pixels a side and bad
 //! options exit 1 with the reason.
 
+mod annotate;
+mod camera;
 mod draw;
 mod png;
 pub mod report;
 
-use anyhow::{bail, Context, Result};
-use clap::{Args, ValueEnum};
-use report::{MarkerReport, ObjectReport, Report, Timing};
+use anyhow::{Context, Result};
+use camera::{camera_for, pinhole, pinhole_with, CameraModel};
+use clap::Args;
+use report::{marker_reports, object_report, Report, Timing};
 use robotd_config::Config;
 use robotd_perception::detector::{ColourDetector, ColourDetectorSettings, FrameView};
 use robotd_perception::labels::LabelTable;
@@ -35,10 +38,8 @@ use robotd_perception::markers::MarkerObservation;
 use robotd_perception::plane::TablePlane;
 use robotd_perception::Pipeline;
 use robotd_protocol::camera::CameraIntrinsics;
-use robotd_protocol::objects::DetectedObject;
 use robotd_protocol::workspace::WorkspaceInfo;
-use robotd_render::Intrinsics;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Arguments of `robotd detect`.
@@ -64,13 +65,6 @@ pub struct DetectArgs {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
-}
-
-/// Cameras whose intrinsics robotd knows.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum CameraModel {
-    /// The Niryo Ned2 wrist camera (640×480, with its lens distortion).
-    Ned2,
 }
 
 /// Runs `robotd detect`.
@@ -206,7 +200,7 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
 
     if let Some(out) = &args.out {
         let mut rgb = image.rgb.clone();
-        annotate(&mut rgb, &report, &workspace, plane_for_drawing.as_ref());
+        annotate::annotate(&mut rgb, &report, &workspace, plane_for_drawing.as_ref());
         std::fs::write(out, png::encode_rgb(&rgb, width as u32, height as u32))
             .with_context(|| format!("writing {}", out.display()))?;
     }
@@ -222,70 +216,6 @@ fn ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
 }
 
-/// A distortion-free pinhole for an image of this size, about 53° across its wider side.
-fn pinhole(width: usize, height: usize) -> CameraIntrinsics {
-    pinhole_with(width, height, width.max(height) as f64)
-}
-
-/// A distortion-free pinhole for an image of this size with focal length `f` pixels.
-fn pinhole_with(width: usize, height: usize, f: f64) -> CameraIntrinsics {
-    Intrinsics {
-        width: width as u32,
-        height: height as u32,
-        fx: f,
-        fy: f,
-        cx: (width as f64 - 1.0) / 2.0,
-        cy: (height as f64 - 1.0) / 2.0,
-        distortion: [0.0; 5],
-    }
-    .into()
-}
-
-/// The camera intrinsics to use, and how to describe them.
-fn camera_for(
-    args: &DetectArgs,
-    width: usize,
-    height: usize,
-) -> Result<(CameraIntrinsics, String)> {
-    let (intrinsics, name) = match (&args.camera, &args.intrinsics) {
-        (Some(CameraModel::Ned2), _) => (Intrinsics::ned2().into(), "ned2".to_owned()),
-        (None, Some(path)) => (
-            read_intrinsics(path)?,
-            format!("intrinsics from {}", path.display()),
-        ),
-        (None, None) => (
-            pinhole(width, height),
-            "pinhole guessed from the image size (no --camera or --intrinsics)".to_owned(),
-        ),
-    };
-    let intrinsics: CameraIntrinsics = intrinsics;
-    if intrinsics.width as usize != width || intrinsics.height as usize != height {
-        bail!(
-            "the camera intrinsics ({name}) are for {}x{} images but {} is {width}x{height}",
-            intrinsics.width,
-            intrinsics.height,
-            args.image.display()
-        );
-    }
-    Ok((intrinsics, name))
-}
-
-fn read_intrinsics(path: &Path) -> Result<CameraIntrinsics> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading the intrinsics file {}", path.display()))?;
-    let parsed = if path.extension().is_some_and(|e| e == "json") {
-        serde_json::from_str(&text).map_err(anyhow::Error::from)
-    } else {
-        toml::from_str(&text).map_err(anyhow::Error::from)
-    };
-    parsed.with_context(|| {
-        format!(
-            "{}: expected width, height, fx, fy, cx, cy and distortion = [k1, k2, p1, p2, k3]",
-            path.display()
-        )
-    })
-}
-
 fn pipeline_for(
     intrinsics: &CameraIntrinsics,
     workspace: &WorkspaceInfo,
@@ -297,139 +227,4 @@ fn pipeline_for(
         vec![workspace.clone()],
         Box::new(detector),
     )?)
-}
-
-/// The corner names in the order [`Pipeline::plane_from_markers`] returns the four markers.
-const CORNERS: [&str; 4] = ["upper_left", "upper_right", "lower_left", "lower_right"];
-
-fn marker_reports(
-    markers: &[MarkerObservation],
-    corners: Option<&[MarkerObservation; 4]>,
-) -> Vec<MarkerReport> {
-    markers
-        .iter()
-        .map(|m| {
-            let corner = corners
-                .and_then(|c| c.iter().position(|k| k.centre_px == m.centre_px))
-                .map(|k| CORNERS[k].to_owned());
-            MarkerReport {
-                centre_px: m.centre_px,
-                radius_px: m.radius_px,
-                rings: m.rings,
-                white_centre: m.white_centre,
-                reference: corner.as_deref() == Some("upper_left"),
-                corner,
-            }
-        })
-        .collect()
-}
-
-fn object_report(
-    o: &DetectedObject,
-    workspace: &WorkspaceInfo,
-    table: &LabelTable,
-    width: usize,
-    height: usize,
-) -> ObjectReport {
-    let b = &o.image_coordinates.bounding_box_rel;
-    let (w, h) = (width as f64, height as f64);
-    let (ul, lr) = (workspace.upper_left, workspace.lower_right);
-    let c = o.position.center;
-    let colour = table
-        .rules
-        .iter()
-        .find(|r| r.label == o.label)
-        .map(|r| table.colours[r.colour].name.clone())
-        .or_else(|| {
-            let first = o.label.split_whitespace().next()?;
-            table
-                .colours
-                .iter()
-                .find(|c| c.name == first)
-                .map(|c| c.name.clone())
-        })
-        .unwrap_or_else(|| "unknown".into());
-    ObjectReport {
-        label: o.label.clone(),
-        colour,
-        confidence: o.confidence,
-        box_px: [b.u_min * w, b.v_min * h, b.u_max * w, b.v_max * h],
-        centre_px: [
-            o.image_coordinates.center_of_mass_rel.u * w,
-            o.image_coordinates.center_of_mass_rel.v * h,
-        ],
-        workspace_rel: [
-            (ul.y_m - c.y_m) / (ul.y_m - lr.y_m),
-            (ul.x_m - c.x_m) / (ul.x_m - lr.x_m),
-        ],
-        world_m: [c.x_m, c.y_m, c.z_m],
-        size_m: [o.dimensions.width_m, o.dimensions.height_m],
-        gripper_rotation_rad: o.gripper_rotation_rad,
-    }
-}
-
-/// Colours of the drawing.
-const REFERENCE: [u8; 3] = [255, 0, 255];
-const CORNER: [u8; 3] = [0, 200, 255];
-const UNUSED: [u8; 3] = [128, 128, 128];
-const SHEET: [u8; 3] = [0, 220, 0];
-const UNKNOWN: [u8; 3] = [255, 140, 0];
-const KNOWN: [u8; 3] = [20, 20, 20];
-
-fn annotate(
-    rgb: &mut [u8],
-    report: &Report,
-    workspace: &WorkspaceInfo,
-    sheet: Option<&(Pipeline, TablePlane)>,
-) {
-    let mut canvas = draw::Canvas::new(rgb, report.width, report.height);
-    // The workspace rectangle, through the plane and the lens.
-    if let Some((pipeline, plane)) = sheet {
-        let (ul, lr) = (workspace.upper_left, workspace.lower_right);
-        let corners = [
-            [ul.x_m, ul.y_m],
-            [ul.x_m, lr.y_m],
-            [lr.x_m, lr.y_m],
-            [lr.x_m, ul.y_m],
-        ];
-        let mut outline = Vec::new();
-        for k in 0..4 {
-            let (a, b) = (corners[k], corners[(k + 1) % 4]);
-            for s in 0..32 {
-                let t = f64::from(s) / 32.0;
-                let p = [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
-                outline.push(pipeline.camera().raw_of(plane.table_to_pixel(p[0], p[1])));
-            }
-        }
-        canvas.polygon(&outline, SHEET);
-    }
-    // Markers, numbered as the Niryo tools do: 1 = reference, then clockwise.
-    for m in &report.markers {
-        let (colour, number) = match m.corner.as_deref() {
-            Some("upper_left") => (REFERENCE, Some(1)),
-            Some("upper_right") => (CORNER, Some(2)),
-            Some("lower_right") => (CORNER, Some(3)),
-            Some("lower_left") => (CORNER, Some(4)),
-            _ => (UNUSED, None),
-        };
-        canvas.circle(m.centre_px, m.radius_px, colour);
-        canvas.cross(m.centre_px, colour);
-        if let Some(n) = number {
-            canvas.number(
-                [m.centre_px[0] + m.radius_px, m.centre_px[1] - m.radius_px],
-                n,
-                colour,
-            );
-        }
-    }
-    for (k, o) in report.objects.iter().enumerate() {
-        let colour = if o.colour == "unknown" {
-            UNKNOWN
-        } else {
-            KNOWN
-        };
-        canvas.rect(o.box_px, colour);
-        canvas.cross(o.centre_px, colour);
-        canvas.number([o.box_px[0], o.box_px[1] - 14.0], k + 1, colour);
-    }
 }

@@ -6,6 +6,10 @@
 //! upper edge and down the left edge, as the Niryo tools count), its world position, size,
 //! label, colour and confidence — plus how long each step took.
 
+use robotd_perception::labels::LabelTable;
+use robotd_perception::markers::MarkerObservation;
+use robotd_protocol::objects::DetectedObject;
+use robotd_protocol::workspace::WorkspaceInfo;
 use serde::Serialize;
 
 /// The whole report.
@@ -156,5 +160,74 @@ impl Report {
             self.timing.perception_ms
         );
         out
+    }
+}
+
+/// The corner names in the order [`Pipeline::plane_from_markers`] returns the four markers.
+const CORNERS: [&str; 4] = ["upper_left", "upper_right", "lower_left", "lower_right"];
+
+pub fn marker_reports(
+    markers: &[MarkerObservation],
+    corners: Option<&[MarkerObservation; 4]>,
+) -> Vec<MarkerReport> {
+    markers
+        .iter()
+        .map(|m| {
+            let corner = corners
+                .and_then(|c| c.iter().position(|k| k.centre_px == m.centre_px))
+                .map(|k| CORNERS[k].to_owned());
+            MarkerReport {
+                centre_px: m.centre_px,
+                radius_px: m.radius_px,
+                rings: m.rings,
+                white_centre: m.white_centre,
+                reference: corner.as_deref() == Some("upper_left"),
+                corner,
+            }
+        })
+        .collect()
+}
+
+pub fn object_report(
+    o: &DetectedObject,
+    workspace: &WorkspaceInfo,
+    table: &LabelTable,
+    width: usize,
+    height: usize,
+) -> ObjectReport {
+    let b = &o.image_coordinates.bounding_box_rel;
+    let (w, h) = (width as f64, height as f64);
+    let (ul, lr) = (workspace.upper_left, workspace.lower_right);
+    let c = o.position.center;
+    let colour = table
+        .rules
+        .iter()
+        .find(|r| r.label == o.label)
+        .map(|r| table.colours[r.colour].name.clone())
+        .or_else(|| {
+            let first = o.label.split_whitespace().next()?;
+            table
+                .colours
+                .iter()
+                .find(|c| c.name == first)
+                .map(|c| c.name.clone())
+        })
+        .unwrap_or_else(|| "unknown".into());
+    ObjectReport {
+        label: o.label.clone(),
+        colour,
+        confidence: o.confidence,
+        box_px: [b.u_min * w, b.v_min * h, b.u_max * w, b.v_max * h],
+        centre_px: [
+            o.image_coordinates.center_of_mass_rel.u * w,
+            o.image_coordinates.center_of_mass_rel.v * h,
+        ],
+        workspace_rel: [
+            (ul.y_m - c.y_m) / (ul.y_m - lr.y_m),
+            (ul.x_m - c.x_m) / (ul.x_m - lr.x_m),
+        ],
+        world_m: [c.x_m, c.y_m, c.z_m],
+        size_m: [o.dimensions.width_m, o.dimensions.height_m],
+        gripper_rotation_rad: o.gripper_rotation_rad,
     }
 }
