@@ -7,6 +7,7 @@ mod audit;
 mod bench;
 mod call;
 mod chat;
+mod detect;
 mod doctor;
 mod estop;
 mod fake_niryo;
@@ -63,6 +64,9 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Run the built-in perception on one image file: markers, workspace, objects (check a
+    /// camera or the lighting; `--out annotated.png` draws what was found).
+    Detect(detect::DetectArgs),
     /// Say one text with the configured speech engine: play it, or write it with --out.
     Say(SayArgs),
     /// Serve the MCP tools on stdin/stdout (for desktop LLM apps that spawn their server).
@@ -419,6 +423,7 @@ fn run() -> Result<std::process::ExitCode> {
             eprintln!("robotd: {said}");
             Ok(std::process::ExitCode::SUCCESS)
         }
+        Command::Detect(args) => detect::run(&args, &load_config(&cli.config)?),
         Command::Doctor(args) => {
             let config = load_config(&cli.config)?;
             let config_dir = cli

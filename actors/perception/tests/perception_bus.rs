@@ -105,7 +105,8 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
     assert!(!view.visible, "{view:?}");
     assert_eq!(view.workspace_id, "niryo_ws");
     assert!(
-        view.reason.starts_with("only 0 of the 4 workspace markers"),
+        view.reason
+            .starts_with("no workspace in view: none of the 4 workspace markers"),
         "{view:?}"
     );
     publish(&frames, lab.frame(), 5);

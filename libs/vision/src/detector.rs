@@ -11,18 +11,27 @@
 //! 1. looks only inside the sheet (the workspace rectangle grown by a margin, projected into
 //!    the image): outside lies the table, whose brown would look like an orange object;
 //! 2. classifies each pixel with enough hue by its nearest colour of the label table (by hue
-//!    signature, so shading and anti-aliasing against the white sheet do not change it);
-//! 3. groups touching pixels of one colour into blobs;
-//! 4. keeps of each blob its top face — the pixels nearly as bright and as saturated as the
-//!    blob's brightest, since side faces are lit less — and measures it at the object's height
+//!    signature, so shading and anti-aliasing against the white sheet do not change it); a
+//!    pixel whose hue is far from every colour of the table, or (where the sheet is plain,
+//!    inside its markers) one much darker than the sheet around it ([`crate::shade`]), is of
+//!    the *unknown* class;
+//! 3. groups touching pixels of one class into blobs, and blobs that are fragments of one object
+//!    (a wrapper's letters, a pad's rim, a cube's deep shadow) into one ([`crate::groups`]);
+//! 4. keeps of each coloured object its top face — the pixels nearly as bright and as saturated
+//!    as its brightest, since side faces are lit less — and measures it at the object's height
 //!    (first guess the table, then the label rule's height) to name it by the label table.
+//!    Unknown objects are measured on all their pixels and reported as [`UNKNOWN_LABEL`] with
+//!    their geometry, for an external detector or the user to name.
 
 use crate::camera::Camera;
 use crate::components::Components;
 use crate::footprint::{measure, Footprint, Sighting};
+use crate::groups::group_fragments;
 use crate::labels::{hue_signature, HeightRule, LabelTable, ShapeClass};
 use crate::plane::TablePlane;
 use crate::rect::{normalise_half_turn, normalise_quarter_turn};
+use crate::shade::LocalMean;
+use crate::spans::sheet_spans;
 use robotd_protocol::objects::{DetectedObject, RelBox, RelPoint};
 use robotd_protocol::workspace::WorkspaceInfo;
 
@@ -91,6 +100,9 @@ pub struct ColourDetectorSettings {
     pub unknown_height_m: f64,
     /// Objects whose centre lies farther than this outside the workspace are dropped, metres.
     pub outside_tolerance_m: f64,
+    /// Dark objects are looked for only this far inside the workspace rectangle, metres,
+    /// where the sheet is plain white (clear of the markers and the border's stripes).
+    pub plain_inset_m: f64,
 }
 
 impl Default for ColourDetectorSettings {
@@ -101,14 +113,24 @@ impl Default for ColourDetectorSettings {
             min_top_px: 12,
             unknown_height_m: 0.02,
             outside_tolerance_m: 0.01,
+            plain_inset_m: 0.012,
         }
     }
 }
 
 /// Pixels need at least this much chroma (max − min of r, g, b) to be part of an object.
 const MIN_CHROMA: u8 = 35;
+/// Pixels without hue are part of an object when darker than this share (per cent) of the
+/// sheet around them: black plastic, a dark wrapper — not the shadows objects cast.
+const DARK_OBJECT_PERCENT: u32 = 45;
 /// A pixel's hue signature must be this close to a colour of the table to take its class.
 const MAX_HUE_DISTANCE: f32 = 0.45;
+
+/// The label of an object whose colour is not in the label table (or that is much darker than
+/// the sheet): reported with its geometry, for an external detector or the user to name.
+pub const UNKNOWN_LABEL: &str = "unknown object";
+/// The confidence given to such objects.
+const UNKNOWN_CONFIDENCE: f64 = 0.3;
 
 /// Top faces closer to square than this (long/short) are treated as squares for the gripper
 /// rotation: it is reported modulo 90°.
@@ -121,6 +143,9 @@ pub struct ColourDetector {
     settings: ColourDetectorSettings,
     classes: Vec<u8>,
     spans: Vec<(u16, u16)>,
+    inner_spans: Vec<(u16, u16)>,
+    dark_candidates: Vec<u32>,
+    shade: LocalMean,
     components: Components,
 }
 
@@ -132,6 +157,9 @@ impl ColourDetector {
             settings,
             classes: Vec::new(),
             spans: Vec::new(),
+            inner_spans: Vec::new(),
+            dark_candidates: Vec::new(),
+            shade: LocalMean::default(),
             components: Components::new(),
         }
     }
@@ -141,57 +169,10 @@ impl ColourDetector {
         &self.table
     }
 
-    /// For each image row, the columns `[start, end)` inside the sheet.
-    fn sheet_spans(&mut self, sheet: &SheetView<'_>, width: usize, height: usize) {
-        let ws = sheet.workspace;
-        let m = self.settings.sheet_margin_m;
-        let (x0, x1) = (ws.lower_right.x_m - m, ws.upper_left.x_m + m);
-        let (y0, y1) = (ws.lower_right.y_m - m, ws.upper_left.y_m + m);
-        // The sheet's outline, sampled densely enough to follow the lens's curvature.
-        let corners = [[x1, y1], [x1, y0], [x0, y0], [x0, y1]];
-        let mut outline = Vec::with_capacity(64);
-        for k in 0..4 {
-            let (a, b) = (corners[k], corners[(k + 1) % 4]);
-            for s in 0..16 {
-                let t = f64::from(s) / 16.0;
-                let p = [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
-                outline.push(sheet.camera.raw_of(sheet.plane.table_to_pixel(p[0], p[1])));
-            }
-        }
-        self.spans.clear();
-        self.spans.resize(height, (0, 0));
-        let mut lo = vec![f64::INFINITY; height];
-        let mut hi = vec![f64::NEG_INFINITY; height];
-        let n = outline.len();
-        for k in 0..n {
-            let (a, b) = (outline[k], outline[(k + 1) % n]);
-            if !(a.iter().chain(&b).all(|c| c.is_finite())) {
-                continue;
-            }
-            let (v_min, v_max) = (a[1].min(b[1]), a[1].max(b[1]));
-            let first = v_min.ceil().max(0.0) as usize;
-            let last = (v_max.floor().min(height as f64 - 1.0)).max(-1.0);
-            if last < 0.0 {
-                continue;
-            }
-            for v in first..=last as usize {
-                let vf = v as f64;
-                let u = if (b[1] - a[1]).abs() < 1e-9 {
-                    a[0]
-                } else {
-                    a[0] + (b[0] - a[0]) * (vf - a[1]) / (b[1] - a[1])
-                };
-                lo[v] = lo[v].min(u);
-                hi[v] = hi[v].max(u);
-            }
-        }
-        for v in 0..height {
-            if lo[v] <= hi[v] {
-                let start = lo[v].ceil().clamp(0.0, width as f64) as u16;
-                let end = (hi[v].floor() + 1.0).clamp(0.0, width as f64) as u16;
-                self.spans[v] = (start, end.max(start));
-            }
-        }
+    /// The class of pixels that belong to an object of no colour in the table: another hue,
+    /// or much darker than the sheet.
+    fn unknown_class(&self) -> u8 {
+        (self.table.colours.len() + 1).min(255) as u8
     }
 
     fn classify_pixels(&mut self, frame: &FrameView<'_>) {
@@ -199,6 +180,8 @@ impl ColourDetector {
         self.classes.clear();
         self.classes.resize(w * h, 0);
         let signatures: Vec<[f32; 3]> = self.table.colours.iter().map(|c| c.signature).collect();
+        let unknown = self.unknown_class();
+        self.dark_candidates.clear();
         for v in 0..h {
             let (start, end) = self.spans[v];
             let row = v * w;
@@ -209,6 +192,17 @@ impl ColourDetector {
                 let min = p[0].min(p[1]).min(p[2]);
                 let chroma = max - min;
                 if chroma < MIN_CHROMA || u32::from(chroma) * 4 < u32::from(max) {
+                    // No hue: the white sheet, its grey stripes and logo, shadows — or a dark
+                    // object, far darker than the sheet around it (only where the sheet is
+                    // plain: inside its markers, clear of the stripes and the markers).
+                    let (a, b) = self.inner_spans[v];
+                    let grey =
+                        (u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8;
+                    if (a as usize..b as usize).contains(&u)
+                        && grey * 100 < 255 * DARK_OBJECT_PERCENT
+                    {
+                        self.dark_candidates.push(i as u32);
+                    }
                     continue;
                 }
                 let inv = 1.0 / f32::from(chroma);
@@ -224,11 +218,38 @@ impl ColourDetector {
                         best = (k, d);
                     }
                 }
-                if best.1 <= MAX_HUE_DISTANCE * MAX_HUE_DISTANCE {
-                    self.classes[i] = best.0 as u8 + 1;
+                self.classes[i] = if best.1 <= MAX_HUE_DISTANCE * MAX_HUE_DISTANCE {
+                    best.0 as u8 + 1
+                } else {
+                    unknown
+                };
+            }
+        }
+        // Only pixels dark enough to be part of a dark object need the sheet's brightness
+        // around them (on the simulator's sheets there are none).
+        if !self.dark_candidates.is_empty() {
+            self.shade.compute(frame.rgb, w, h);
+            let half = (w.min(h) / 6).max(8);
+            for &i in &self.dark_candidates {
+                let (u, v) = (i as usize % w, i as usize / w);
+                if self.shade.darker_than(u, v, half, DARK_OBJECT_PERCENT) {
+                    self.classes[i as usize] = unknown;
                 }
             }
         }
+    }
+}
+
+/// How many pixels a metre on the table spans at the workspace's centre (raw image).
+fn pixels_per_metre(sheet: &SheetView<'_>) -> f64 {
+    let c = sheet.workspace.center();
+    let at = |x: f64, y: f64| sheet.camera.raw_of(sheet.plane.table_to_pixel(x, y));
+    let (a, b) = (at(c.x_m, c.y_m), at(c.x_m + 0.01, c.y_m));
+    let d = (a[0] - b[0]).hypot(a[1] - b[1]) / 0.01;
+    if d.is_finite() {
+        d
+    } else {
+        1000.0
     }
 }
 
@@ -294,7 +315,14 @@ impl Detector for ColourDetector {
                 ),
             });
         }
-        self.sheet_spans(sheet, w, h);
+        sheet_spans(sheet, self.settings.sheet_margin_m, w, h, &mut self.spans);
+        sheet_spans(
+            sheet,
+            -self.settings.plain_inset_m,
+            w,
+            h,
+            &mut self.inner_spans,
+        );
         self.classify_pixels(frame);
         self.components
             .label(&self.classes, w, h, self.settings.min_blob_px);
@@ -302,16 +330,23 @@ impl Detector for ColourDetector {
         let timestamp = frame.timestamp_unix_ns as f64 / 1e9;
         let ws = sheet.workspace;
         let mut objects = Vec::new();
-        for blob in self.components.blobs() {
-            let pixels = self.components.pixels(blob);
-            let top = top_face(frame.rgb, pixels);
+        let unknown = self.unknown_class();
+        // Fragments 2 mm apart are one object; small dark pieces 8 mm from a larger one join it.
+        let px_per_m = pixels_per_metre(sheet);
+        let gap = (0.002 * px_per_m).round().clamp(2.0, 50.0) as u32;
+        let absorb_gap = (0.008 * px_per_m).round().clamp(2.0, 150.0) as u32;
+        for blob in group_fragments(&self.components, unknown, w, gap, absorb_gap) {
+            // A dark or unknown-coloured object has no reliable brightest face: all of it.
+            let top = if blob.class == unknown {
+                blob.pixels.clone()
+            } else {
+                top_face(frame.rgb, &blob.pixels)
+            };
             if top.len() < self.settings.min_top_px {
                 continue;
             }
             let colour = usize::from(blob.class - 1);
-            let Some(colour_ref) = self.table.colours.get(colour) else {
-                continue;
-            };
+            let colour_ref = self.table.colours.get(colour);
 
             // Measure on the table first, then at the height of the rule that names it.
             let mut height_m = 0.0;
@@ -359,7 +394,8 @@ impl Detector for ColourDetector {
             }
             let mean = mean.map(|s| s / top.len() as f32);
             let hue_distance = hue_signature(mean)
-                .map(|s| {
+                .zip(colour_ref)
+                .map(|(s, colour_ref)| {
                     s.iter()
                         .zip(&colour_ref.signature)
                         .map(|(a, b)| (a - b) * (a - b))
@@ -368,12 +404,16 @@ impl Detector for ColourDetector {
                 })
                 .unwrap_or(1.0);
             let shape_fit = if rule.is_some() { 1.0 } else { 0.6 };
-            let confidence =
-                (f64::from(1.0 - hue_distance / MAX_HUE_DISTANCE) * shape_fit).clamp(0.05, 0.99);
+            let confidence = if colour_ref.is_none() {
+                UNKNOWN_CONFIDENCE
+            } else {
+                (f64::from(1.0 - hue_distance / MAX_HUE_DISTANCE) * shape_fit).clamp(0.05, 0.99)
+            };
 
-            let (label, class_id) = match rule {
-                Some(r) => (self.table.rules[r].label.clone(), r as i64),
-                None => (format!("{} {}", colour_ref.name, shape.noun()), -1),
+            let (label, class_id) = match (rule, colour_ref) {
+                (Some(r), _) => (self.table.rules[r].label.clone(), r as i64),
+                (None, Some(c)) => (format!("{} {}", c.name, shape.noun()), -1),
+                (None, None) => (UNKNOWN_LABEL.to_owned(), -1),
             };
             // A square looks the same turned by 90°: report the smallest such rotation.
             let aspect = fp.rect.long / fp.rect.short.max(1e-6);
@@ -403,5 +443,88 @@ impl Detector for ColourDetector {
             }));
         }
         Ok(objects)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::Pipeline;
+    use robotd_protocol::geometry::{Point2, Pose, RobotModel};
+    use robotd_render::Intrinsics;
+
+    #[test]
+    fn objects_of_unknown_colour_and_dark_objects_are_reported_not_dropped() {
+        // A 200×200 image that is the workspace square: a red, a lime (between the table's
+        // yellow and green) and a black square on a white sheet lit unevenly.
+        let n = 200;
+        let mut rgb = vec![0u8; n * n * 3];
+        for v in 0..n {
+            for u in 0..n {
+                let light = (235 - 60 * u / n) as u8;
+                let colour = match (u / 50, v / 50) {
+                    (0, 1) => [200, 30, 30],
+                    (2, 1) => [120, 230, 10],
+                    (1, 3) => [30, 30, 30],
+                    _ => [light, light, light],
+                };
+                let inside = (u % 50) > 10 && (v % 50) > 10;
+                let p = if inside {
+                    colour
+                } else {
+                    [light, light, light]
+                };
+                rgb[(v * n + u) * 3..][..3].copy_from_slice(&p);
+            }
+        }
+        let workspace = WorkspaceInfo {
+            id: "ws".into(),
+            robot: RobotModel::Ned2,
+            upper_left: Point2::new(0.337, 0.087),
+            lower_right: Point2::new(0.163, -0.087),
+            observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
+        };
+        let intrinsics = Intrinsics {
+            width: n as u32,
+            height: n as u32,
+            fx: 300.0,
+            fy: 300.0,
+            cx: 99.5,
+            cy: 99.5,
+            distortion: [0.0; 5],
+        };
+        let detector =
+            ColourDetector::new(LabelTable::builtin(), ColourDetectorSettings::default());
+        let mut pipeline = Pipeline::new(
+            &intrinsics.into(),
+            vec![workspace.clone()],
+            Box::new(detector),
+        )
+        .unwrap();
+        let plane = pipeline.warped_plane(&workspace).unwrap();
+        let frame = FrameView {
+            rgb: &rgb,
+            width: n,
+            height: n,
+            frame_id: 1,
+            timestamp_unix_ns: 0,
+        };
+        let objects = pipeline.detect_on(&frame, &workspace, plane).unwrap();
+        let mut labels: Vec<&str> = objects.iter().map(|o| o.label.as_str()).collect();
+        labels.sort();
+        assert_eq!(
+            labels,
+            ["red cube", UNKNOWN_LABEL, UNKNOWN_LABEL],
+            "{objects:#?}"
+        );
+        for o in &objects {
+            // 39 px of 200 across a 174 mm square: 34 mm on the table, less at the height the
+            // object is measured at (3 cm for a red cube, 2 cm for unknown objects).
+            assert!((0.028..0.036).contains(&o.dimensions.width_m), "{o:#?}");
+            assert!(workspace.contains(
+                Point2::new(o.position.center.x_m, o.position.center.y_m),
+                0.0
+            ));
+        }
     }
 }

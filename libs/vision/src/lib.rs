@@ -43,10 +43,15 @@ pub mod components;
 pub mod detector;
 pub mod external;
 pub mod footprint;
+pub mod groups;
 pub mod labels;
 pub mod markers;
 pub mod pipeline;
 pub mod plane;
 pub mod rect;
+pub mod shade;
+pub mod spans;
+pub mod still;
+pub mod warped;
 
 pub use pipeline::{Pipeline, PipelineError, SheetStatus};

@@ -1,18 +1,34 @@
 //! Finding the workspace markers in a frame.
 //!
-//! Each corner of a workspace sheet carries a marker of concentric rings: black, white, black
-//! and a black centre — except the sheet's origin (upper-left = far-left corner), whose centre
-//! is white. In the image a marker is two or three dark blobs sharing one centre (a ring and a
-//! disc, or two rings), which nothing else on a tabletop looks like. The centre of a marker is
-//! the mean of its dark pixels (the rings are symmetric about it).
+//! Each corner of a workspace sheet carries a marker of concentric dark rings on white. One of
+//! the four, the sheet's origin (upper-left = far-left corner), is drawn differently from the
+//! other three: in the simulator its centre is white where the others' is black; on the real
+//! Niryo sheet it has a solid centre disc and one ring fewer than the others (whose centre is a
+//! small dot). In the image a marker is two or more dark blobs sharing one centre, which
+//! nothing else on a tabletop looks like. Its centre is the mean of its dark pixels (the rings
+//! are symmetric about it).
 //!
-//! [`find_markers`] returns every marker it sees; [`assign_corners`] picks the origin marker
-//! and its three partners and orders them upper-left, upper-right, lower-left, lower-right.
+//! "Dark" is decided against the neighbourhood, not against a fixed grey level: a pixel is dark
+//! when it is well below the mean of the square around it (an integral image makes that mean
+//! cost four look-ups). So a marker in the shade of the arm, under a lamp's glare or in a
+//! dim, vignetted corner is still found, while the sheet's grey stripes and logo, much lighter
+//! than the printed black, stay white.
+//!
+//! [`MarkerFinder::find_markers`] returns every marker it sees; [`assign_corners`] picks four
+//! that make a sheet, tells the origin marker as the odd one out (white centre, or fewer
+//! rings) and orders them upper-left, upper-right, lower-left, lower-right.
 
 use crate::components::{Blob, Components};
+use crate::shade::LocalMean;
 
 /// Class of dark pixels in the class map.
 const DARK: u8 = 1;
+/// A pixel is dark when its grey level is below this share (per cent) of its neighbourhood's
+/// mean. Printed black under any light is far below; the sheet's grey stripes are not.
+const DARK_PERCENT: u32 = 62;
+/// Dark pixels have little hue (max − min of r, g, b below this): a dark-blue object is not
+/// printed black.
+const MAX_DARK_CHROMA: u8 = 60;
 
 /// One marker in the image.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -21,14 +37,17 @@ pub struct MarkerObservation {
     pub centre_px: [f64; 2],
     /// Outer radius, pixels (half the mean bounding-box side of the outer ring).
     pub radius_px: f64,
-    /// Whether its centre is white (the sheet's origin marker).
+    /// Whether its centre is white (the simulated sheet's origin marker).
     pub white_centre: bool,
+    /// How many concentric dark blobs it has (rings plus a centre disc or dot).
+    pub rings: u8,
 }
 
 /// Reusable buffers of the marker search.
 #[derive(Debug, Default)]
 pub struct MarkerFinder {
     classes: Vec<u8>,
+    shade: LocalMean,
     components: Components,
 }
 
@@ -36,6 +55,24 @@ impl MarkerFinder {
     /// A finder with no buffers yet.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Marks the dark pixels of an RGB8 image in `self.classes`.
+    fn classify(&mut self, rgb: &[u8], width: usize, height: usize) {
+        self.shade.compute(rgb, width, height);
+        let half = neighbourhood(width, height);
+        self.classes.clear();
+        self.classes.resize(width * height, 0);
+        for v in 0..height {
+            for u in 0..width {
+                let i = v * width + u;
+                let p = &rgb[i * 3..i * 3 + 3];
+                let chroma = p[0].max(p[1]).max(p[2]) - p[0].min(p[1]).min(p[2]);
+                if chroma < MAX_DARK_CHROMA && self.shade.darker_than(u, v, half, DARK_PERCENT) {
+                    self.classes[i] = DARK;
+                }
+            }
+        }
     }
 
     /// Every marker in an RGB8 image of `width` × `height` pixels.
@@ -49,21 +86,19 @@ impl MarkerFinder {
         if rgb.len() < n * 3 || n == 0 {
             return Vec::new();
         }
-        self.classes.clear();
-        self.classes.extend(rgb[..n * 3].chunks_exact(3).map(|p| {
-            let max = p[0].max(p[1]).max(p[2]);
-            let min = p[0].min(p[1]).min(p[2]);
-            // Dark and without hue: printed black (anti-aliased edges count from mid-grey).
-            u8::from(max < 110 && max - min < 45) * DARK
-        }));
+        self.classify(rgb, width, height);
         self.components.label(&self.classes, width, height, 4);
+        let max_side = 200.max(width.min(height) as u32 / 3);
         let blobs: Vec<Blob> = self
             .components
             .blobs()
             .iter()
             .filter(|b| {
                 let (w, h) = (b.box_width(), b.box_height());
-                (2..=200).contains(&w) && (2..=200).contains(&h) && w <= 3 * h && h <= 3 * w
+                (2..=max_side).contains(&w)
+                    && (2..=max_side).contains(&h)
+                    && w <= 3 * h
+                    && h <= 3 * w
             })
             .copied()
             .collect();
@@ -79,6 +114,11 @@ impl MarkerFinder {
             }
             let o = &blobs[outer];
             let size = 0.5 * f64::from(o.box_width() + o.box_height());
+            // A ring is hollow: it covers well under the π/4 of its box that a disc would.
+            let box_area = f64::from(o.box_width() * o.box_height());
+            if f64::from(o.area) > 0.7 * box_area {
+                continue;
+            }
             let tolerance = (0.12 * size).max(1.5);
             let inner: Vec<usize> = order
                 .iter()
@@ -90,6 +130,10 @@ impl MarkerFinder {
                         && (blobs[i].v_mean - o.v_mean).abs() <= tolerance
                         && blobs[i].box_width() < o.box_width()
                         && blobs[i].box_height() < o.box_height()
+                        && blobs[i].u_min > o.u_min
+                        && blobs[i].u_max < o.u_max
+                        && blobs[i].v_min > o.v_min
+                        && blobs[i].v_max < o.v_max
                 })
                 .collect();
             if inner.is_empty() || size < 6.0 {
@@ -110,58 +154,127 @@ impl MarkerFinder {
             markers.push(MarkerObservation {
                 centre_px: centre,
                 radius_px: size / 2.0,
-                white_centre: self.is_bright(rgb, width, height, centre),
+                white_centre: self.is_bright(width, height, centre),
+                rings: (inner.len() + 1).min(255) as u8,
             });
         }
         markers
     }
 
-    /// Whether the 3×3 pixels around `at` are bright on average.
-    fn is_bright(&self, rgb: &[u8], width: usize, height: usize, at: [f64; 2]) -> bool {
-        let (cu, cv) = (at[0].round() as i64, at[1].round() as i64);
-        let mut sum = 0u32;
-        let mut count = 0u32;
-        for dv in -1..=1 {
-            for du in -1..=1 {
-                let (u, v) = (cu + du, cv + dv);
-                if u < 0 || v < 0 || u >= width as i64 || v >= height as i64 {
-                    continue;
-                }
-                let i = (v as usize * width + u as usize) * 3;
-                sum += u32::from(rgb[i].max(rgb[i + 1]).max(rgb[i + 2]));
-                count += 1;
-            }
+    /// Whether the 3×3 pixels around `at` are brighter than the neighbourhood's mean (which the
+    /// marker's dark rings pull down): a white centre.
+    fn is_bright(&self, width: usize, height: usize, at: [f64; 2]) -> bool {
+        let (cu, cv) = (at[0].round(), at[1].round());
+        if !(cu >= 1.0 && cv >= 1.0 && cu + 1.0 < width as f64 && cv + 1.0 < height as f64) {
+            return false;
         }
-        count > 0 && sum / count > 150
+        let (u, v) = (cu as usize, cv as usize);
+        let (centre, count) = self.shade.sum(u, v, 1);
+        let (local, local_count) = self.shade.sum(u, v, neighbourhood(width, height));
+        centre * local_count > local * count
     }
 }
 
-/// Orders four markers of one sheet as upper-left (the white-centre one), upper-right,
-/// lower-left, lower-right. The diagonal partner of the origin is the farthest in the image;
-/// which of the other two is upper-right is decided by the caller (mirror order gives no
-/// valid camera pose), so both orders are returned, the more likely first.
+/// Half-side of the neighbourhood "dark" is judged against: a good deal larger than a marker
+/// at the usual distance.
+fn neighbourhood(width: usize, height: usize) -> usize {
+    (width.min(height) / 12).max(12)
+}
+
+/// Of four markers, the origin: the one drawn differently from the other three, which agree
+/// (the only white centre, or the only one with fewer rings). `None` when no one stands out.
+fn odd_one_out(four: &[MarkerObservation; 4]) -> Option<usize> {
+    let differs = |key: &dyn Fn(&MarkerObservation) -> u8| {
+        let keys = four.map(|m| key(&m));
+        (0..4).find(|&i| {
+            let others: Vec<u8> = (0..4).filter(|&j| j != i).map(|j| keys[j]).collect();
+            others.iter().all(|k| *k == others[0] && *k != keys[i])
+        })
+    };
+    let fewest = four.iter().map(|m| m.rings).min()?;
+    let with_fewest: Vec<usize> = (0..4).filter(|&i| four[i].rings == fewest).collect();
+    // One ring fewer than the other three, which agree: the real sheet's origin.
+    if let Some(i) = differs(&|m| m.rings) {
+        if four[i].rings == fewest {
+            return Some(i);
+        }
+    }
+    // The only white centre: the simulated sheet's origin.
+    if four.iter().filter(|m| m.white_centre).count() == 1 {
+        return four.iter().position(|m| m.white_centre);
+    }
+    // Fewer rings than the others, which differ by a centre dot too small to be seen in some.
+    if with_fewest.len() == 1 {
+        return Some(with_fewest[0]);
+    }
+    differs(&|m| u8::from(m.white_centre))
+}
+
+/// Orders four markers of one sheet as upper-left (the origin marker, see [`odd_one_out`]),
+/// upper-right, lower-left, lower-right. The diagonal partner of the origin is the farthest in
+/// the image; which of the other two is upper-right is decided by the caller (mirror order
+/// gives no valid camera pose), so both orders are returned, the more likely first.
 ///
-/// `None` unless there is exactly one white-centre marker with at least three others.
+/// With more than four markers in view (another sheet, something ring-like), the four that
+/// make the most plausible sheet are used: similar sizes, an origin that stands out, the most
+/// rings. `None` when no four make a sheet.
 pub fn assign_corners(markers: &[MarkerObservation]) -> Option<[[MarkerObservation; 4]; 2]> {
-    let mut whites = markers.iter().filter(|m| m.white_centre);
-    let origin = *whites.next()?;
-    if whites.next().is_some() {
+    if markers.len() < 4 {
         return None;
     }
+    // Keep the search small: the 12 candidates with the most rings and the largest radius.
+    let mut candidates = markers.to_vec();
+    candidates.sort_by(|a, b| {
+        b.rings
+            .cmp(&a.rings)
+            .then(b.radius_px.total_cmp(&a.radius_px))
+    });
+    candidates.truncate(12);
+    let n = candidates.len();
+    let mut best: Option<(f64, [MarkerObservation; 4], usize)> = None;
+    for a in 0..n {
+        for b in a + 1..n {
+            for c in b + 1..n {
+                for d in c + 1..n {
+                    let four = [candidates[a], candidates[b], candidates[c], candidates[d]];
+                    let Some(origin) = odd_one_out(&four) else {
+                        continue;
+                    };
+                    let radii = four.map(|m| m.radius_px);
+                    let (r_min, r_max) = radii
+                        .iter()
+                        .fold((f64::MAX, 0f64), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
+                    if r_max > 2.5 * r_min {
+                        continue;
+                    }
+                    // Markers sit at the corners of a sheet many radii across.
+                    let o = four[origin].centre_px;
+                    let far = four
+                        .iter()
+                        .map(|m| (m.centre_px[0] - o[0]).hypot(m.centre_px[1] - o[1]))
+                        .fold(0f64, f64::max);
+                    if far < 4.0 * r_max {
+                        continue;
+                    }
+                    let rings: u32 = four.iter().map(|m| u32::from(m.rings)).sum();
+                    let score = f64::from(rings) - r_max / r_min;
+                    if best.as_ref().is_none_or(|(s, _, _)| score > *s) {
+                        best = Some((score, four, origin));
+                    }
+                }
+            }
+        }
+    }
+    let (_, four, origin_index) = best?;
+    let origin = four[origin_index];
     let dist = |m: &MarkerObservation| {
         (m.centre_px[0] - origin.centre_px[0]).hypot(m.centre_px[1] - origin.centre_px[1])
     };
-    let mut others: Vec<MarkerObservation> = markers
-        .iter()
-        .filter(|m| !m.white_centre)
-        .copied()
+    let mut others: Vec<MarkerObservation> = (0..4)
+        .filter(|&i| i != origin_index)
+        .map(|i| four[i])
         .collect();
-    if others.len() < 3 {
-        return None;
-    }
-    // The sheet's other three corners are the three black markers nearest the origin.
     others.sort_by(|a, b| dist(a).total_cmp(&dist(b)));
-    others.truncate(3);
     let diagonal = others[2];
     let (a, b) = (others[0], others[1]);
     Some([[origin, a, b, diagonal], [origin, b, a, diagonal]])
@@ -224,5 +337,60 @@ mod tests {
             .collect();
         assert!(assign_corners(&no_origin).is_none());
         assert!(finder.find_markers(&[245; 30], 5, 2).is_empty());
+    }
+
+    /// A real Niryo marker: dark between the given radii (fractions of `r`) on light grey.
+    fn draw_bands(
+        img: &mut [u8],
+        width: usize,
+        c: [f64; 2],
+        r: f64,
+        bands: &[(f64, f64)],
+        ink: u8,
+    ) {
+        let height = img.len() / 3 / width;
+        for v in 0..height {
+            for u in 0..width {
+                let d = (u as f64 - c[0]).hypot(v as f64 - c[1]) / r;
+                if bands.iter().any(|&(a, b)| d >= a && d <= b) {
+                    img[(v * width + u) * 3..][..3].fill(ink);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_real_sheets_reference_has_one_ring_fewer_even_in_shade() {
+        let (w, h) = (320, 240);
+        let mut img = vec![0u8; w * h * 3];
+        // Lit from the left: the sheet goes from 230 down to 120.
+        for v in 0..h {
+            for u in 0..w {
+                img[(v * w + u) * 3..][..3].fill((230 - 110 * u / w) as u8);
+            }
+        }
+        let reference = [(0.0, 0.3), (0.5, 0.7), (0.85, 1.0)];
+        let other = [(0.0, 0.08), (0.25, 0.4), (0.55, 0.7), (0.85, 1.0)];
+        let centres = [[60.0, 50.0], [260.0, 52.0], [58.0, 190.0], [262.0, 188.0]];
+        for (k, c) in centres.iter().enumerate() {
+            // Printed black is dark grey, and darker still in the shade on the right.
+            let ink = if c[0] > 160.0 { 35 } else { 70 };
+            draw_bands(
+                &mut img,
+                w,
+                *c,
+                18.0,
+                if k == 0 { &reference } else { &other },
+                ink,
+            );
+        }
+        let mut finder = MarkerFinder::new();
+        let markers = finder.find_markers(&img, w, h);
+        assert_eq!(markers.len(), 4, "{markers:?}");
+        let [first, _] = assign_corners(&markers).unwrap();
+        assert!((first[0].centre_px[0] - 60.0).abs() < 0.5, "{first:?}");
+        assert!((first[0].centre_px[1] - 50.0).abs() < 0.5, "{first:?}");
+        assert!(first[0].rings < first[1].rings);
+        assert!((first[3].centre_px[0] - 262.0).abs() < 0.5, "diagonal last");
     }
 }

@@ -8,12 +8,12 @@
 
 use crate::camera::Camera;
 use crate::detector::{DetectError, Detector, FrameView, SheetView};
-use crate::markers::{assign_corners, MarkerFinder};
+use crate::markers::{assign_corners, MarkerFinder, MarkerObservation};
 use crate::plane::TablePlane;
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::location::WorkspacePoint;
-use robotd_protocol::objects::Detections;
+use robotd_protocol::objects::{DetectedObject, Detections};
 use robotd_protocol::validate::Validate;
 use robotd_protocol::workspace::WorkspaceInfo;
 
@@ -46,10 +46,14 @@ impl std::fmt::Display for SheetStatus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Found => write!(f, "the workspace sheet and its four markers are in view"),
+            Self::MarkersMissing { seen: 0 } => write!(
+                f,
+                "no workspace in view: none of the 4 workspace markers was found"
+            ),
             Self::MarkersMissing { seen } => write!(
                 f,
-                "only {seen} of the 4 workspace markers are in view (one may be covered by an \
-                 object, in shadow or out of the picture)"
+                "no workspace in view: only {seen} of the 4 workspace markers were found (one \
+                 may be covered by an object, in shadow or out of the picture)"
             ),
             Self::Degenerate => write!(
                 f,
@@ -110,6 +114,11 @@ impl Pipeline {
         })
     }
 
+    /// The camera model (intrinsics and lens).
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
     /// The detector's name.
     pub fn detector_name(&self) -> &str {
         self.detector.name()
@@ -157,33 +166,69 @@ impl Pipeline {
         frame: &FrameView<'_>,
         workspace: &WorkspaceInfo,
     ) -> Result<TablePlane, SheetStatus> {
-        let markers = self
-            .markers
-            .find_markers(frame.rgb, frame.width, frame.height);
-        let Some(orders) = assign_corners(&markers) else {
+        let markers = self.find_markers(frame);
+        self.plane_from_markers(&markers, workspace)
+            .map(|(plane, _)| plane)
+    }
+
+    /// Every workspace marker in `frame`.
+    pub fn find_markers(&mut self, frame: &FrameView<'_>) -> Vec<MarkerObservation> {
+        self.markers
+            .find_markers(frame.rgb, frame.width, frame.height)
+    }
+
+    /// The table plane of `workspace` from the markers found in a frame, with the four markers
+    /// used (upper-left = the origin, upper-right, lower-left, lower-right).
+    pub fn plane_from_markers(
+        &self,
+        markers: &[MarkerObservation],
+        workspace: &WorkspaceInfo,
+    ) -> Result<(TablePlane, [MarkerObservation; 4]), SheetStatus> {
+        let Some(orders) = assign_corners(markers) else {
             return Err(SheetStatus::MarkersMissing {
                 seen: markers.len(),
             });
         };
-        let world = [
-            WorkspacePoint::UpperLeftCorner,
-            WorkspacePoint::UpperRightCorner,
-            WorkspacePoint::LowerLeftCorner,
-            WorkspacePoint::LowerRightCorner,
-        ]
-        .map(|p| {
-            let q = workspace.point(p);
-            [q.x_m, q.y_m]
-        });
+        let world = corner_points(workspace);
         for order in orders {
             let ideal = order.map(|m| self.camera.ideal_of(m.centre_px));
             if let Some(plane) =
                 TablePlane::from_correspondences(&ideal, &world, self.camera.intrinsics())
             {
-                return Ok(plane);
+                return Ok((plane, order));
             }
         }
         Err(SheetStatus::Degenerate)
+    }
+
+    /// The table plane of a frame that is already the workspace square, warped so that the
+    /// four marker centres are the image's corners with the origin marker top-left (what the
+    /// Niryo software's "extracted workspace" images and its 200×200 crops are). The camera must
+    /// be a pinhole without distortion of the frame's size.
+    pub fn warped_plane(&self, workspace: &WorkspaceInfo) -> Option<TablePlane> {
+        let (w, h) = self.camera.size();
+        let (r, b) = (w as f64 - 0.5, h as f64 - 0.5);
+        let corners = [[-0.5, -0.5], [r, -0.5], [-0.5, b], [r, b]];
+        TablePlane::from_correspondences(
+            &corners,
+            &corner_points(workspace),
+            self.camera.intrinsics(),
+        )
+    }
+
+    /// Runs the detector on `frame` of the sheet of `workspace` at `plane`.
+    pub fn detect_on(
+        &mut self,
+        frame: &FrameView<'_>,
+        workspace: &WorkspaceInfo,
+        plane: TablePlane,
+    ) -> Result<Vec<DetectedObject>, DetectError> {
+        let sheet = SheetView {
+            workspace,
+            plane,
+            camera: &self.camera,
+        };
+        self.detector.detect(frame, &sheet)
     }
 
     /// Runs one frame. `tool_pose` (the arm's pose when the frame was taken) picks the
@@ -226,6 +271,21 @@ impl Pipeline {
         detections.workspace_id = workspace.id.clone();
         Ok((detections, SheetStatus::Found))
     }
+}
+
+/// The table points of a workspace's corner markers: upper-left, upper-right, lower-left,
+/// lower-right.
+fn corner_points(workspace: &WorkspaceInfo) -> [[f64; 2]; 4] {
+    [
+        WorkspacePoint::UpperLeftCorner,
+        WorkspacePoint::UpperRightCorner,
+        WorkspacePoint::LowerLeftCorner,
+        WorkspacePoint::LowerRightCorner,
+    ]
+    .map(|p| {
+        let q = workspace.point(p);
+        [q.x_m, q.y_m]
+    })
 }
 
 /// How far from its observation pose (in [`pose_gap`] units: metres plus radians/10) the

@@ -1,0 +1,245 @@
+//! Fragments of one object: blobs that (nearly) touch are one object.
+//!
+//! On a flat-shaded simulated object one colour covers the whole top face, so one blob is one
+//! object. Real objects come apart: a sweet's wrapper is blue with white letters and silver
+//! twists, a pad has a black rim around its colour, glare cuts a stripe through a cube, the
+//! deep shadow at a cube's foot is dark. [`group_fragments`] joins blobs whose pixels come
+//! within a few pixels of each other and decides what the group is:
+//! - mostly coloured (by area): a coloured object, measured on its coloured pixels only (a
+//!   rim or a shadow does not make it larger), named by its main colour;
+//! - mostly dark or of unknown colour: an unknown object, measured on all its pixels.
+//!
+//! Distinct objects a few millimetres apart stay apart: the gap is a few pixels, and only
+//! blobs whose boxes come that close are compared at all (the usual case costs nothing).
+
+use crate::components::{Blob, Components};
+
+/// One object's pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    /// Its class: the colour (1-based index in the label table) with the most pixels, or the
+    /// unknown class.
+    pub class: u8,
+    /// The pixels it is measured on (indices `v × width + u`).
+    pub pixels: Vec<u32>,
+    /// Bounding box of those pixels: first and last column and row.
+    pub u_min: u32,
+    /// Last column.
+    pub u_max: u32,
+    /// First row.
+    pub v_min: u32,
+    /// Last row.
+    pub v_max: u32,
+    /// Mean column of those pixels.
+    pub u_mean: f64,
+    /// Mean row.
+    pub v_mean: f64,
+}
+
+/// A piece is small next to a group with more than this many times its area.
+const SMALL_PIECE_RATIO: u32 = 2;
+
+/// Groups the blobs of `components` (labelled on a `width`-wide class map) whose pixels come
+/// within `gap` pixels of each other, then joins each small dark or unknown-coloured piece
+/// (under half of the other's area) to a group whose box comes within `absorb_gap` pixels of
+/// its box. A coloured object is never joined to another this way. `unknown` is
+/// the class of dark and unknown-coloured pixels.
+pub fn group_fragments(
+    components: &Components,
+    unknown: u8,
+    width: usize,
+    gap: u32,
+    absorb_gap: u32,
+) -> Vec<Group> {
+    let blobs = components.blobs();
+    let n = blobs.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let near = |a: &Blob, b: &Blob| {
+        a.u_min <= b.u_max + gap
+            && b.u_min <= a.u_max + gap
+            && a.v_min <= b.v_max + gap
+            && b.v_min <= a.v_max + gap
+    };
+    for i in 0..n {
+        for j in i + 1..n {
+            if !near(&blobs[i], &blobs[j]) || root(&mut parent, i) == root(&mut parent, j) {
+                continue;
+            }
+            if pixels_within(components, &blobs[i], &blobs[j], width, gap) {
+                let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
+                parent[ri.max(rj)] = ri.min(rj);
+            }
+        }
+    }
+    // Small dark pieces near a larger group belong to it: a sweet's twisted ends beyond the
+    // glare of their silver foil, a shadow's tail.
+    let mut area = vec![0u32; n];
+    let mut unknown_area = vec![0u32; n];
+    let mut boxes = vec![[u32::MAX, u32::MAX, 0, 0]; n];
+    for (i, blob) in blobs.iter().enumerate() {
+        let r = root(&mut parent, i);
+        area[r] += blob.area;
+        if blob.class == unknown {
+            unknown_area[r] += blob.area;
+        }
+        let b = &mut boxes[r];
+        b[0] = b[0].min(blob.u_min);
+        b[1] = b[1].min(blob.v_min);
+        b[2] = b[2].max(blob.u_max);
+        b[3] = b[3].max(blob.v_max);
+    }
+    let roots: Vec<usize> = (0..n).filter(|&i| parent[i] == i).collect();
+    for &small in roots.iter().filter(|&&r| unknown_area[r] * 2 > area[r]) {
+        let b = boxes[small];
+        let host = roots
+            .iter()
+            .copied()
+            .filter(|&big| {
+                let c = boxes[big];
+                big != small
+                    && area[small] * SMALL_PIECE_RATIO < area[big]
+                    && b[0] <= c[2] + absorb_gap
+                    && c[0] <= b[2] + absorb_gap
+                    && b[1] <= c[3] + absorb_gap
+                    && c[1] <= b[3] + absorb_gap
+            })
+            .max_by_key(|&big| area[big]);
+        if let Some(big) = host {
+            parent[small] = root(&mut parent, big);
+        }
+    }
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for i in 0..n {
+        let r = root(&mut parent, i);
+        members[r].push(i);
+    }
+    members
+        .into_iter()
+        .filter(|m| !m.is_empty())
+        .map(|m| summarise(components, &m, unknown, width))
+        .collect()
+}
+
+/// Whether some pixel of `a` lies within `gap` pixels (in both directions) of a pixel of `b`.
+fn pixels_within(components: &Components, a: &Blob, b: &Blob, width: usize, gap: u32) -> bool {
+    let (small, large) = if a.area <= b.area { (a, b) } else { (b, a) };
+    // The larger blob's pixels as a set over its box.
+    let (bw, bh) = (large.box_width() as usize, large.box_height() as usize);
+    let mut mask = vec![false; bw * bh];
+    for &p in components.pixels(large) {
+        let (u, v) = (p as usize % width, p as usize / width);
+        mask[(v - large.v_min as usize) * bw + (u - large.u_min as usize)] = true;
+    }
+    let g = gap as i64;
+    components.pixels(small).iter().any(|&p| {
+        let (u, v) = ((p as usize % width) as i64, (p as usize / width) as i64);
+        (-g..=g).any(|dv| {
+            (-g..=g).any(|du| {
+                let (x, y) = (
+                    u + du - i64::from(large.u_min),
+                    v + dv - i64::from(large.v_min),
+                );
+                x >= 0
+                    && y >= 0
+                    && (x as usize) < bw
+                    && (y as usize) < bh
+                    && mask[y as usize * bw + x as usize]
+            })
+        })
+    })
+}
+
+fn summarise(components: &Components, members: &[usize], unknown: u8, width: usize) -> Group {
+    let blobs = components.blobs();
+    let mut area_by_class = std::collections::BTreeMap::<u8, u32>::new();
+    for &i in members {
+        *area_by_class.entry(blobs[i].class).or_default() += blobs[i].area;
+    }
+    let class = area_by_class
+        .iter()
+        .max_by_key(|(c, a)| (**a, std::cmp::Reverse(**c)))
+        .map(|(c, _)| *c)
+        .unwrap_or(unknown);
+    let mut pixels = Vec::new();
+    for &i in members {
+        if class == unknown || blobs[i].class != unknown {
+            pixels.extend_from_slice(components.pixels(&blobs[i]));
+        }
+    }
+    let (mut u_min, mut u_max, mut v_min, mut v_max) = (u32::MAX, 0, u32::MAX, 0);
+    let (mut su, mut sv) = (0u64, 0u64);
+    for &p in &pixels {
+        let (u, v) = (p % width as u32, p / width as u32);
+        u_min = u_min.min(u);
+        u_max = u_max.max(u);
+        v_min = v_min.min(v);
+        v_max = v_max.max(v);
+        su += u64::from(u);
+        sv += u64::from(v);
+    }
+    let count = pixels.len().max(1) as f64;
+    Group {
+        class,
+        u_min,
+        u_max,
+        v_min,
+        v_max,
+        u_mean: su as f64 / count,
+        v_mean: sv as f64 / count,
+        pixels,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn touching_fragments_join_and_distant_objects_stay_apart() {
+        // A red (1) square with a dark (9) rim on its right, a blue (2) fragment 1 px from the
+        // red, and a red square far away.
+        let (w, h) = (40, 12);
+        let mut map = vec![0u8; w * h];
+        let mut fill = |u0: usize, u1: usize, v0: usize, v1: usize, c: u8| {
+            for v in v0..v1 {
+                for u in u0..u1 {
+                    map[v * w + u] = c;
+                }
+            }
+        };
+        fill(2, 8, 2, 8, 1);
+        fill(8, 9, 2, 8, 9);
+        fill(2, 6, 9, 10, 2);
+        fill(30, 36, 2, 8, 1);
+        let mut c = Components::new();
+        c.label(&map, w, h, 1);
+        let groups = group_fragments(&c, 9, w, 2, 2);
+        assert_eq!(groups.len(), 2, "{groups:?}");
+        let first = groups.iter().find(|g| g.u_min < 10).unwrap();
+        assert_eq!(first.class, 1, "mostly red");
+        assert_eq!(
+            first.pixels.len(),
+            36 + 4,
+            "red and blue pixels, not the dark rim"
+        );
+        assert_eq!((first.u_max, first.v_max), (7, 9));
+        // Mostly dark: an unknown object measured on all its pixels.
+        let mut dark = vec![0u8; w * h];
+        for v in 2..10 {
+            for u in 2..12 {
+                dark[v * w + u] = if u == 5 && v == 5 { 1 } else { 9 };
+            }
+        }
+        c.label(&dark, w, h, 1);
+        let groups = group_fragments(&c, 9, w, 2, 2);
+        assert_eq!(groups.len(), 1);
+        assert_eq!((groups[0].class, groups[0].pixels.len()), (9, 80));
+    }
+}
