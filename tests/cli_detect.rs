@@ -1,7 +1,7 @@
 //! `robotd detect IMAGE` on real photographs of Niryo workspaces, and on bad input.
 //!
 //! The photos are not part of the project (their licences do not allow it): they are read from
-//! `../shared/real_images/` beside the repository (or `ROBOTD_REAL_IMAGES`), and the tests that
+//! `../shared/real_images/` beside the repository (or `REAL_IMAGES_DIR`), and the tests that
 //! need them say so and pass without checking when the folder is absent. What each photo
 //! should give is in that folder's README.md.
 
@@ -9,9 +9,9 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The variable naming the photos' folder. robotd reads every other `ROBOTD_*` variable as a
-/// configuration key and refuses unknown ones, so it is removed from robotd's environment.
-const PHOTOS_VAR: &str = "ROBOTD_REAL_IMAGES";
+/// The variable naming the photos' folder (not a `ROBOTD_*` name: robotd reads those as
+/// configuration keys). Kept out of robotd's environment all the same.
+const PHOTOS_VAR: &str = "REAL_IMAGES_DIR";
 
 fn photos() -> Option<PathBuf> {
     let dir = std::env::var_os(PHOTOS_VAR)
@@ -21,7 +21,7 @@ fn photos() -> Option<PathBuf> {
         Some(dir)
     } else {
         eprintln!(
-            "SKIPPED: the real photos are not at {} (set ROBOTD_REAL_IMAGES to their folder)",
+            "SKIPPED: the real photos are not at {} (set REAL_IMAGES_DIR to their folder)",
             dir.display()
         );
         None
