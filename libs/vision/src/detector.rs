@@ -26,7 +26,7 @@
 use crate::camera::Camera;
 use crate::components::Components;
 use crate::footprint::{measure, Footprint, Sighting};
-use crate::groups::group_fragments;
+use crate::groups::{group_fragments, Gaps};
 use crate::labels::{hue_signature, HeightRule, LabelTable, ShapeClass};
 use crate::plane::TablePlane;
 use crate::rect::{normalise_half_turn, normalise_quarter_turn};
@@ -34,6 +34,11 @@ use crate::shade::LocalMean;
 use crate::spans::sheet_spans;
 use robotd_protocol::objects::{DetectedObject, RelBox, RelPoint};
 use robotd_protocol::workspace::WorkspaceInfo;
+
+/// Hue signatures closer than this are neighbouring hues (blue–cyan 0.69, red–pink 0.46,
+/// red–orange 0.48; red–blue 1.44, green–cyan 0.83): pieces of neighbouring hues may be one
+/// object.
+const NEIGHBOUR_HUE_DISTANCE: f32 = 0.75;
 
 /// One frame, as row-major RGB8.
 #[derive(Debug, Clone, Copy)]
@@ -331,11 +336,28 @@ impl Detector for ColourDetector {
         let ws = sheet.workspace;
         let mut objects = Vec::new();
         let unknown = self.unknown_class();
-        // Fragments 2 mm apart are one object; small dark pieces 8 mm from a larger one join it.
+        // Fragments 2 mm apart are one object; small dark pieces 8 mm from a larger one join it;
+        // a piece of another colour under 5 mm × 5 mm is a sliver of its neighbour.
         let px_per_m = pixels_per_metre(sheet);
-        let gap = (0.002 * px_per_m).round().clamp(2.0, 50.0) as u32;
-        let absorb_gap = (0.008 * px_per_m).round().clamp(2.0, 150.0) as u32;
-        for blob in group_fragments(&self.components, unknown, w, gap, absorb_gap) {
+        let gaps = Gaps {
+            join_px: (0.002 * px_per_m).round().clamp(2.0, 50.0) as u32,
+            absorb_px: (0.008 * px_per_m).round().clamp(2.0, 150.0) as u32,
+            sliver_px: (0.005 * px_per_m).powi(2).round().clamp(1.0, 1e6) as u32,
+        };
+        // Hues this close (blue and cyan, red and pink) may be one printed object; red and
+        // blue never are.
+        let signatures: Vec<[f32; 3]> = self.table.colours.iter().map(|c| c.signature).collect();
+        let neighbour_hues = |a: u8, b: u8| {
+            let (Some(x), Some(y)) = (
+                signatures.get(usize::from(a).wrapping_sub(1)),
+                signatures.get(usize::from(b).wrapping_sub(1)),
+            ) else {
+                return false;
+            };
+            let d2: f32 = x.iter().zip(y).map(|(p, q)| (p - q) * (p - q)).sum();
+            d2 < NEIGHBOUR_HUE_DISTANCE * NEIGHBOUR_HUE_DISTANCE
+        };
+        for blob in group_fragments(&self.components, unknown, w, gaps, neighbour_hues) {
             // A dark or unknown-coloured object has no reliable brightest face: all of it.
             let top = if blob.class == unknown {
                 blob.pixels.clone()

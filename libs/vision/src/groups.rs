@@ -11,6 +11,9 @@
 //!
 //! Distinct objects a few millimetres apart stay apart: the gap is a few pixels, and only
 //! blobs whose boxes come that close are compared at all (the usual case costs nothing).
+//! Pieces of two distinct colours are never one object, even when they touch (a cube pushed
+//! against a pad) or a shadow joins them; neighbouring hues (the blue and cyan of one printed
+//! wrapper) and slivers of another hue along a shaded edge do join.
 
 use crate::components::{Blob, Components};
 
@@ -39,18 +42,33 @@ pub struct Group {
 /// A piece is small next to a group with more than this many times its area.
 const SMALL_PIECE_RATIO: u32 = 2;
 
+/// Distances and sizes, in pixels, that decide which blobs are one object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Gaps {
+    /// Blobs whose pixels come this close are one object.
+    pub join_px: u32,
+    /// A small dark or unknown piece whose box comes this close to a larger group joins it.
+    pub absorb_px: u32,
+    /// A piece of another colour this small (in pixels) is a sliver of its neighbour (a shaded
+    /// edge classified as the next hue), not an object of its own.
+    pub sliver_px: u32,
+}
+
 /// Groups the blobs of `components` (labelled on a `width`-wide class map) whose pixels come
-/// within `gap` pixels of each other, then joins each small dark or unknown-coloured piece
-/// (under half of the other's area) to a group whose box comes within `absorb_gap` pixels of
-/// its box. A coloured object is never joined to another this way. `unknown` is
-/// the class of dark and unknown-coloured pixels.
+/// within `gaps.join_px` of each other — never two colours in one group, unless they are
+/// neighbouring hues (`neighbour_hues`: one printed wrapper's blue and cyan) or one side is a
+/// sliver (at most `gaps.sliver_px`) — then joins each small dark or unknown-coloured piece
+/// (under half of the other's area) to a group whose box comes within `gaps.absorb_px` of its
+/// box. A coloured object is never joined to another this way. `unknown` is the class of dark
+/// and unknown-coloured pixels.
 pub fn group_fragments(
     components: &Components,
     unknown: u8,
     width: usize,
-    gap: u32,
-    absorb_gap: u32,
+    gaps: Gaps,
+    neighbour_hues: impl Fn(u8, u8) -> bool,
 ) -> Vec<Group> {
+    let (gap, absorb_gap) = (gaps.join_px, gaps.absorb_px);
     let blobs = components.blobs();
     let n = blobs.len();
     let mut parent: Vec<usize> = (0..n).collect();
@@ -67,14 +85,39 @@ pub fn group_fragments(
             && a.v_min <= b.v_max + gap
             && b.v_min <= a.v_max + gap
     };
+    // The colour of each group (by its root), `None` while it holds only dark or unknown
+    // pixels: two groups of different colours are never joined, not even through a dark piece
+    // (a shadow) between them, because touching objects of two colours are two objects.
+    let mut colour: Vec<Option<u8>> = blobs
+        .iter()
+        .map(|b| (b.class != unknown).then_some(b.class))
+        .collect();
+    let mut group_area: Vec<u32> = blobs.iter().map(|b| b.area).collect();
     for i in 0..n {
         for j in i + 1..n {
-            if !near(&blobs[i], &blobs[j]) || root(&mut parent, i) == root(&mut parent, j) {
+            let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
+            if !near(&blobs[i], &blobs[j]) || ri == rj {
+                continue;
+            }
+            let two_colours = matches!(
+                (colour[ri], colour[rj]),
+                (Some(a), Some(b)) if a != b && !neighbour_hues(a, b)
+            );
+            if two_colours && group_area[ri].min(group_area[rj]) > gaps.sliver_px {
                 continue;
             }
             if pixels_within(components, &blobs[i], &blobs[j], width, gap) {
-                let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
-                parent[ri.max(rj)] = ri.min(rj);
+                let (keep, gone) = (ri.min(rj), ri.max(rj));
+                // The larger side names the colour of a group joined with a sliver.
+                let larger = if group_area[ri] >= group_area[rj] {
+                    ri
+                } else {
+                    rj
+                };
+                let merged_colour = colour[larger].or(colour[ri]).or(colour[rj]);
+                parent[gone] = keep;
+                colour[keep] = merged_colour;
+                group_area[keep] = group_area[ri] + group_area[rj];
             }
         }
     }
@@ -201,9 +244,15 @@ fn summarise(components: &Components, members: &[usize], unknown: u8, width: usi
 mod tests {
     use super::*;
 
+    const GAPS: Gaps = Gaps {
+        join_px: 2,
+        absorb_px: 2,
+        sliver_px: 2,
+    };
+
     #[test]
     fn touching_fragments_join_and_distant_objects_stay_apart() {
-        // A red (1) square with a dark (9) rim on its right, a blue (2) fragment 1 px from the
+        // A red (1) square with a dark (9) rim on its right, a blue (2) piece 1 px from the
         // red, and a red square far away.
         let (w, h) = (40, 12);
         let mut map = vec![0u8; w * h];
@@ -220,16 +269,38 @@ mod tests {
         fill(30, 36, 2, 8, 1);
         let mut c = Components::new();
         c.label(&map, w, h, 1);
-        let groups = group_fragments(&c, 9, w, 2, 2);
-        assert_eq!(groups.len(), 2, "{groups:?}");
-        let first = groups.iter().find(|g| g.u_min < 10).unwrap();
-        assert_eq!(first.class, 1, "mostly red");
+        let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
         assert_eq!(
-            first.pixels.len(),
-            36 + 4,
-            "red and blue pixels, not the dark rim"
+            groups.len(),
+            3,
+            "red with its rim, the blue piece, the far red: {groups:?}"
         );
-        assert_eq!((first.u_max, first.v_max), (7, 9));
+        let first = groups
+            .iter()
+            .find(|g| g.u_min < 10 && g.class == 1)
+            .unwrap();
+        assert_eq!(first.pixels.len(), 36, "red pixels, not the dark rim");
+        assert_eq!((first.u_max, first.v_max), (8 - 1, 7));
+        let blue = groups.iter().find(|g| g.class == 2).unwrap();
+        assert_eq!(blue.pixels.len(), 4, "two colours touching are two objects");
+        // A dark strip (a shadow) touching a red and a blue square joins neither to the other.
+        let mut bridged = vec![0u8; w * h];
+        for v in 2..8 {
+            for u in 2..20 {
+                bridged[v * w + u] = match u {
+                    2..=7 => 1,
+                    8..=13 => 9,
+                    _ => 2,
+                };
+            }
+        }
+        c.label(&bridged, w, h, 1);
+        let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
+        let classes: Vec<u8> = groups.iter().map(|g| g.class).collect();
+        assert!(
+            classes.contains(&1) && classes.contains(&2),
+            "red and blue stay two objects: {classes:?}"
+        );
         // Mostly dark: an unknown object measured on all its pixels.
         let mut dark = vec![0u8; w * h];
         for v in 2..10 {
@@ -238,7 +309,7 @@ mod tests {
             }
         }
         c.label(&dark, w, h, 1);
-        let groups = group_fragments(&c, 9, w, 2, 2);
+        let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
         assert_eq!(groups.len(), 1);
         assert_eq!((groups[0].class, groups[0].pixels.len()), (9, 80));
     }
