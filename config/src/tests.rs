@@ -490,6 +490,13 @@ fn the_widowx_driver_settings_are_refused_with_their_key_and_reason() {
         let problem = problems.iter().find(|p| p.key == key).expect(&message);
         assert!(problem.reason.contains(says), "{key}: {message}");
     }
+    let v4l2 = TempFile::new(
+        "[robot]\ndriver = \"widowx\"\n[robot.widowx]\ncamera_url = \"/dev/video0\"\n",
+    );
+    let message = Config::load_with_env(with_file(&v4l2), no_env())
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("mjpg-streamer"), "{message}");
     let fine = TempFile::new("[robot]\ndriver = \"widowx\"\n");
     let config = Config::load_with_env(with_file(&fine), no_env()).unwrap();
     assert_eq!(

@@ -176,7 +176,18 @@ impl WidowxConfig {
             "",
         );
         if let Some(url) = &self.camera_url {
-            if !(url.starts_with("http://") || url.starts_with("https://")) || url.contains(' ') {
+            if url.starts_with("/dev/video") {
+                checks.problem(
+                    "widowx.camera_url",
+                    format!(
+                        "'{url}' is a V4L2 device, which robotd does not read directly: serve it \
+                         as MJPEG (mjpg-streamer -i \"input_uvc.so -d {url}\" -o \
+                         output_http.so) and give its http:// URL"
+                    ),
+                );
+            } else if !(url.starts_with("http://") || url.starts_with("https://"))
+                || url.contains(' ')
+            {
                 checks.problem(
                     "widowx.camera_url",
                     format!("'{url}' is not an http:// or https:// URL of an MJPEG stream"),
