@@ -632,6 +632,10 @@ pub fn start_workspace_model(
             memory: MemorySettings {
                 free_space_margin_m: config.free_space_margin_m,
                 expire_after_frames: config.expire_after_frames,
+                label_limits: robotd_workspace_model::labels::LabelLimits {
+                    max_labels: config.max_labels as usize,
+                    max_chars: config.max_label_chars as usize,
+                },
             },
             default_fresh_wait: std::time::Duration::from_millis(config.fresh_wait_ms),
         },

@@ -176,6 +176,26 @@ async fn check_contract(client: &McpClient, tag: &str) {
         .await,
         "❌ Validation Error: object_name must be a non-empty string"
     );
+    // A huge label is refused with the limit, twice, and the list still answers.
+    for _ in 0..2 {
+        let refused = text(
+            client,
+            "add_object_name2object_labels",
+            json!({"object_name": "x".repeat(600_000)}),
+        )
+        .await;
+        assert!(
+            refused.starts_with("❌") && refused.contains("at most 100"),
+            "{}",
+            &refused[..refused.len().min(300)]
+        );
+    }
+    let labels = text(client, "get_object_labels_as_string", json!({})).await;
+    assert!(
+        labels.starts_with("✓ Detectable objects:") && labels.len() < 10_000,
+        "{}",
+        &labels[..labels.len().min(300)]
+    );
 
     // Feedback.
     assert_eq!(

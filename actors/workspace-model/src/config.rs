@@ -1,4 +1,5 @@
-//! `[workspace]`: the scene memory's free-space margin, forgetting and freshness waits.
+//! `[workspace]`: the scene memory's free-space margin, forgetting, freshness waits and the
+//! limits of the detectable-label list.
 
 use robotd_runtime::config::{Checks, Section};
 use serde::{Deserialize, Serialize};
@@ -17,6 +18,13 @@ pub struct WorkspaceConfig {
     /// Longest a detection tool waits for a fresh view of the workspace, ms (1 … 60000).
     #[serde(default = "WorkspaceConfig::fresh_wait_ms")]
     pub fresh_wait_ms: u64,
+    /// Most detectable labels held; `add_object_name2object_labels` beyond it is refused
+    /// (1 … 10000).
+    #[serde(default = "WorkspaceConfig::max_labels")]
+    pub max_labels: u32,
+    /// Longest detectable label, characters (1 … 1000).
+    #[serde(default = "WorkspaceConfig::max_label_chars")]
+    pub max_label_chars: u32,
 }
 
 impl Default for WorkspaceConfig {
@@ -25,6 +33,8 @@ impl Default for WorkspaceConfig {
             free_space_margin_m: Self::free_space_margin_m(),
             expire_after_frames: Self::expire_after_frames(),
             fresh_wait_ms: Self::fresh_wait_ms(),
+            max_labels: Self::max_labels(),
+            max_label_chars: Self::max_label_chars(),
         }
     }
 }
@@ -38,6 +48,12 @@ impl WorkspaceConfig {
     }
     fn fresh_wait_ms() -> u64 {
         3000
+    }
+    fn max_labels() -> u32 {
+        500
+    }
+    fn max_label_chars() -> u32 {
+        100
     }
 }
 
@@ -56,5 +72,7 @@ impl Section for WorkspaceConfig {
             "",
         );
         checks.range_u64("fresh_wait_ms", self.fresh_wait_ms, 1..=60_000, " ms");
+        checks.range_u64("max_labels", self.max_labels.into(), 1..=10_000, "");
+        checks.range_u64("max_label_chars", self.max_label_chars.into(), 1..=1000, "");
     }
 }

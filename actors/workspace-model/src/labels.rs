@@ -38,6 +38,41 @@ pub enum LabelError {
     /// Nothing but whitespace was given.
     #[error("object_name must be a non-empty string")]
     Empty,
+    /// The label is longer than the registry takes.
+    #[error(
+        "object_name has {chars} characters; labels are at most {max} (workspace.max_label_chars)"
+    )]
+    TooLong {
+        /// Its length in characters (normalised).
+        chars: usize,
+        /// The limit.
+        max: usize,
+    },
+    /// The registry holds as many labels as it takes.
+    #[error("the label list is full ({max} labels, workspace.max_labels); no label was added")]
+    Full {
+        /// The limit.
+        max: usize,
+    },
+}
+
+/// How many labels the registry holds and how long each may be, so that one request cannot
+/// grow the list (and every reply that lists it) without bound.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LabelLimits {
+    /// Most labels held.
+    pub max_labels: usize,
+    /// Longest label, characters.
+    pub max_chars: usize,
+}
+
+impl Default for LabelLimits {
+    fn default() -> Self {
+        Self {
+            max_labels: 500,
+            max_chars: 100,
+        }
+    }
 }
 
 /// The outcome of [`LabelRegistry::add`].
@@ -54,15 +89,26 @@ pub struct Added {
 pub struct LabelRegistry {
     labels: Vec<String>,
     builtin: Vec<String>,
+    limits: LabelLimits,
 }
 
 impl LabelRegistry {
     /// A registry holding the `configured` labels, then any of the built-in detector's labels
     /// (`builtin`) not already among them.
     pub fn new(configured: &[String], builtin: &[String]) -> Self {
+        Self::with_limits(configured, builtin, LabelLimits::default())
+    }
+
+    /// [`Self::new`] with `limits` on the labels added later (the configured and built-in
+    /// ones are always kept).
+    pub fn with_limits(configured: &[String], builtin: &[String], limits: LabelLimits) -> Self {
         let mut registry = Self {
             labels: Vec::new(),
             builtin: Vec::new(),
+            limits: LabelLimits {
+                max_labels: usize::MAX,
+                max_chars: usize::MAX,
+            },
         };
         for label in builtin {
             let label = normalise(label);
@@ -74,6 +120,7 @@ impl LabelRegistry {
             // Empty configured labels are skipped, not fatal: configuration was checked at load.
             let _ = registry.add(label);
         }
+        registry.limits = limits;
         registry
     }
 
@@ -83,8 +130,20 @@ impl LabelRegistry {
         if label.is_empty() {
             return Err(LabelError::Empty);
         }
+        let chars = label.chars().count();
+        if chars > self.limits.max_chars {
+            return Err(LabelError::TooLong {
+                chars,
+                max: self.limits.max_chars,
+            });
+        }
         let already_known = self.labels.contains(&label);
         if !already_known {
+            if self.labels.len() >= self.limits.max_labels {
+                return Err(LabelError::Full {
+                    max: self.limits.max_labels,
+                });
+            }
             self.labels.push(label.clone());
         }
         Ok(Added {
@@ -164,6 +223,28 @@ mod tests {
             }
         );
         assert_eq!(r.add(" \n").unwrap_err(), LabelError::Empty);
+        let mut small = LabelRegistry::with_limits(
+            &strings(&["pencil"]),
+            &[],
+            LabelLimits {
+                max_labels: 2,
+                max_chars: 10,
+            },
+        );
+        assert_eq!(
+            small.add(&"x".repeat(600_000)).unwrap_err(),
+            LabelError::TooLong {
+                chars: 600_000,
+                max: 10
+            }
+        );
+        small.add("cup").unwrap();
+        assert_eq!(small.add("mug").unwrap_err(), LabelError::Full { max: 2 });
+        assert!(
+            small.add("CUP").unwrap().already_known,
+            "a known label is no addition"
+        );
+        assert_eq!(small.labels(), ["pencil", "cup"]);
         assert_eq!(r.labels(), ["pencil", "blue square"]);
         let published = r.snapshot(Some("blue square".into()));
         assert_eq!(published.labels, ["pencil", "blue square"]);

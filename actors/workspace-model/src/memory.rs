@@ -69,6 +69,9 @@ pub struct MemorySettings {
     /// Steady views of its workspace an object may be missed in, in a row, before it is
     /// forgotten (config `workspace.expire_after_frames`, default 3).
     pub expire_after_frames: u32,
+    /// How many detectable labels are held and how long each may be (config
+    /// `workspace.max_labels`, `workspace.max_label_chars`).
+    pub label_limits: crate::labels::LabelLimits,
 }
 
 impl Default for MemorySettings {
@@ -76,6 +79,7 @@ impl Default for MemorySettings {
         Self {
             free_space_margin_m: 0.01,
             expire_after_frames: 3,
+            label_limits: crate::labels::LabelLimits::default(),
         }
     }
 }
@@ -120,7 +124,7 @@ impl SceneMemory {
     ) -> Self {
         Self {
             tracker: Tracker::new(settings.expire_after_frames),
-            labels: LabelRegistry::new(labels, builtin),
+            labels: LabelRegistry::with_limits(labels, builtin, settings.label_limits),
             settings,
             workspaces,
             current: None,
