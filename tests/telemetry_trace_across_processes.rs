@@ -66,3 +66,54 @@ fn robotd_continues_the_callers_trace_and_answers_from_its_own_span() {
         })
     });
 }
+
+/// A tool argument with a line break and a terminal escape lands in robotd's log (a skill's
+/// error names the object it could not find) as one escaped line: it cannot forge a line.
+#[test]
+fn tool_arguments_cannot_forge_log_lines() {
+    let logs = tempfile::tempdir().unwrap();
+    let log_setting = format!("telemetry.log_dir={}", logs.path().display());
+    let port = common::free_port();
+    let _robotd = common::start_robotd(
+        &common::fresh_namespace("logs"),
+        port,
+        &["--set", &log_setting, "--set", "robot.time_scale=0.05"],
+    );
+    let tag = format!("t{}", std::process::id());
+    let name = format!("ghost\nERROR robotd: forged {tag}\x1b[2J");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["call", "pick_object", "--url"])
+        .arg(format!("http://127.0.0.1:{port}/mcp"))
+        .arg("--arg")
+        .arg(format!("object_name={name}"))
+        .args(["--arg", "pick_coordinate=[0.25,0.0]"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        output.status.code(),
+        Some(1),
+        "the pick must fail: {output:?}"
+    );
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    let text = loop {
+        let mut text = String::new();
+        for entry in std::fs::read_dir(logs.path()).unwrap().flatten() {
+            if entry.file_name().to_string_lossy().starts_with("robotd") {
+                text += &std::fs::read_to_string(entry.path()).unwrap_or_default();
+            }
+        }
+        if text.contains(&tag) || std::time::Instant::now() > deadline {
+            break text;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(
+        text.contains(&format!("ghost\\nERROR robotd: forged {tag}\\x1b[2J")),
+        "the name is logged, escaped: {text}"
+    );
+    assert!(
+        !text.lines().any(|l| l.starts_with("ERROR robotd: forged")),
+        "a forged line: {text}"
+    );
+    assert!(!text.contains('\x1b'), "a raw escape in the log");
+}

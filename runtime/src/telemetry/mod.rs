@@ -69,6 +69,7 @@
 //! Spans below the log filter are not created at all, so they are neither logged, exported
 //! nor propagated (keep the filter at `info` or finer to trace bus requests).
 
+pub mod escape;
 mod files;
 
 pub use files::{file_stamp, utc_fields};
@@ -273,8 +274,16 @@ pub fn build(
     let mut layers: Vec<Box<dyn Layer<Base> + Send + Sync>> = Vec::new();
 
     let ansi = mode == Mode::Service && std::io::stderr().is_terminal();
+    // Without colours, escape control characters (outside text cannot forge a line); with
+    // colours (a person at a terminal) the formatter's own escapes must pass.
+    use tracing_subscriber::fmt::writer::BoxMakeWriter;
+    let stderr_writer = if ansi {
+        BoxMakeWriter::new(std::io::stderr)
+    } else {
+        BoxMakeWriter::new(escape::EscapingMakeWriter::new(std::io::stderr))
+    };
     let stderr = tracing_subscriber::fmt::layer()
-        .with_writer(std::io::stderr)
+        .with_writer(stderr_writer)
         .with_ansi(ansi);
     layers.push(if mode == Mode::Chat {
         Box::new(stderr.with_filter(tracing_subscriber::filter::LevelFilter::WARN))
@@ -296,7 +305,7 @@ pub fn build(
         file_guard = Some(guard);
         log_dir = Some(config.log_dir.clone());
         let file_layer = tracing_subscriber::fmt::layer()
-            .with_writer(writer)
+            .with_writer(escape::EscapingMakeWriter::new(writer))
             .with_ansi(false);
         layers.push(match config.log_format {
             LogFormat::Text => Box::new(file_layer),
