@@ -54,6 +54,18 @@ async fn wait_connected(widowx: &WidowxDrivers, within: Duration) {
     }
 }
 
+/// Waits until the bus says it is not connected; its reason.
+async fn wait_disconnected(widowx: &WidowxDrivers, what: &str) -> String {
+    let deadline = Instant::now() + Duration::from_secs(3);
+    loop {
+        if let Err(reason) = widowx.bus.connection() {
+            return reason;
+        }
+        assert!(Instant::now() < deadline, "still connected {what}");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
 fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
         .zip(b)
@@ -212,14 +224,7 @@ async fn corrupt_and_lost_packets_are_errors_and_the_bus_carries_on() {
     wait_connected(&rig.widowx, Duration::from_secs(3)).await;
     // A bus that stops answering makes the robot unavailable with the reason.
     faults.silent.store(true, Ordering::SeqCst);
-    let deadline = Instant::now() + Duration::from_secs(3);
-    let reason = loop {
-        if let Err(reason) = rig.widowx.bus.connection() {
-            break reason;
-        }
-        assert!(Instant::now() < deadline, "still connected while silent");
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    };
+    let reason = wait_disconnected(&rig.widowx, "while silent").await;
     assert!(
         reason.contains("stopped answering") || reason.contains("does not answer"),
         "{reason}"
@@ -243,17 +248,7 @@ async fn corrupt_and_lost_packets_are_errors_and_the_bus_carries_on() {
 async fn an_unplugged_adapter_is_reported_and_found_again() {
     let rig = rig().await;
     rig.fake.unplug();
-    let deadline = Instant::now() + Duration::from_secs(3);
-    let reason = loop {
-        if let Err(reason) = rig.widowx.bus.connection() {
-            break reason;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "still connected after unplugging"
-        );
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    };
+    let reason = wait_disconnected(&rig.widowx, "after unplugging").await;
     assert!(reason.contains("U2D2"), "{reason}");
     rig.fake.plug_in().unwrap();
     let replugged = Instant::now();
