@@ -7,9 +7,9 @@
 
 use anyhow::{Context, Result};
 use robotd_config::{ActorMode, Config, WorkspaceConfig};
+use robotd_http::guard::HttpGuard;
 use robotd_http::{HealthSource, HttpEdge};
 use robotd_mcp::call_log::CallLog;
-use robotd_mcp::http::HttpGuard;
 use robotd_mcp::McpService;
 use robotd_perception::detector::{ColourDetector, ColourDetectorSettings};
 use robotd_perception::labels::LabelTable;
@@ -416,26 +416,26 @@ fn mcp_service(config: &Config, registry: Registry) -> McpService {
 pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Result<()> {
     let runtime = Runtime::start(&config).await?;
     let _agent = start_agent(&config, config_file, &runtime)?;
-    let mut edge = HttpEdge::bind(config.http.bind, runtime.health_source.clone()).await?;
+    let edge = HttpEdge::bind(config.http.bind, runtime.health_source.clone()).await?;
     let address = edge.local_addr()?;
+    let guard = HttpGuard {
+        token: config.mcp.token.clone().filter(|t| !t.trim().is_empty()),
+        max_body_bytes: config.mcp.max_body_bytes,
+        allowed_origins: config.mcp.allowed_origins.clone(),
+        allowed_hosts: config.http.allowed_hosts.clone(),
+        loopback: address.ip().is_loopback(),
+    };
+    robotd_http::guard::check_bind(address, &guard)?;
+    let mut edge = edge.with_guard(guard);
     let stop_sessions = CancellationToken::new();
     if config.mcp.enabled {
-        let guard = HttpGuard {
-            token: config.mcp.token.clone().filter(|t| !t.trim().is_empty()),
-            max_body_bytes: config.mcp.max_body_bytes,
-            allowed_origins: config.mcp.allowed_origins.clone(),
-        };
-        robotd_mcp::http::check_bind(address, &guard)?;
         let service = mcp_service(&config, runtime.tool_registry(&config)?);
         edge = edge.with_routes(robotd_mcp::http::router(
             service,
-            guard.clone(),
+            config.mcp.max_body_bytes,
             stop_sessions.clone(),
         ));
-        edge = edge.with_routes(robotd_mcp::http::guarded(
-            robotd_http::safety::router(runtime.safety_api()?),
-            guard,
-        ));
+        edge = edge.with_routes(robotd_http::safety::router(runtime.safety_api()?));
     }
     tracing::info!("HTTP edge on http://{address} (/health, /metrics, MCP /sse and /mcp)");
     eprintln!(

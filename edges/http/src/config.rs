@@ -1,4 +1,4 @@
-//! `[http]`: the address of robotd's one HTTP port.
+//! `[http]`: the address of robotd's one HTTP port and the host names it answers to.
 
 use robotd_runtime::config::{Checks, Section};
 use serde::{Deserialize, Serialize};
@@ -10,9 +10,62 @@ use std::net::SocketAddr;
 pub struct HttpConfig {
     /// Address of the HTTP edge; port 0 picks a free port.
     pub bind: SocketAddr,
+    /// Host names accepted in the `Host` header besides localhost, 127.0.0.1 and [::1]
+    /// (DNS-rebinding protection), e.g. "robot-pc.lab". On a non-loopback bind a non-empty
+    /// list restricts `Host` to these names.
+    #[serde(default)]
+    pub allowed_hosts: Vec<String>,
+}
+
+/// Whether `name` is a plain host name or IP address (no scheme, port, path or spaces).
+fn is_host_name(name: &str) -> bool {
+    if name.parse::<std::net::IpAddr>().is_ok() {
+        return true;
+    }
+    if let Some(v6) = name.strip_prefix('[').and_then(|n| n.strip_suffix(']')) {
+        return v6.parse::<std::net::Ipv6Addr>().is_ok();
+    }
+    !name.is_empty()
+        && name.len() <= 253
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '.' | '-' | '_'))
 }
 
 impl Section for HttpConfig {
     /// The address is checked while it is read (serde parses it).
-    fn check(&self, _checks: &mut Checks) {}
+    fn check(&self, checks: &mut Checks) {
+        for name in &self.allowed_hosts {
+            if !is_host_name(name) {
+                checks.problem(
+                    "allowed_hosts",
+                    format!(
+                        "'{name}' is not a host name; expected a name or address without \
+                         scheme or port, such as \"robot-pc.lab\" or \"192.168.1.20\""
+                    ),
+                );
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_host_name;
+
+    #[test]
+    fn host_names_without_scheme_or_port() {
+        for ok in [
+            "robot-pc.lab",
+            "192.168.1.20",
+            "localhost",
+            "[fe80::1]",
+            "fe80::1",
+        ] {
+            assert!(is_host_name(ok), "{ok}");
+        }
+        for bad in ["", "http://robot", "robot:8000", "a b", "robot/path"] {
+            assert!(!is_host_name(bad), "{bad}");
+        }
+    }
 }

@@ -1,18 +1,21 @@
 //! robotd's HTTP edge: the service's one HTTP port, with `GET /health` (JSON) and
 //! `GET /metrics` (Prometheus text) for dashboards and monitoring; the MCP edge mounts its
-//! routes on the same port ([`HttpEdge::with_routes`]). It holds no robot logic.
+//! routes on the same port ([`HttpEdge::with_routes`]). Every route sits behind one
+//! [`guard`] (Host, Origin, bearer token, body size). It holds no robot logic.
 //!
 //! ```no_run
 //! # async fn demo() -> std::io::Result<()> {
 //! use robotd_http::{HealthSource, HttpEdge};
 //! let health: HealthSource = std::sync::Arc::new(|| serde_json::json!({"status": "ok"}));
-//! let edge = HttpEdge::bind("127.0.0.1:8000".parse().unwrap(), health).await?;
+//! let edge = HttpEdge::bind("127.0.0.1:8000".parse().unwrap(), health).await?
+//!     .with_guard(robotd_http::guard::HttpGuard::default());
 //! println!("serving on {}", edge.local_addr()?);
 //! edge.serve(std::future::pending()).await
 //! # }
 //! ```
 
 pub mod config;
+pub mod guard;
 pub mod safety;
 pub use config::HttpConfig;
 
@@ -20,6 +23,7 @@ use axum::extract::State;
 use axum::http::{header, StatusCode};
 use axum::response::IntoResponse;
 use axum::routing::get;
+use axum::serve::ListenerExt;
 use axum::Router;
 use robotd_runtime::metrics::{Metrics, CONTENT_TYPE};
 use std::future::Future;
@@ -33,6 +37,7 @@ pub type HealthSource = Arc<dyn Fn() -> serde_json::Value + Send + Sync>;
 pub struct HttpEdge {
     listener: tokio::net::TcpListener,
     router: Router,
+    guard: guard::HttpGuard,
 }
 
 impl HttpEdge {
@@ -44,9 +49,14 @@ impl HttpEdge {
                 format!("cannot listen on {addr}: {e} (is another robotd running? set http.bind)"),
             )
         })?;
+        let loopback = addr.ip().is_loopback();
         Ok(Self {
             listener,
             router: router(health),
+            guard: guard::HttpGuard {
+                loopback,
+                ..Default::default()
+            },
         })
     }
 
@@ -56,19 +66,40 @@ impl HttpEdge {
         self
     }
 
+    /// Puts every route behind `guard` (its `loopback` is set from the bound address).
+    pub fn with_guard(mut self, guard: guard::HttpGuard) -> Self {
+        self.guard = guard::HttpGuard {
+            loopback: self.guard.loopback,
+            ..guard
+        };
+        self
+    }
+
     /// The address actually bound.
     pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
         self.listener.local_addr()
     }
 
-    /// Serves until `shutdown` completes.
+    /// Serves until `shutdown` completes. Handlers can read the client's address as
+    /// `ConnectInfo<SocketAddr>`.
     pub async fn serve(
         self,
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> std::io::Result<()> {
-        axum::serve(self.listener, self.router)
-            .with_graceful_shutdown(shutdown)
-            .await
+        let app = guard::guarded(self.router, self.guard);
+        // Without TCP_NODELAY a response written in two pieces (headers, then an SSE event)
+        // waits for the client's delayed ACK: a ~40 ms floor per streamable-HTTP call.
+        let listener = self.listener.tap_io(|stream| {
+            if let Err(error) = stream.set_nodelay(true) {
+                tracing::debug!(%error, "TCP_NODELAY not set");
+            }
+        });
+        axum::serve(
+            listener,
+            app.into_make_service_with_connect_info::<SocketAddr>(),
+        )
+        .with_graceful_shutdown(shutdown)
+        .await
     }
 }
 

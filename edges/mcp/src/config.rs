@@ -10,8 +10,9 @@ use serde::{Deserialize, Serialize};
 pub struct McpConfig {
     /// Serve the MCP routes at all.
     pub enabled: bool,
-    /// Bearer token every MCP request must carry (`Authorization: Bearer …`). Required when
-    /// `http.bind` is not a loopback address. Prefer the `ROBOTD_MCP__TOKEN` environment
+    /// Bearer token of the whole HTTP port (`Authorization: Bearer …`): MCP, e-stop and
+    /// approvals always, `/health` and `/metrics` unless `http.bind` is loopback. Required
+    /// when `http.bind` is not a loopback address, with MCP on or off. Prefer the `ROBOTD_MCP__TOKEN` environment
     /// variable to writing it in a file.
     pub token: Option<String>,
     /// Largest request body, bytes (1 KiB … 64 MiB).
@@ -66,17 +67,18 @@ impl Section for McpConfig {
 }
 
 impl McpConfig {
-    /// The problem of serving MCP on `bind` without a token: anyone on the network could
-    /// move the robot. `None` when `bind` is loopback, MCP is off, or a token is set.
+    /// The problem of serving the HTTP port on `bind` without a token: anyone on the network
+    /// could move the robot (MCP) or stop it (e-stop). `None` when `bind` is loopback or a
+    /// token is set; MCP being off does not matter, the port serves more than MCP.
     pub fn bind_problem(&self, bind: std::net::SocketAddr) -> Option<(String, String)> {
         let no_token = self.token.as_deref().is_none_or(|t| t.trim().is_empty());
-        (self.enabled && !bind.ip().is_loopback() && no_token).then(|| {
+        (!bind.ip().is_loopback() && no_token).then(|| {
             (
                 "mcp.token".to_owned(),
                 format!(
                     "is required because http.bind {bind} is not a loopback address: without it \
-                     anyone on the network could move the robot (set ROBOTD_MCP__TOKEN, or bind \
-                     127.0.0.1)"
+                     anyone on the network could move or stop the robot and read its state (set \
+                     ROBOTD_MCP__TOKEN, or bind 127.0.0.1)"
                 ),
             )
         })

@@ -8,20 +8,26 @@
 //!   rmcp 3 ships no server for it, so robotd implements it here: each stream is one rmcp
 //!   session fed through a pair of channels. Closing the stream ends the session and cancels
 //!   its calls (a motion in flight stops).
-//! - **Streamable HTTP** at `/mcp`: rmcp's own service.
-//! - **Guard** (every route): a bearer token when one is configured (401 otherwise), `Origin`
-//!   headers that are not local (or configured) refused with 403 — DNS-rebinding protection —
-//!   and a request-body limit (413).
+//! - **Streamable HTTP** at `/mcp`: rmcp's own service, with a body that is not JSON
+//!   answered 400 / `-32700` and one that is not a JSON-RPC message 400 / `-32600` (rmcp
+//!   would say 415).
+//!
+//! Each session is bound to the client that opened it ([`crate::owner`]) and served through
+//! [`crate::gate`] (no request before `notifications/initialized`). The port's guard (token,
+//! Host, Origin, body size) is the HTTP edge's: `robotd_http::guard`, around every route.
 
+use crate::gate::{gated, invalid_params, is_mcp_method};
+use crate::owner::SessionOwner;
 use crate::service::McpService;
 use crate::sessions::{CallScopes, ClosingSessions};
 use axum::body::Bytes;
-use axum::extract::{DefaultBodyLimit, Query, Request, State};
+use axum::extract::{ConnectInfo, DefaultBodyLimit, Query, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
+use axum::Extension;
 use axum::Router;
 use futures::channel::mpsc;
 use futures::{SinkExt, Stream, StreamExt};
@@ -35,117 +41,6 @@ use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
-
-/// How the HTTP side is protected.
-#[derive(Debug, Clone)]
-pub struct HttpGuard {
-    /// Required `Authorization: Bearer <token>`; `None` = no token (loopback only).
-    pub token: Option<String>,
-    /// Largest request body accepted, bytes.
-    pub max_body_bytes: usize,
-    /// Extra `Origin` values accepted besides local ones (e.g. `https://lab.example.org`).
-    pub allowed_origins: Vec<String>,
-}
-
-impl Default for HttpGuard {
-    fn default() -> Self {
-        Self {
-            token: None,
-            max_body_bytes: 1024 * 1024,
-            allowed_origins: Vec::new(),
-        }
-    }
-}
-
-/// Why the edge refuses to start.
-#[derive(Debug, thiserror::Error)]
-pub enum StartError {
-    /// A non-loopback address without a token would give the robot to anyone on the network.
-    #[error(
-        "refusing to serve MCP on {bind} without a bearer token: a non-loopback address \
-         exposes the robot to the network. Set [mcp] token (or ROBOTD_MCP__TOKEN), or bind \
-         127.0.0.1"
-    )]
-    TokenRequired {
-        /// The address asked for.
-        bind: SocketAddr,
-    },
-}
-
-/// Checks that `bind` may be served with `guard`.
-pub fn check_bind(bind: SocketAddr, guard: &HttpGuard) -> Result<(), StartError> {
-    if !bind.ip().is_loopback() && guard.token.as_deref().is_none_or(str::is_empty) {
-        return Err(StartError::TokenRequired { bind });
-    }
-    Ok(())
-}
-
-/// Whether an `Origin` header value names this machine.
-fn origin_is_local(origin: &str) -> bool {
-    let Some((scheme, rest)) = origin.split_once("://") else {
-        return false;
-    };
-    if scheme != "http" && scheme != "https" {
-        return false;
-    }
-    let host = if let Some(v6) = rest.strip_prefix('[') {
-        v6.split(']').next().unwrap_or("")
-    } else {
-        rest.split(':').next().unwrap_or("")
-    };
-    matches!(host, "localhost" | "127.0.0.1" | "::1")
-}
-
-fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
-}
-
-async fn guard(State(guard): State<Arc<HttpGuard>>, request: Request, next: Next) -> Response {
-    let headers = request.headers();
-    if let Some(origin) = headers.get(header::ORIGIN) {
-        let origin = origin.to_str().unwrap_or("");
-        if !origin_is_local(origin) && !guard.allowed_origins.iter().any(|o| o == origin) {
-            tracing::warn!(origin, "MCP request with a foreign Origin refused");
-            return (
-                StatusCode::FORBIDDEN,
-                "Forbidden: Origin not allowed (robotd serves MCP to local clients; add the \
-                 origin to [mcp] allowed_origins to allow it)",
-            )
-                .into_response();
-        }
-    }
-    if let Some(token) = guard.token.as_deref() {
-        let given = headers
-            .get(header::AUTHORIZATION)
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "))
-            .unwrap_or("");
-        if !constant_time_eq(given.as_bytes(), token.as_bytes()) {
-            return (
-                StatusCode::UNAUTHORIZED,
-                [(header::WWW_AUTHENTICATE, "Bearer")],
-                "Unauthorized: send Authorization: Bearer <token>",
-            )
-                .into_response();
-        }
-    }
-    let too_long = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<usize>().ok())
-        .is_some_and(|n| n > guard.max_body_bytes);
-    if too_long {
-        return (
-            StatusCode::PAYLOAD_TOO_LARGE,
-            format!(
-                "Payload Too Large: requests are limited to {} bytes",
-                guard.max_body_bytes
-            ),
-        )
-            .into_response();
-    }
-    next.run(request).await
-}
 
 type SessionMap = Arc<Mutex<HashMap<String, mpsc::Sender<ClientJsonRpcMessage>>>>;
 
@@ -190,8 +85,10 @@ fn new_session_id() -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-async fn open_sse(State(state): State<SseState>) -> Response {
+async fn open_sse(State(state): State<SseState>, request: Request) -> Response {
     let id = new_session_id();
+    let owner = SessionOwner::of(request.headers(), request.extensions());
+    state.service.scopes().bind_owner(&id, owner);
     let (to_server, from_client) = mpsc::channel::<ClientJsonRpcMessage>(64);
     let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);
     state
@@ -204,7 +101,7 @@ async fn open_sse(State(state): State<SseState>) -> Response {
     let shutdown = state.shutdown.clone();
     tokio::spawn(async move {
         match service
-            .serve_with_ct((to_client, from_client), shutdown.child_token())
+            .serve_with_ct(gated((to_client, from_client)), shutdown.child_token())
             .await
         {
             Ok(running) => {
@@ -245,12 +142,25 @@ struct SessionQuery {
 async fn post_message(
     State(state): State<SseState>,
     Query(query): Query<SessionQuery>,
+    connection: Option<Extension<ConnectInfo<SocketAddr>>>,
     headers: HeaderMap,
     body: Bytes,
 ) -> Response {
     let Some(id) = query.session_id else {
         return (StatusCode::BAD_REQUEST, "session_id is required").into_response();
     };
+    let mut extensions = axum::http::Extensions::new();
+    if let Some(Extension(info)) = connection {
+        extensions.insert(info);
+    }
+    if !state
+        .service
+        .scopes()
+        .owned_by(&id, &SessionOwner::of(&headers, &extensions))
+    {
+        tracing::warn!(session = %id, "post into another client's SSE session refused");
+        return (StatusCode::NOT_FOUND, "Could not find session").into_response();
+    }
     let is_json = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
@@ -287,31 +197,14 @@ async fn post_message(
     }
 }
 
-/// `routes` behind the MCP edge's guard (bearer token off loopback, Origin checks, body
-/// limit), for other APIs on the same port.
-pub fn guarded(routes: Router, guard_settings: HttpGuard) -> Router {
-    let limit = guard_settings.max_body_bytes;
-    routes
-        .layer(DefaultBodyLimit::max(limit))
-        .layer(middleware::from_fn_with_state(
-            Arc::new(guard_settings),
-            guard,
-        ))
-}
-
-/// The MCP routes (`/sse`, `/messages/`, `/mcp`) behind the guard. `shutdown` ends every
-/// session.
-pub fn router(
-    service: McpService,
-    guard_settings: HttpGuard,
-    shutdown: CancellationToken,
-) -> Router {
-    let limit = guard_settings.max_body_bytes;
-    // Host checks would refuse a client that reaches a non-loopback bind by its address; the
-    // bearer token protects those binds instead, and Origin is checked by the guard.
+/// The MCP routes (`/sse`, `/messages/`, `/mcp`), accepting bodies up to `max_body_bytes`.
+/// `shutdown` ends every session. Serve them behind `robotd_http::guard` (the HTTP edge does).
+pub fn router(service: McpService, max_body_bytes: usize, shutdown: CancellationToken) -> Router {
+    // Host is checked by the port's guard, for every route; rmcp's own check would refuse a
+    // client that reaches a non-loopback bind by its address.
     let config = StreamableHttpServerConfig::default()
         .with_allowed_hosts(Vec::<String>::new())
-        .with_max_request_body_bytes(limit)
+        .with_max_request_body_bytes(max_body_bytes)
         .with_cancellation_token(shutdown.child_token());
     let streamable_service = service.for_transport("streamable_http");
     let streamable = StreamableHttpService::new(
@@ -319,62 +212,105 @@ pub fn router(
         Arc::new(ClosingSessions::new(service.scopes())),
         config,
     );
+    let scopes = service.scopes();
     let state = SseState {
         service,
         sessions: SessionMap::default(),
         shutdown,
     };
+    let streamable =
+        Router::new()
+            .fallback_service(streamable)
+            .layer(middleware::from_fn_with_state(
+                (scopes, max_body_bytes),
+                streamable_checks,
+            ));
     Router::new()
         .route("/sse", get(open_sse))
         .route("/messages/", post(post_message))
         .route("/messages", post(post_message))
         .with_state(state)
         .nest_service("/mcp", streamable)
-        .layer(DefaultBodyLimit::max(limit))
-        .layer(middleware::from_fn_with_state(
-            Arc::new(guard_settings),
-            guard,
-        ))
+        .layer(DefaultBodyLimit::max(max_body_bytes))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// A JSON-RPC error reply with no id (the request's could not be read), as HTTP 400.
+fn json_rpc_refusal(code: i32, message: String) -> Response {
+    let body = serde_json::json!({
+        "jsonrpc": "2.0",
+        "id": null,
+        "error": {"code": code, "message": message},
+    });
+    (StatusCode::BAD_REQUEST, axum::Json(body)).into_response()
+}
 
-    #[test]
-    fn local_origins_only() {
-        for ok in [
-            "http://localhost:6274",
-            "http://127.0.0.1",
-            "https://[::1]:8000",
-        ] {
-            assert!(origin_is_local(ok), "{ok}");
-        }
-        for bad in [
-            "http://evil.example.com",
-            "http://127.0.0.1.evil.com",
-            "null",
-            "file://localhost",
-            "http://localhost.evil.com:80",
-        ] {
-            assert!(!origin_is_local(bad), "{bad}");
+/// Around rmcp's streamable-HTTP service: reads each POST body once to answer what is not
+/// JSON-RPC per the spec, refuses requests naming another client's session, and binds new
+/// sessions to their client.
+async fn streamable_checks(
+    State((scopes, max_body_bytes)): State<(Arc<CallScopes>, usize)>,
+    request: Request,
+    next: Next,
+) -> Response {
+    let owner = SessionOwner::of(request.headers(), request.extensions());
+    let session = request
+        .headers()
+        .get("mcp-session-id")
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_owned);
+    if let Some(id) = &session {
+        if !scopes.owned_by(id, &owner) {
+            tracing::warn!(session = %id, "request into another client's MCP session refused");
+            return (StatusCode::NOT_FOUND, "Not Found: Session not found").into_response();
         }
     }
-
-    #[test]
-    fn non_loopback_binds_need_a_token() {
-        let open: SocketAddr = "0.0.0.0:8000".parse().unwrap();
-        let local: SocketAddr = "127.0.0.1:8000".parse().unwrap();
-        let mut guard = HttpGuard::default();
-        assert!(check_bind(local, &guard).is_ok());
-        let e = check_bind(open, &guard).unwrap_err().to_string();
-        // The server reads its token through the configuration's environment layer
-        // (`ROBOTD_MCP__TOKEN`, double underscore); naming anything else sends users astray.
-        assert!(e.contains("(or ROBOTD_MCP__TOKEN)"), "{e}");
-        guard.token = Some("s3cret".into());
-        assert!(check_bind(open, &guard).is_ok());
-        assert!(constant_time_eq(b"abc", b"abc"));
-        assert!(!constant_time_eq(b"abc", b"abd"));
-        assert!(!constant_time_eq(b"abc", b"ab"));
+    let request = if request.method() == axum::http::Method::POST {
+        let (parts, body) = request.into_parts();
+        let bytes = match axum::body::to_bytes(body, max_body_bytes).await {
+            Ok(bytes) => bytes,
+            Err(error) => {
+                return (
+                    StatusCode::PAYLOAD_TOO_LARGE,
+                    format!("Payload Too Large: {error}"),
+                )
+                    .into_response()
+            }
+        };
+        let value = match serde_json::from_slice::<serde_json::Value>(&bytes) {
+            Ok(value) => value,
+            Err(error) => {
+                return json_rpc_refusal(
+                    -32700,
+                    format!("Parse error: the body is not JSON: {error}"),
+                )
+            }
+        };
+        if let Err(error) = serde_json::from_value::<ClientJsonRpcMessage>(value.clone()) {
+            // A request to an MCP method whose params are not even an object (`[1, 2]`).
+            let method = value["method"].as_str().filter(|m| is_mcp_method(m));
+            if let (Some(method), Some(id)) = (method, value.get("id")) {
+                let error = invalid_params(method);
+                let body = serde_json::json!({"jsonrpc": "2.0", "id": id, "error": error});
+                return axum::Json(body).into_response();
+            }
+            return json_rpc_refusal(
+                -32600,
+                format!("Invalid Request: not a JSON-RPC message of an MCP client: {error}"),
+            );
+        }
+        Request::from_parts(parts, axum::body::Body::from(bytes))
+    } else {
+        request
+    };
+    let response = next.run(request).await;
+    if session.is_none() {
+        if let Some(id) = response
+            .headers()
+            .get("mcp-session-id")
+            .and_then(|v| v.to_str().ok())
+        {
+            scopes.bind_owner(id, owner);
+        }
     }
+    response
 }

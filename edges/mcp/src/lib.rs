@@ -18,7 +18,7 @@
 //! use robotd_mcp::{call_log::CallLog, http, McpService};
 //! use std::sync::Arc;
 //! let service = McpService::new(registry, false, Arc::new(CallLog::disabled()));
-//! let app = http::router(service, http::HttpGuard::default(), Default::default());
+//! let app = http::router(service, 1 << 20, Default::default());
 //! let listener = tokio::net::TcpListener::bind("127.0.0.1:8000").await?;
 //! axum::serve(listener, app).await?;
 //! # Ok(()) }
@@ -30,7 +30,9 @@ pub use config::McpConfig;
 pub mod agent_tools;
 pub mod call_log;
 pub mod client;
+pub mod gate;
 pub mod http;
+pub mod owner;
 mod service;
 pub mod sessions;
 
@@ -43,7 +45,7 @@ use rmcp::ServiceExt;
 pub async fn serve_stdio(service: McpService) -> anyhow::Result<()> {
     let running = service
         .for_transport("stdio")
-        .serve(rmcp::transport::stdio())
+        .serve(gate::gated(rmcp::transport::stdio()))
         .await
         .map_err(|e| anyhow::anyhow!("MCP over stdio did not initialise: {e}"))?;
     running

@@ -13,12 +13,14 @@
 //! in-memory session manager to fire them for streamable HTTP; the SSE transport fires its
 //! session's token when its event stream is dropped.
 
+use crate::gate::InitGate;
+use crate::owner::SessionOwner;
 use futures::Stream;
 use rmcp::model::{ClientJsonRpcMessage, JsonRpcMessage, ServerJsonRpcMessage};
 use rmcp::transport::streamable_http_server::session::local::LocalSessionManager;
 use rmcp::transport::streamable_http_server::session::ServerSseMessage;
 use rmcp::transport::streamable_http_server::{SessionId, SessionManager};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll};
@@ -29,6 +31,7 @@ use tokio_util::sync::CancellationToken;
 pub struct CallScopes {
     sessions: Mutex<HashMap<String, CancellationToken>>,
     requests: Mutex<HashMap<(String, String), CancellationToken>>,
+    owners: Mutex<HashMap<String, SessionOwner>>,
 }
 
 impl CallScopes {
@@ -52,8 +55,20 @@ impl CallScopes {
             .cloned()
     }
 
+    /// Binds session `id` to the client that opened it ([`crate::owner`]).
+    pub fn bind_owner(&self, id: &str, owner: SessionOwner) {
+        lock(&self.owners).insert(id.to_owned(), owner);
+    }
+
+    /// Whether `owner` may use session `id`: false when the session is bound to another
+    /// client. Unbound sessions are left to the transport (which answers unknown ones 404).
+    pub fn owned_by(&self, id: &str, owner: &SessionOwner) -> bool {
+        lock(&self.owners).get(id).is_none_or(|o| o == owner)
+    }
+
     /// The session closed: cancel everything it started.
     pub fn close_session(&self, id: &str) {
+        lock(&self.owners).remove(id);
         if let Some(token) = lock(&self.sessions).remove(id) {
             token.cancel();
         }
@@ -85,18 +100,6 @@ impl CallScopes {
         }
     }
 
-    /// Forgets the tokens of sessions `alive` says are gone.
-    fn prune(&self, alive: impl Fn(&str) -> bool) {
-        let gone: Vec<String> = lock(&self.sessions)
-            .keys()
-            .filter(|id| !alive(id))
-            .cloned()
-            .collect();
-        for id in gone {
-            self.close_session(&id);
-        }
-    }
-
     /// Open sessions and running requests tracked (for tests and metrics).
     pub fn len(&self) -> (usize, usize) {
         (lock(&self.sessions).len(), lock(&self.requests).len())
@@ -112,6 +115,8 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 pub struct ClosingSessions {
     inner: LocalSessionManager,
     scopes: Arc<CallScopes>,
+    /// The streamable-HTTP sessions this manager opened (`scopes` also holds SSE sessions).
+    opened: Mutex<HashSet<String>>,
 }
 
 impl ClosingSessions {
@@ -120,31 +125,39 @@ impl ClosingSessions {
         Self {
             inner: LocalSessionManager::default(),
             scopes,
+            opened: Mutex::default(),
         }
+    }
+
+    /// Closes the tokens of this manager's sessions that rmcp ended without a `DELETE`
+    /// (idle timeout). SSE sessions in the same scopes are not this manager's to judge.
+    async fn forget_ended(&self) -> Result<(), <LocalSessionManager as SessionManager>::Error> {
+        let opened: Vec<String> = lock(&self.opened).iter().cloned().collect();
+        for id in opened {
+            if !self
+                .inner
+                .has_session(&SessionId::from(id.as_str()))
+                .await?
+            {
+                lock(&self.opened).remove(&id);
+                self.scopes.close_session(&id);
+            }
+        }
+        Ok(())
     }
 }
 
 impl SessionManager for ClosingSessions {
     type Error = <LocalSessionManager as SessionManager>::Error;
-    type Transport = <LocalSessionManager as SessionManager>::Transport;
+    type Transport = InitGate<<LocalSessionManager as SessionManager>::Transport>;
 
     async fn create_session(&self) -> Result<(SessionId, Self::Transport), Self::Error> {
         // Sessions that ended without DELETE (timed out) leave tokens behind: drop them here.
-        let open: Vec<String> = lock(&self.scopes.sessions).keys().cloned().collect();
-        let mut alive = Vec::with_capacity(open.len());
-        for id in open {
-            if self
-                .inner
-                .has_session(&SessionId::from(id.as_str()))
-                .await?
-            {
-                alive.push(id);
-            }
-        }
-        self.scopes.prune(|id| alive.iter().any(|a| a == id));
+        self.forget_ended().await?;
         let (id, transport) = self.inner.create_session().await?;
         self.scopes.session(&id);
-        Ok((id, transport))
+        lock(&self.opened).insert(id.to_string());
+        Ok((id, InitGate::new(transport)))
     }
 
     async fn initialize_session(
@@ -161,6 +174,7 @@ impl SessionManager for ClosingSessions {
 
     async fn close_session(&self, id: &SessionId) -> Result<(), Self::Error> {
         tracing::debug!(session = %id, "MCP session closed by the client: cancelling its calls");
+        lock(&self.opened).remove(id.as_ref());
         self.scopes.close_session(id);
         self.inner.close_session(id).await
     }
