@@ -660,3 +660,44 @@ fn the_http_guard_refuses_strangers() {
         "{stderr}"
     );
 }
+
+/// A streamable-HTTP client connecting while a legacy-SSE client's pick is under way leaves
+/// that pick alone (the streamable session manager once swept every session it did not know,
+/// SSE ones included, and so cancelled their motions).
+#[test]
+fn a_new_client_does_not_cancel_another_transports_motion() {
+    let namespace = common::fresh_namespace("sweep");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=1.0"]);
+    runtime().block_on(async {
+        let bus = Bus::open(BusOptions::new(&namespace, "sweep-test")).unwrap();
+        let mut states = bus.subscriber(&ARM_STATE).unwrap();
+        let sse = connect(&format!("http://127.0.0.1:{port}/sse"), None)
+            .await
+            .unwrap();
+        let pick = tokio::spawn(async move {
+            let args = json!({"object_name": "red cube", "pick_coordinate": [0.28, 0.04]});
+            let text = text(&sse, "pick_object", args).await;
+            sse.cancel().await.unwrap();
+            text
+        });
+        let deadline = Instant::now() + Duration::from_secs(20);
+        loop {
+            let state: ArmState = tokio::time::timeout(Duration::from_secs(5), states.recv())
+                .await
+                .expect("arm states")
+                .unwrap()
+                .body;
+            if state.moving {
+                break;
+            }
+            assert!(Instant::now() < deadline, "the arm never moved");
+        }
+        let streamable = connect(&format!("http://127.0.0.1:{port}/mcp"), None)
+            .await
+            .unwrap();
+        let picked = pick.await.unwrap();
+        assert!(picked.starts_with('✓'), "{picked}");
+        streamable.cancel().await.unwrap();
+    });
+}
