@@ -432,7 +432,7 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
         let service = mcp_service(&config, runtime.tool_registry(&config)?);
         edge = edge.with_routes(robotd_mcp::http::router(
             service,
-            config.mcp.max_body_bytes,
+            config.mcp.router_options(),
             stop_sessions.clone(),
         ));
         edge = edge.with_routes(robotd_http::safety::router(runtime.safety_api()?));

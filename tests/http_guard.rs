@@ -274,3 +274,59 @@ fn a_cheap_call_has_no_delayed_ack_floor() {
         assert!(p50 < Duration::from_millis(20), "p50 {p50:?}");
     });
 }
+
+/// Sessions are capped (503 beyond `mcp.max_sessions`, over both transports), a closed one
+/// frees its place, and an idle one is closed after `mcp.session_idle_timeout_s`.
+#[test]
+fn sessions_are_capped_and_idle_ones_expire() {
+    let namespace = common::fresh_namespace("cap");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(
+        &namespace,
+        port,
+        &[
+            "--set",
+            "mcp.max_sessions=2",
+            "--set",
+            "mcp.session_idle_timeout_s=2",
+        ],
+    );
+    let first = open_streamable(LOCAL, port);
+    let second = open_streamable(LOCAL, port);
+    let (status, body) = post_mcp(LOCAL, port, None, INIT);
+    assert_eq!(status, 503, "{body}");
+    assert!(body.contains("mcp.max_sessions"), "{body}");
+    let (status, body) = common::http_get(port, "/sse");
+    assert_eq!(status, 503, "{body}");
+    // Closing one frees its place.
+    let (status, _) = common::http_request(
+        port,
+        "DELETE",
+        "/mcp",
+        &[("Mcp-Session-Id", first.as_str())],
+        b"",
+    );
+    assert!(
+        status == 200 || status == 202 || status == 204,
+        "DELETE: {status}"
+    );
+    let third = open_streamable(LOCAL, port);
+    // Left alone, the sessions expire and the places come back.
+    let deadline = std::time::Instant::now() + Duration::from_secs(15);
+    loop {
+        let (status, _) = post_mcp(LOCAL, port, None, INIT);
+        if status == 200 {
+            break;
+        }
+        assert_eq!(status, 503);
+        assert!(
+            std::time::Instant::now() < deadline,
+            "idle sessions never expired"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    for expired in [second, third] {
+        let (status, body) = post_mcp(LOCAL, port, Some(&expired), INITIALIZED);
+        assert_eq!(status, 404, "an expired session still answers: {body}");
+    }
+}

@@ -52,7 +52,7 @@ fn the_actors_see_the_trace_of_the_tool_call_that_the_call_log_names() {
         assert!(error.is_none());
         let log = Arc::new(log);
         let service = McpService::new(registry, false, log.clone());
-        let app = http::router(service, 1 << 20, Default::default());
+        let app = http::router(service, Default::default(), Default::default());
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
         let port = listener.local_addr().unwrap().port();
         tokio::spawn(async move { axum::serve(listener, app).await });

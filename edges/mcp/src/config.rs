@@ -1,5 +1,5 @@
 //! `[mcp]`: the MCP edge on the HTTP port — on or off, bearer token, body limit, allowed
-//! browser origins, error style, motion time limit.
+//! browser origins, error style, motion time limit, session limits.
 
 use robotd_runtime::config::{check_url, Checks, Section};
 use serde::{Deserialize, Serialize};
@@ -23,6 +23,12 @@ pub struct McpConfig {
     pub strict_errors: bool,
     /// Longest a motion tool (pick, place, push …) may take, seconds.
     pub skill_timeout_s: u64,
+    /// Most MCP sessions open at once, SSE and streamable HTTP together (1 … 10,000); a
+    /// client opening one more gets 503.
+    pub max_sessions: usize,
+    /// A streamable-HTTP session without a request for this long is closed, seconds
+    /// (1 … 86,400). SSE sessions end when their stream closes.
+    pub session_idle_timeout_s: u64,
 }
 
 impl Default for McpConfig {
@@ -34,6 +40,8 @@ impl Default for McpConfig {
             allowed_origins: Vec::new(),
             strict_errors: false,
             skill_timeout_s: 180,
+            max_sessions: 100,
+            session_idle_timeout_s: 300,
         }
     }
 }
@@ -47,6 +55,13 @@ impl Section for McpConfig {
             "",
         );
         checks.range_u64("skill_timeout_s", self.skill_timeout_s, 1..=3600, " s");
+        checks.range_u64("max_sessions", self.max_sessions as u64, 1..=10_000, "");
+        checks.range_u64(
+            "session_idle_timeout_s",
+            self.session_idle_timeout_s,
+            1..=86_400,
+            " s",
+        );
         if let Some(token) = &self.token {
             if token.trim().len() < 8 {
                 checks.problem(
@@ -82,5 +97,16 @@ impl McpConfig {
                 ),
             )
         })
+    }
+}
+
+impl McpConfig {
+    /// The MCP routes' limits.
+    pub fn router_options(&self) -> crate::http::RouterOptions {
+        crate::http::RouterOptions {
+            max_body_bytes: self.max_body_bytes,
+            max_sessions: self.max_sessions,
+            idle_timeout: std::time::Duration::from_secs(self.session_idle_timeout_s),
+        }
     }
 }

@@ -18,7 +18,7 @@
 //! use robotd_mcp::{call_log::CallLog, http, McpService};
 //! use std::sync::Arc;
 //! let service = McpService::new(registry, false, Arc::new(CallLog::disabled()));
-//! let app = http::router(service, 1 << 20, Default::default());
+//! let app = http::router(service, Default::default(), Default::default());
 //! let listener = tokio::net::TcpListener::bind("127.0.0.1:8000").await?;
 //! axum::serve(listener, app).await?;
 //! # Ok(()) }

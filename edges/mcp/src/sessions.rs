@@ -120,13 +120,20 @@ pub struct ClosingSessions {
 }
 
 impl ClosingSessions {
-    /// Sessions tracked in `scopes`.
-    pub fn new(scopes: Arc<CallScopes>) -> Self {
+    /// Sessions tracked in `scopes`, closed after `idle_timeout` without a request.
+    pub fn new(scopes: Arc<CallScopes>, idle_timeout: std::time::Duration) -> Self {
+        let mut inner = LocalSessionManager::default();
+        inner.session_config.keep_alive = Some(idle_timeout);
         Self {
-            inner: LocalSessionManager::default(),
+            inner,
             scopes,
             opened: Mutex::default(),
         }
+    }
+
+    /// Sessions open now (rmcp's count: idle ones it closed are gone).
+    pub async fn open_sessions(&self) -> usize {
+        self.inner.sessions.read().await.len()
     }
 
     /// Closes the tokens of this manager's sessions that rmcp ended without a `DELETE`

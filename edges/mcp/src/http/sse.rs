@@ -1,0 +1,194 @@
+//! Legacy HTTP+SSE (MCP protocol 2024-11-05), which rmcp 3 ships no server for.
+//!
+//! `GET /sse` opens an event stream whose first event, `endpoint`, names
+//! `/messages/?session_id=<id>`; the client POSTs each JSON-RPC message there (answered
+//! `202 Accepted`) and reads the replies as `message` events on the stream. Each stream is one
+//! rmcp session fed through a pair of channels, behind [`crate::gate`]. Closing the stream
+//! ends the session and cancels its calls (a motion in flight stops); a keep-alive comment
+//! every second makes a vanished client noticed within about two seconds.
+
+use super::SessionCap;
+use crate::gate::gated;
+use crate::owner::SessionOwner;
+use crate::service::McpService;
+use crate::sessions::CallScopes;
+use axum::body::Bytes;
+use axum::extract::{ConnectInfo, Query, Request, State};
+use axum::http::{header, HeaderMap, StatusCode};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::Extension;
+use futures::channel::mpsc;
+use futures::{SinkExt, Stream, StreamExt};
+use rmcp::model::{ClientJsonRpcMessage, ServerJsonRpcMessage};
+use rmcp::ServiceExt;
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex};
+use std::task::{Context, Poll};
+use std::time::Duration;
+use tokio_util::sync::CancellationToken;
+
+/// The open SSE sessions: where each one's posted messages go.
+pub(super) type SessionMap = Arc<Mutex<HashMap<String, mpsc::Sender<ClientJsonRpcMessage>>>>;
+
+/// What the SSE routes share.
+#[derive(Clone)]
+pub(super) struct SseState {
+    pub(super) service: McpService,
+    pub(super) sessions: SessionMap,
+    pub(super) shutdown: CancellationToken,
+    pub(super) cap: SessionCap,
+}
+
+/// The event stream of one SSE session; dropping it (the client went away) ends the session.
+struct SessionStream {
+    id: String,
+    sessions: SessionMap,
+    scopes: Arc<CallScopes>,
+    inner: Pin<Box<dyn Stream<Item = Result<Event, std::convert::Infallible>> + Send>>,
+}
+
+impl Stream for SessionStream {
+    type Item = Result<Event, std::convert::Infallible>;
+    fn poll_next(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Self::Item>> {
+        self.inner.as_mut().poll_next(cx)
+    }
+}
+
+impl Drop for SessionStream {
+    fn drop(&mut self) {
+        // The client went away: whatever its calls started must stop.
+        self.scopes.close_session(&self.id);
+        self.sessions
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&self.id);
+        tracing::debug!(session = %self.id, "SSE session closed");
+    }
+}
+
+fn new_session_id() -> String {
+    use rand::RngCore;
+    let mut bytes = [0u8; 16];
+    rand::rng().fill_bytes(&mut bytes);
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// `GET /sse`: opens a session and streams its messages.
+pub(super) async fn open_sse(State(state): State<SseState>, request: Request) -> Response {
+    if let Some(full) = state.cap.refusal().await {
+        return full;
+    }
+    let id = new_session_id();
+    let owner = SessionOwner::of(request.headers(), request.extensions());
+    state.service.scopes().bind_owner(&id, owner);
+    let (to_server, from_client) = mpsc::channel::<ClientJsonRpcMessage>(64);
+    let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);
+    state
+        .sessions
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .insert(id.clone(), to_server);
+    let service = state.service.for_sse_session(&id);
+    let session = id.clone();
+    let shutdown = state.shutdown.clone();
+    tokio::spawn(async move {
+        match service
+            .serve_with_ct(gated((to_client, from_client)), shutdown.child_token())
+            .await
+        {
+            Ok(running) => {
+                if let Err(error) = running.waiting().await {
+                    tracing::debug!(%session, %error, "SSE session ended");
+                }
+            }
+            Err(error) => tracing::info!(%session, %error, "SSE session did not initialise"),
+        }
+    });
+    tracing::debug!(session = %id, "SSE session opened");
+    let endpoint = Event::default()
+        .event("endpoint")
+        .data(format!("/messages/?session_id={id}"));
+    let messages = from_server.map(|message| {
+        let data = serde_json::to_string(&message)
+            .unwrap_or_else(|e| format!("{{\"error\":\"unserialisable message: {e}\"}}"));
+        Ok(Event::default().event("message").data(data))
+    });
+    let stream = SessionStream {
+        id,
+        sessions: state.sessions.clone(),
+        scopes: state.service.scopes(),
+        inner: Box::pin(futures::stream::once(async move { Ok(endpoint) }).chain(messages)),
+    };
+    Sse::new(stream)
+        // A comment every second: the server only learns that a client went away when a
+        // write fails, and the calls of a client that went away must stop soon.
+        .keep_alive(KeepAlive::new().interval(Duration::from_secs(1)))
+        .into_response()
+}
+
+#[derive(serde::Deserialize)]
+pub(super) struct SessionQuery {
+    pub(super) session_id: Option<String>,
+}
+
+/// `POST /messages/?session_id=…`: one client message into its session.
+pub(super) async fn post_message(
+    State(state): State<SseState>,
+    Query(query): Query<SessionQuery>,
+    connection: Option<Extension<ConnectInfo<SocketAddr>>>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Response {
+    let Some(id) = query.session_id else {
+        return (StatusCode::BAD_REQUEST, "session_id is required").into_response();
+    };
+    let mut extensions = axum::http::Extensions::new();
+    if let Some(Extension(info)) = connection {
+        extensions.insert(info);
+    }
+    if !state
+        .service
+        .scopes()
+        .owned_by(&id, &SessionOwner::of(&headers, &extensions))
+    {
+        tracing::warn!(session = %id, "post into another client's SSE session refused");
+        return (StatusCode::NOT_FOUND, "Could not find session").into_response();
+    }
+    let is_json = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_none_or(|v| v.starts_with("application/json"));
+    if !is_json {
+        return (
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "Content-Type must be application/json",
+        )
+            .into_response();
+    }
+    let sender = state
+        .sessions
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .get(&id)
+        .cloned();
+    let Some(mut sender) = sender else {
+        return (StatusCode::NOT_FOUND, "Could not find session").into_response();
+    };
+    let message: ClientJsonRpcMessage = match serde_json::from_slice(&body) {
+        Ok(m) => m,
+        Err(error) => {
+            return (
+                StatusCode::BAD_REQUEST,
+                format!("Could not parse message: {error}"),
+            )
+                .into_response()
+        }
+    };
+    match sender.send(message).await {
+        Ok(()) => (StatusCode::ACCEPTED, "Accepted").into_response(),
+        Err(_) => (StatusCode::NOT_FOUND, "Could not find session").into_response(),
+    }
+}
