@@ -398,7 +398,7 @@ impl Runtime {
 
 /// The MCP service over `registry`, with the call log in the configured log directory.
 fn mcp_service(config: &Config, registry: Registry) -> McpService {
-    let (log, error) = CallLog::open(&config.telemetry.log_dir);
+    let (log, error) = CallLog::open(&config.telemetry.log_dir, config.mcp.call_log_limits());
     match (error, log.path()) {
         (Some(error), _) => tracing::warn!(
             %error,
@@ -414,6 +414,15 @@ fn mcp_service(config: &Config, registry: Registry) -> McpService {
 /// `robotd serve`: the runtime, with `/health`, `/metrics` and the MCP edge on the HTTP port,
 /// until SIGINT or SIGTERM.
 pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Result<()> {
+    match robotd_runtime::limits::raise_open_files_limit() {
+        Ok(limit) if limit.before != limit.after => tracing::info!(
+            before = limit.before,
+            after = limit.after,
+            "open-files limit raised to the hard limit"
+        ),
+        Ok(_) => {}
+        Err(error) => tracing::warn!(%error, "the open-files limit could not be raised"),
+    }
     let runtime = Runtime::start(&config).await?;
     let _agent = start_agent(&config, config_file, &runtime)?;
     let edge = HttpEdge::bind(config.http.bind, runtime.health_source.clone()).await?;

@@ -48,7 +48,7 @@ fn the_actors_see_the_trace_of_the_tool_call_that_the_call_log_names() {
             observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
         }];
         let registry = Registry::connect(&bus, ToolSettings::new("trace", workspaces)).unwrap();
-        let (log, error) = CallLog::open(&log_dir);
+        let (log, error) = CallLog::open(&log_dir, Default::default());
         assert!(error.is_none());
         let log = Arc::new(log);
         let service = McpService::new(registry, false, log.clone());

@@ -7,7 +7,7 @@ mod common;
 use robotd_protocol::arm::{ArmCommand, ArmReply};
 use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_runtime::catalog::{ARM_COMMAND, CAMERA_FRAMES};
-use std::process::Command;
+use std::process::{Command, Stdio};
 use std::time::Duration;
 
 #[test]
@@ -126,4 +126,37 @@ fn bench_sim_json_reports_every_figure() {
         figures["ik_solve_rate"].as_f64().unwrap() >= 0.99,
         "{stdout}"
     );
+}
+
+/// `robotd serve` started with a low soft open-files limit lifts it to the hard limit (each
+/// iceoryx2 port and client connection needs descriptors).
+#[test]
+fn serve_raises_the_soft_open_files_limit() {
+    let port = common::free_port();
+    let robotd = env!("CARGO_BIN_EXE_robotd");
+    let mut child = Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -Sn 512 && exec {robotd} serve --namespace {} --http 127.0.0.1:{port}",
+            common::fresh_namespace("nofile")
+        ))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let served = std::io::BufRead::lines(std::io::BufReader::new(stderr))
+        .any(|l| l.is_ok_and(|l| l.contains("robotd: serving on")));
+    let robotd = common::Running {
+        child,
+        name: "robotd",
+    };
+    assert!(served, "robotd did not start");
+    let limits = std::fs::read_to_string(format!("/proc/{}/limits", robotd.pid())).unwrap();
+    let line = limits
+        .lines()
+        .find(|l| l.starts_with("Max open files"))
+        .unwrap();
+    let numbers: Vec<&str> = line.split_whitespace().skip(3).take(2).collect();
+    assert_eq!(numbers[0], numbers[1], "soft limit not raised: {line}");
 }

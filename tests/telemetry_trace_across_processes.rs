@@ -117,3 +117,74 @@ fn tool_arguments_cannot_forge_log_lines() {
     );
     assert!(!text.contains('\x1b'), "a raw escape in the log");
 }
+
+/// A 60 KB tool argument leaves bounded lines: the service log cuts the event at
+/// `telemetry.max_event_bytes`, the call log cuts the field at `mcp.call_log_max_field_bytes`.
+#[test]
+fn long_tool_arguments_make_bounded_log_lines() {
+    let logs = tempfile::tempdir().unwrap();
+    let log_setting = format!("telemetry.log_dir={}", logs.path().display());
+    let port = common::free_port();
+    let _robotd = common::start_robotd(
+        &common::fresh_namespace("longlog"),
+        port,
+        &[
+            "--set",
+            &log_setting,
+            "--set",
+            "robot.time_scale=0.05",
+            "--set",
+            "telemetry.max_event_bytes=4096",
+            "--set",
+            "mcp.call_log_max_field_bytes=1024",
+        ],
+    );
+    let tag = format!("long{}", std::process::id());
+    let name = format!("{tag}{}", "x".repeat(60_000));
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["call", "pick_object", "--url"])
+        .arg(format!("http://127.0.0.1:{port}/mcp"))
+        .arg("--arg")
+        .arg(format!("object_name={name}"))
+        .args(["--arg", "pick_coordinate=[0.25,0.0]"])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1), "{output:?}");
+    let read = |prefix: &str| {
+        let mut text = String::new();
+        for entry in std::fs::read_dir(logs.path()).unwrap().flatten() {
+            if entry.file_name().to_string_lossy().starts_with(prefix) {
+                text += &std::fs::read_to_string(entry.path()).unwrap_or_default();
+            }
+        }
+        text
+    };
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    let (service, calls) = loop {
+        let (service, calls) = (read("robotd"), read("mcp_server"));
+        let done = service.contains("bytes cut]") && calls.contains(&tag);
+        if done || std::time::Instant::now() > deadline {
+            break (service, calls);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(service.contains(&tag), "the event is logged");
+    assert!(service.contains("bytes cut]"), "the long event is cut");
+    let longest = service.lines().map(str::len).max().unwrap_or(0);
+    assert!(
+        longest <= 4096 + 32,
+        "a service log line of {longest} bytes"
+    );
+    let call: serde_json::Value = serde_json::from_str(
+        calls
+            .lines()
+            .find(|l| l.contains(&tag))
+            .expect("the call is logged"),
+    )
+    .unwrap();
+    assert!(call["arguments"].as_str().unwrap().len() <= 1024 + 3);
+    assert!(
+        call["cut"]["arguments"].as_u64().unwrap() > 60_000,
+        "{call}"
+    );
+}

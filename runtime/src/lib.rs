@@ -43,6 +43,7 @@ pub mod bus;
 pub mod catalog;
 pub mod config;
 pub mod host;
+pub mod limits;
 pub mod metrics;
 pub mod origin;
 pub mod supervision;

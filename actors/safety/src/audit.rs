@@ -51,6 +51,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use robotd_runtime::telemetry::rotating::{rotated_path, RotatingFile};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
@@ -189,7 +190,7 @@ impl AuditLog {
         let mut tail = read_tail(path)?;
         if tail.is_none() {
             // Only `.1` has entries (stopped right after a rotation): continue from it.
-            tail = read_tail(&rotated(path, 1))?.map(|(entry, _)| (entry, true));
+            tail = read_tail(&rotated_path(path, 1))?.map(|(entry, _)| (entry, true));
         }
         let mut out = BufWriter::new(open_append(path).map_err(io_err(path))?);
         if let Some((_, false)) = tail {
@@ -197,13 +198,14 @@ impl AuditLog {
             let ended = out.write_all(b"\n").and_then(|()| out.flush());
             ended.map_err(io_err(path))?;
         }
-        let len = out.get_ref().metadata().map_err(io_err(path))?.len();
+        drop(out);
+        let out = RotatingFile::open(path, config.max_file_bytes, config.keep_files)
+            .map_err(io_err(path))?;
         let (seq, prev) = tail.map_or((0, GENESIS.into()), |(last, _)| (last.seq, last.hash));
         let shared = Arc::new(Shared::default());
         let writer = Writer {
             cfg: config.clone(),
             out,
-            len,
             seq,
             prev,
             shared: shared.clone(),
@@ -285,8 +287,7 @@ impl AuditLog {
 /// The writer thread: the open file and the end of the chain.
 struct Writer {
     cfg: AuditConfig,
-    out: BufWriter<File>,
-    len: u64,
+    out: RotatingFile,
     seq: u64,
     prev: String,
     shared: Arc<Shared>,
@@ -341,39 +342,9 @@ impl Writer {
         let hash = sha256_hex(body.as_bytes());
         let open = body.strip_suffix('}').ok_or("serialised body lacks '}'")?;
         let line = format!("{open}{HASH_KEY}{hash}\"}}\n");
-        let bytes = line.len() as u64;
-        if self.len > 0 && self.len.saturating_add(bytes) > self.cfg.max_file_bytes {
-            self.rotate()?;
-        }
-        let written = self.out.write_all(line.as_bytes());
+        let written = self.out.write(line.as_bytes());
         written.map_err(|e| self.reason("write", e))?;
-        (self.len, self.seq, self.prev) = (self.len + bytes, seq, hash);
-        Ok(())
-    }
-
-    /// `path.(k)` → `path.(k+1)` for k = keep_files-1 … 1, `path` → `path.1`, new `path`.
-    fn rotate(&mut self) -> Result<(), String> {
-        self.out.flush().map_err(|e| self.reason("write", e))?;
-        let (path, keep) = (&self.cfg.path, self.cfg.keep_files);
-        let fail = |p: &Path, e: io::Error| format!("cannot rotate {}: {e}", p.display());
-        let oldest = rotated(path, keep.max(1));
-        match fs::remove_file(&oldest) {
-            Err(e) if e.kind() != io::ErrorKind::NotFound => return Err(fail(&oldest, e)),
-            _ => {}
-        }
-        for k in (1..keep).rev() {
-            let from = rotated(path, k);
-            if from.exists() {
-                fs::rename(&from, rotated(path, k + 1)).map_err(|e| fail(&from, e))?;
-            }
-        }
-        let moved = match keep {
-            0 => fs::remove_file(path),
-            _ => fs::rename(path, rotated(path, 1)),
-        };
-        moved.map_err(|e| fail(path, e))?;
-        self.out = BufWriter::new(open_append(path).map_err(|e| self.reason("open", e))?);
-        self.len = 0;
+        (self.seq, self.prev) = (seq, hash);
         Ok(())
     }
 }
@@ -385,13 +356,6 @@ fn io_err(path: &Path) -> impl FnOnce(io::Error) -> AuditError {
 
 fn open_append(path: &Path) -> io::Result<File> {
     OpenOptions::new().create(true).append(true).open(path)
-}
-
-/// `<path>.<k>`, the k-th newest rotated file.
-fn rotated(path: &Path, k: u32) -> PathBuf {
-    let mut name = path.as_os_str().to_owned();
-    name.push(format!(".{k}"));
-    PathBuf::from(name)
 }
 
 /// UTC now as RFC 3339 with microseconds, e.g. `2026-11-25T13:40:00.123456Z`.
@@ -695,7 +659,7 @@ mod tests {
         let cfg = config(&dir, 1000, 8);
         write_log(&cfg, 60)?;
         assert_eq!(fs::read_dir(dir.path().join("log"))?.count(), 3 + 1);
-        let mut files: Vec<PathBuf> = (1..=3).rev().map(|k| rotated(&cfg.path, k)).collect();
+        let mut files: Vec<PathBuf> = (1..=3).rev().map(|k| rotated_path(&cfg.path, k)).collect();
         files.push(cfg.path.clone());
         for file in &files {
             assert!(fs::metadata(file)?.len() <= 1000, "{}", file.display());
@@ -742,13 +706,17 @@ mod tests {
         };
         let log = AuditLog::start(&cfg)?;
         // A non-empty directory where rotation must delete a file: rotation fails.
-        fs::create_dir_all(rotated(&cfg.path, 1).join("x"))?;
+        fs::create_dir_all(rotated_path(&cfg.path, 1).join("x"))?;
         for i in 0..5 {
             let _ = log.record(json!({"i": i, "pad": "x".repeat(100)}));
         }
         let err = log.flush(WAIT).err().ok_or("flush succeeded")?;
-        let text = "audit log writer failed: cannot rotate";
-        assert!(err.to_string().starts_with(text), "{err}");
+        let text = err.to_string();
+        assert!(
+            text.starts_with("audit log writer failed: cannot write"),
+            "{err}"
+        );
+        assert!(text.contains("cannot rotate"), "{err}");
         let later = log.record(json!(0));
         assert!(matches!(later, Err(AuditError::WriterFailed { .. })));
         Ok(())

@@ -5,9 +5,14 @@
 //! transport, tool, arguments, result text, status (`ok`, `failed`, `protocol_error`),
 //! duration and the call's trace id (the actors' spans of the call carry the same trace, so a
 //! log line leads to its trace on a dashboard). A log that cannot be written is reported once and the calls go on.
+//!
+//! The log is bounded ([`CallLogLimits`], from `[mcp]`): an `arguments` or `result` longer
+//! than `max_field_bytes` is cut there (the line says which fields were cut and their full
+//! sizes), and the file rotates at `max_file_bytes`, keeping `keep_files` old ones
+//! (`….log.1` is the newest).
 
+use robotd_runtime::telemetry::rotating::RotatingFile;
 use serde_json::{json, Map, Value};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -31,11 +36,45 @@ pub struct CallRecord<'a> {
     pub trace_id: Option<&'a str>,
 }
 
+/// How large the call log may grow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CallLogLimits {
+    /// Longest `arguments` (as JSON) or `result` written, bytes; longer ones are cut.
+    pub max_field_bytes: usize,
+    /// Size at which the file rotates, bytes.
+    pub max_file_bytes: u64,
+    /// Rotated files kept.
+    pub keep_files: u32,
+}
+
+impl Default for CallLogLimits {
+    fn default() -> Self {
+        Self {
+            max_field_bytes: 16 * 1024,
+            max_file_bytes: 64 * 1024 * 1024,
+            keep_files: 5,
+        }
+    }
+}
+
 /// The call log of one robotd run.
 #[derive(Debug)]
 pub struct CallLog {
     path: Option<PathBuf>,
-    file: Mutex<Option<std::fs::File>>,
+    file: Mutex<Option<RotatingFile>>,
+    max_field_bytes: usize,
+}
+
+/// `text` cut to at most `max` bytes (at a character boundary), and whether it was cut.
+fn cut(text: &str, max: usize) -> (&str, bool) {
+    if text.len() <= max {
+        return (text, false);
+    }
+    let mut end = max;
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    (&text[..end], true)
 }
 
 fn now_s() -> u64 {
@@ -58,19 +97,16 @@ fn iso_time(unix: Duration) -> String {
 impl CallLog {
     /// Opens `<dir>/mcp_server_<YYYYmmdd_HHMMSS>.log`, creating `dir`. On failure the log is
     /// off and the error is returned alongside, for the caller to report.
-    pub fn open(dir: &Path) -> (Self, Option<std::io::Error>) {
+    pub fn open(dir: &Path, limits: CallLogLimits) -> (Self, Option<std::io::Error>) {
         let path = dir.join(format!("mcp_server_{}.log", file_stamp(now_s())));
-        let opened = std::fs::create_dir_all(dir).and_then(|_| {
-            std::fs::OpenOptions::new()
-                .create(true)
-                .append(true)
-                .open(&path)
-        });
+        let opened = std::fs::create_dir_all(dir)
+            .and_then(|_| RotatingFile::open(&path, limits.max_file_bytes, limits.keep_files));
         match opened {
             Ok(file) => (
                 Self {
                     path: Some(path),
                     file: Mutex::new(Some(file)),
+                    max_field_bytes: limits.max_field_bytes,
                 },
                 None,
             ),
@@ -83,6 +119,7 @@ impl CallLog {
         Self {
             path: None,
             file: Mutex::new(None),
+            max_field_bytes: 0,
         }
     }
 
@@ -117,7 +154,7 @@ impl CallLog {
         let now = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .unwrap_or_default();
-        let line = json!({
+        let mut line = json!({
             "time": iso_time(now),
             "transport": transport,
             "tool": tool,
@@ -127,7 +164,25 @@ impl CallLog {
             "duration_ms": (duration.as_secs_f64() * 1e6).round() / 1e3,
             "trace_id": trace_id,
         });
-        if let Err(error) = writeln!(file, "{line}") {
+        let max = self.max_field_bytes;
+        let mut cut_fields = Map::new();
+        let arguments_json = arguments.map(|a| Value::Object(a.clone()).to_string());
+        if let Some(text) = arguments_json.as_deref().filter(|t| t.len() > max) {
+            line["arguments"] = Value::String(format!("{}…", cut(text, max).0));
+            cut_fields.insert("arguments".into(), json!(text.len()));
+        }
+        if let (head, true) = cut(result, max) {
+            line["result"] = Value::String(format!("{head}…"));
+            cut_fields.insert("result".into(), json!(result.len()));
+        }
+        if !cut_fields.is_empty() {
+            // Which fields were cut, with their full sizes in bytes.
+            line["cut"] = Value::Object(cut_fields);
+        }
+        let mut text = line.to_string();
+        text.push('\n');
+        let written = file.write(text.as_bytes()).and_then(|()| file.flush());
+        if let Err(error) = written {
             tracing::warn!(%error, "the MCP call log cannot be written; it is off from now on");
             *guard = None;
         }
@@ -150,7 +205,7 @@ mod tests {
     #[test]
     fn calls_are_json_lines() {
         let dir = std::env::temp_dir().join(format!("robotd-calllog-{}", std::process::id()));
-        let (log, error) = CallLog::open(&dir);
+        let (log, error) = CallLog::open(&dir, CallLogLimits::default());
         assert!(error.is_none());
         let args = serde_json::json!({"text": "hi"});
         log.record(&CallRecord {
@@ -180,5 +235,46 @@ mod tests {
             "{name}"
         );
         std::fs::remove_dir_all(dir).ok();
+    }
+
+    #[test]
+    fn long_fields_are_cut_and_the_file_rotates() {
+        let dir = tempfile::tempdir().unwrap();
+        let limits = CallLogLimits {
+            max_field_bytes: 100,
+            max_file_bytes: 2_000,
+            keep_files: 2,
+        };
+        let (log, error) = CallLog::open(dir.path(), limits);
+        assert!(error.is_none());
+        let args = serde_json::json!({"object_name": "é".repeat(300)});
+        let result = "x".repeat(5_000);
+        for _ in 0..10 {
+            log.record(&CallRecord {
+                transport: "sse",
+                tool: "add_object_name2object_labels",
+                arguments: args.as_object(),
+                result: &result,
+                status: "ok",
+                duration: Duration::from_millis(1),
+                trace_id: None,
+            });
+        }
+        let path = log.path().unwrap();
+        let text = std::fs::read_to_string(path).unwrap();
+        let line: Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+        assert!(line["result"].as_str().unwrap().len() <= 100 + "…".len());
+        assert!(line["arguments"].as_str().unwrap().len() <= 100 + "…".len());
+        assert_eq!(line["cut"]["result"], 5_000);
+        assert_eq!(line["cut"]["arguments"], 618);
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names.len(), 3, "the file and two rotated ones: {names:?}");
+        for file in std::fs::read_dir(dir.path()).unwrap() {
+            let size = file.unwrap().metadata().unwrap().len();
+            assert!(size <= 2_000, "{size}");
+        }
     }
 }

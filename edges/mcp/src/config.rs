@@ -29,6 +29,13 @@ pub struct McpConfig {
     /// A streamable-HTTP session without a request for this long is closed, seconds
     /// (1 … 86,400). SSE sessions end when their stream closes.
     pub session_idle_timeout_s: u64,
+    /// Longest `arguments` or `result` written to the call log, bytes (256 … 16 MiB); longer
+    /// ones are cut and the line says so.
+    pub call_log_max_field_bytes: usize,
+    /// Size at which the call log rotates, bytes (64 KiB … 16 GiB).
+    pub call_log_max_file_bytes: u64,
+    /// Rotated call logs kept (0 … 1,000).
+    pub call_log_keep_files: u32,
 }
 
 impl Default for McpConfig {
@@ -42,6 +49,9 @@ impl Default for McpConfig {
             skill_timeout_s: 180,
             max_sessions: 100,
             session_idle_timeout_s: 300,
+            call_log_max_field_bytes: 16 * 1024,
+            call_log_max_file_bytes: 64 * 1024 * 1024,
+            call_log_keep_files: 5,
         }
     }
 }
@@ -61,6 +71,24 @@ impl Section for McpConfig {
             self.session_idle_timeout_s,
             1..=86_400,
             " s",
+        );
+        checks.range_u64(
+            "call_log_max_field_bytes",
+            self.call_log_max_field_bytes as u64,
+            256..=16 * 1024 * 1024,
+            "",
+        );
+        checks.range_u64(
+            "call_log_max_file_bytes",
+            self.call_log_max_file_bytes,
+            64 * 1024..=16 * 1024 * 1024 * 1024,
+            "",
+        );
+        checks.range_u64(
+            "call_log_keep_files",
+            u64::from(self.call_log_keep_files),
+            0..=1_000,
+            "",
         );
         if let Some(token) = &self.token {
             if token.trim().len() < 8 {
@@ -101,6 +129,15 @@ impl McpConfig {
 }
 
 impl McpConfig {
+    /// The call log's limits.
+    pub fn call_log_limits(&self) -> crate::call_log::CallLogLimits {
+        crate::call_log::CallLogLimits {
+            max_field_bytes: self.call_log_max_field_bytes,
+            max_file_bytes: self.call_log_max_file_bytes,
+            keep_files: self.call_log_keep_files,
+        }
+    }
+
     /// The MCP routes' limits.
     pub fn router_options(&self) -> crate::http::RouterOptions {
         crate::http::RouterOptions {

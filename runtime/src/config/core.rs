@@ -85,9 +85,26 @@ pub struct TelemetryConfig {
         skip_serializing_if = "Option::is_none"
     )]
     pub service_name: Option<String>,
+    /// Longest log event written, bytes (1 KiB … 1 MiB); the rest of a longer one is cut and
+    /// the line ends with `… [N bytes cut]`.
+    #[serde(default = "TelemetryConfig::default_max_event_bytes")]
+    pub max_event_bytes: usize,
+    /// Daily log files kept (1 … 3,650); older ones are deleted.
+    #[serde(default = "TelemetryConfig::default_keep_log_days")]
+    pub keep_log_days: usize,
 }
 
 impl TelemetryConfig {
+    /// 16 KiB.
+    pub const fn default_max_event_bytes() -> usize {
+        16 * 1024
+    }
+
+    /// 30 days.
+    pub const fn default_keep_log_days() -> usize {
+        30
+    }
+
     /// The service name: [`Self::service_name`], or `"robotd"` when unset.
     pub fn service_name(&self) -> &str {
         self.service_name.as_deref().unwrap_or("robotd")
@@ -304,6 +321,13 @@ impl Section for TelemetryConfig {
                 checks.problem("service_name", "must not be empty");
             }
         }
+        checks.range_u64(
+            "max_event_bytes",
+            self.max_event_bytes as u64,
+            1024..=1024 * 1024,
+            "",
+        );
+        checks.range_u64("keep_log_days", self.keep_log_days as u64, 1..=3650, "");
     }
 }
 

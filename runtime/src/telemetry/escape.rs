@@ -7,6 +7,9 @@
 //! `\n`, `\r`, `\t` or `\xHH`, except the newline that ends the event: one event, one line.
 //! The formatter writes each event with one `write_all`, which is what makes "the last
 //! newline" the event's end.
+//!
+//! An event is also cut at `max_event_bytes` (`[telemetry] max_event_bytes`): a 1 MB tool
+//! argument in an error message becomes a line ending `… [N bytes cut]`, not a 1 MB line.
 
 use std::borrow::Cow;
 use std::io::Write;
@@ -37,16 +40,37 @@ pub fn escape_controls(event: &[u8]) -> Cow<'_, [u8]> {
     Cow::Owned(out)
 }
 
-/// A [`MakeWriter`] whose writers escape control characters (see the module).
+/// `event` (escaped) cut to at most `max` bytes at a character boundary, ending
+/// `… [N bytes cut]` and its newline when cut.
+pub fn limit_event(event: &[u8], max: usize) -> Cow<'_, [u8]> {
+    if event.len() <= max {
+        return Cow::Borrowed(event);
+    }
+    let mut end = max;
+    // Back to the start of a UTF-8 character (continuation bytes are 0b10xxxxxx).
+    while end > 0 && (event[end] & 0xc0) == 0x80 {
+        end -= 1;
+    }
+    let mut out = event[..end].to_vec();
+    out.extend_from_slice(format!("… [{} bytes cut]\n", event.len() - end).as_bytes());
+    Cow::Owned(out)
+}
+
+/// A [`MakeWriter`] whose writers escape control characters and cut long events (see the
+/// module).
 #[derive(Debug, Clone)]
 pub struct EscapingMakeWriter<M> {
     inner: M,
+    max_event_bytes: usize,
 }
 
 impl<M> EscapingMakeWriter<M> {
-    /// Wraps `inner`.
-    pub fn new(inner: M) -> Self {
-        Self { inner }
+    /// Wraps `inner`, cutting events at `max_event_bytes`.
+    pub fn new(inner: M, max_event_bytes: usize) -> Self {
+        Self {
+            inner,
+            max_event_bytes,
+        }
     }
 }
 
@@ -54,16 +78,25 @@ impl<M> EscapingMakeWriter<M> {
 #[derive(Debug)]
 pub struct EscapingWriter<W> {
     inner: W,
+    max_event_bytes: usize,
+}
+
+impl<W: Write> EscapingWriter<W> {
+    fn write_event(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        let escaped = escape_controls(buf);
+        self.inner
+            .write_all(&limit_event(&escaped, self.max_event_bytes))
+    }
 }
 
 impl<W: Write> Write for EscapingWriter<W> {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.inner.write_all(&escape_controls(buf))?;
+        self.write_event(buf)?;
         Ok(buf.len())
     }
 
     fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
-        self.inner.write_all(&escape_controls(buf))
+        self.write_event(buf)
     }
 
     fn flush(&mut self) -> std::io::Result<()> {
@@ -77,6 +110,7 @@ impl<'a, M: MakeWriter<'a>> MakeWriter<'a> for EscapingMakeWriter<M> {
     fn make_writer(&'a self) -> Self::Writer {
         EscapingWriter {
             inner: self.inner.make_writer(),
+            max_event_bytes: self.max_event_bytes,
         }
     }
 }
@@ -96,5 +130,13 @@ mod tests {
             b"object 'x\\nWARN forged line\\r\\x1b[2J\\x00' unknown\n"
         );
         assert_eq!(&*escape_controls(b"tab\there"), b"tab\\there");
+    }
+
+    #[test]
+    fn long_events_are_cut_at_a_character() {
+        assert!(matches!(limit_event(b"short\n", 100), Cow::Borrowed(_)));
+        let event = "é".repeat(10) + "\n"; // 21 bytes
+        let cut = limit_event(event.as_bytes(), 5);
+        assert_eq!(&*cut, "éé… [17 bytes cut]\n".as_bytes());
     }
 }

@@ -18,6 +18,7 @@ pub(super) fn log_file_writer(
     std::fs::create_dir_all(dir).map_err(|e| fail(Box::new(e)))?;
     let appender = tracing_appender::rolling::Builder::new()
         .rotation(tracing_appender::rolling::Rotation::DAILY)
+        .max_log_files(config.keep_log_days.max(1))
         .filename_prefix(file_prefix(config.service_name()))
         .filename_suffix("log")
         .build(dir)

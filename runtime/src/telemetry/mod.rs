@@ -29,6 +29,8 @@
 //!     log_format: LogFormat::Text,
 //!     otlp_endpoint: None,
 //!     service_name: Some("robotd".into()),
+//!     max_event_bytes: TelemetryConfig::default_max_event_bytes(),
+//!     keep_log_days: TelemetryConfig::default_keep_log_days(),
 //! };
 //! let _telemetry = telemetry::init(&config, Mode::Service)?;
 //! tracing::info!("robotd starting");
@@ -71,6 +73,7 @@
 
 pub mod escape;
 mod files;
+pub mod rotating;
 
 pub use files::{file_stamp, utc_fields};
 use files::{log_file_writer, session_file_writer};
@@ -280,7 +283,10 @@ pub fn build(
     let stderr_writer = if ansi {
         BoxMakeWriter::new(std::io::stderr)
     } else {
-        BoxMakeWriter::new(escape::EscapingMakeWriter::new(std::io::stderr))
+        BoxMakeWriter::new(escape::EscapingMakeWriter::new(
+            std::io::stderr,
+            config.max_event_bytes,
+        ))
     };
     let stderr = tracing_subscriber::fmt::layer()
         .with_writer(stderr_writer)
@@ -305,7 +311,10 @@ pub fn build(
         file_guard = Some(guard);
         log_dir = Some(config.log_dir.clone());
         let file_layer = tracing_subscriber::fmt::layer()
-            .with_writer(escape::EscapingMakeWriter::new(writer))
+            .with_writer(escape::EscapingMakeWriter::new(
+                writer,
+                config.max_event_bytes,
+            ))
             .with_ansi(false);
         layers.push(match config.log_format {
             LogFormat::Text => Box::new(file_layer),
@@ -539,6 +548,8 @@ mod tests {
             log_format: LogFormat::Text,
             otlp_endpoint: otlp_endpoint.map(str::to_owned),
             service_name: Some("robotd-test".into()),
+            max_event_bytes: TelemetryConfig::default_max_event_bytes(),
+            keep_log_days: TelemetryConfig::default_keep_log_days(),
         }
     }
 
