@@ -28,11 +28,14 @@ section() {
 }
 
 # ------------------------------------------------------------------------------------------
-section "System packages (redis-server, espeak-ng, python3-venv)"
+section "System packages (redis-server, espeak-ng, chromium + chromedriver, python3-venv)"
 
 missing=()
 command -v redis-server >/dev/null 2>&1 || missing+=(redis-server)
 command -v espeak-ng >/dev/null 2>&1 || missing+=(espeak-ng)
+# The dashboard's browser test drives Debian's chromium over WebDriver.
+command -v chromium >/dev/null 2>&1 || missing+=(chromium)
+command -v chromedriver >/dev/null 2>&1 || missing+=(chromium-driver)
 if ! command -v python3 >/dev/null 2>&1; then
     missing+=(python3 python3-venv)
 elif ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
@@ -53,6 +56,7 @@ if [ "${#missing[@]}" -gt 0 ]; then
 fi
 echo "redis-server: $(command -v redis-server) ($(redis-server --version | awk '{print $3}'))"
 echo "espeak-ng:    $(command -v espeak-ng) ($(espeak-ng --version | head -n 1))"
+echo "chromium:     $(command -v chromium) ($(chromedriver --version | awk '{print $2}'))"
 
 for tool in cargo rustfmt cargo-clippy; do
     if ! command -v "$tool" >/dev/null 2>&1; then

@@ -7,6 +7,7 @@ mod audit;
 mod bench;
 mod call;
 mod chat;
+mod dashboard;
 mod detect;
 mod doctor;
 mod estop;
@@ -184,6 +185,9 @@ enum BenchCommand {
     Redis(BenchRedisArgs),
     /// What the motion policy adds to a motion command, beside planning the same command.
     Safety(BenchSafetyArgs),
+    /// JPEG encoding of a 640×480 camera frame: robotd's encoder beside the `image` crate's,
+    /// and a copy of the frame as the floor.
+    Jpeg(BenchJpegArgs),
     /// The niryo driver against the fake Ned2 on loopback: a command round trip beside a raw
     /// TCP echo of the same bytes, camera images through TCP and decoding.
     Niryo(BenchNiryoArgs),
@@ -217,6 +221,16 @@ struct BenchNiryoArgs {
     /// Random scenes for perception through JPEG.
     #[arg(long, default_value_t = 60)]
     scenes: usize,
+}
+
+#[derive(Debug, Args)]
+struct BenchJpegArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Frames encoded per variant.
+    #[arg(long, default_value_t = 300)]
+    frames: usize,
 }
 
 #[derive(Debug, Args)]
@@ -504,6 +518,12 @@ fn run() -> Result<std::process::ExitCode> {
         } => {
             let config = load_config(&cli.config)?;
             let figures = bench::redis::run(args.frames.max(10), config.redis.url.clone())?;
+            print_figures(args.json, &figures, figures.table())
+        }
+        Command::Bench {
+            what: BenchCommand::Jpeg(args),
+        } => {
+            let figures = bench::jpeg::run(args.frames.max(10))?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {

@@ -424,7 +424,7 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
         Err(error) => tracing::warn!(%error, "the open-files limit could not be raised"),
     }
     let runtime = Runtime::start(&config).await?;
-    let _agent = start_agent(&config, config_file, &runtime)?;
+    let agent = start_agent(&config, config_file, &runtime)?;
     let edge = HttpEdge::bind(config.http.bind, runtime.health_source.clone()).await?;
     let address = edge.local_addr()?;
     let guard = HttpGuard {
@@ -444,11 +444,23 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
             config.mcp.router_options(),
             stop_sessions.clone(),
         ));
-        edge = edge.with_routes(robotd_http::safety::router(runtime.safety_api()?));
     }
+    edge = edge.with_routes(robotd_http::safety::router(runtime.safety_api()?));
+    let dashboard = if config.dashboard.enabled {
+        let (routes, live) = crate::dashboard::routes(&config, &runtime, &agent)?;
+        edge = edge.with_routes(routes);
+        Some(live)
+    } else {
+        None
+    };
     tracing::info!("HTTP edge on http://{address} (/health, /metrics, MCP /sse and /mcp)");
     eprintln!(
-        "robotd: serving on http://{address} (/health, /metrics{}); bus namespace '{}'",
+        "robotd: serving on http://{address} ({}/health, /metrics{}); bus namespace '{}'",
+        if config.dashboard.enabled {
+            "dashboard: /, "
+        } else {
+            ""
+        },
         if config.mcp.enabled {
             ", MCP: /sse and /mcp"
         } else {
@@ -463,19 +475,25 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
     })
     .await?;
     tracing::info!("shutting down");
+    if let Some(live) = dashboard {
+        live.stop();
+    }
+    drop(agent);
     runtime.shutdown().await;
     Ok(())
 }
 
 /// The LLM agent on the bus (`agent/request` → `agent/events`), when `[agent] serve` is on and
-/// a provider is usable; otherwise says why it is off (the robot runs either way).
+/// a provider is usable; otherwise why it is off (the robot runs either way).
 fn start_agent(
     config: &Config,
     config_file: Option<&std::path::Path>,
     runtime: &Runtime,
-) -> Result<Option<robotd_agent::actor::AgentActor>> {
+) -> Result<Result<robotd_agent::actor::AgentActor, String>> {
     if !config.agent.serve {
-        return Ok(None);
+        return Ok(Err(
+            "the agent is switched off ([agent] serve = false)".to_owned()
+        ));
     }
     let env = crate::chat::provider_env(config, config_file)?;
     let settings = match robotd_agent::providers::resolve(
@@ -486,7 +504,7 @@ fn start_agent(
         Ok(settings) => settings,
         Err(reason) => {
             tracing::info!(%reason, "the LLM agent is off (robotd chat --mcp still works)");
-            return Ok(None);
+            return Ok(Err(format!("no LLM provider is configured: {reason}")));
         }
     };
     let hints: Vec<robotd_agent::WorkspaceHint> = runtime
@@ -503,7 +521,7 @@ fn start_agent(
     )?;
     let actor = robotd_agent::actor::spawn(&runtime.bus, agent)?;
     tracing::info!(provider = %settings.provider, model = %settings.model, "LLM agent on the bus");
-    Ok(Some(actor))
+    Ok(Ok(actor))
 }
 
 /// `robotd mcp-stdio`: the runtime, serving MCP on stdin/stdout until the client closes it

@@ -35,6 +35,7 @@
 //! `config/default.toml`.
 
 pub use robotd_agent::AgentSection;
+pub use robotd_dashboard::DashboardConfig;
 pub use robotd_driver::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
 pub use robotd_http::HttpConfig;
 pub use robotd_mcp::McpConfig;
@@ -83,6 +84,9 @@ robotd_runtime::compose_config! {
         /// `[mcp]`: the MCP edge (served on the `[http]` port).
         #[serde(default)]
         mcp: McpConfig,
+        /// `[dashboard]`: the web page at `/` and its API.
+        #[serde(default)]
+        dashboard: DashboardConfig,
         /// `[agent]`: the LLM agent (`robotd chat`, and the agent actor of `robotd serve`).
         #[serde(default)]
         agent: AgentSection,

@@ -5,6 +5,7 @@
 //! everything crosses a real process boundary. The bus benchmark (raw iceoryx2 beside
 //! robotd's bus) and the statistics live in the `bench/` crate (robotd-bench).
 
+pub mod jpeg;
 pub mod mcp;
 pub mod niryo;
 pub mod perception;

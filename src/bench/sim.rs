@@ -9,7 +9,7 @@ use super::Latency;
 use anyhow::{Context, Result};
 use robotd_driver::CameraDriver;
 use robotd_driver_sim::faults::FaultInjector;
-use robotd_driver_sim::{SimRobot, SimSettings};
+use robotd_driver_sim::{SimCamera, SimRobot, SimSettings};
 use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::geometry::{Pose, RobotModel};
 use robotd_runtime::bus::{Bus, BusOptions, FRAME_BYTES};
@@ -71,8 +71,9 @@ fn ms(latency: Latency) -> (f64, f64) {
     (latency.p50_us / 1000.0, latency.p99_us / 1000.0)
 }
 
-/// Runs the measurements with `frames` frames per variant.
-pub fn run(frames: usize) -> Result<SimFigures> {
+/// The simulated Ned2's wrist camera at the default scene's observation pose (the robot
+/// must outlive the camera's use).
+pub(crate) fn observation_camera() -> Result<(SimRobot, SimCamera)> {
     let scene = Scene::default_ned2();
     let robot = SimRobot::new(
         &scene,
@@ -96,6 +97,14 @@ pub fn run(frames: usize) -> Result<SimFigures> {
         .teleport(&joints)
         .map_err(|e| anyhow::anyhow!("observation pose: {e}"))?;
     let camera = robot.camera(FaultInjector::none("camera"));
+    Ok((robot, camera))
+}
+
+/// Runs the measurements with `frames` frames per variant.
+pub fn run(frames: usize) -> Result<SimFigures> {
+    let (_robot, camera) = observation_camera()?;
+    let scene = Scene::default_ned2();
+    let kinematics = Kinematics::new(RobotModel::Ned2);
 
     // Render, interleaved with the fill floor.
     let mut buffer = vec![0u8; FRAME_BYTES];

@@ -11,8 +11,9 @@
 //! 2. **Origin**. A browser page from another site gets 403 unless its origin is local or
 //!    listed in `[mcp] allowed_origins`.
 //! 3. **Bearer token** (`[mcp] token`). When set, every route needs
-//!    `Authorization: Bearer <token>` — except `/health` and `/metrics` on a loopback bind,
-//!    which monitoring on the same machine reads without it. A non-loopback bind needs a token
+//!    `Authorization: Bearer <token>`, or the `access_token` query parameter (RFC 6750 §2.3:
+//!    what a browser can send for a page, an `<img>` or an event stream) — except `/health`
+//!    and `/metrics` on a loopback bind, which monitoring on the same machine reads without it. A non-loopback bind needs a token
 //!    ([`check_bind`]), whether MCP is on or off: the port also serves the e-stop, health and
 //!    metrics.
 //! 4. **Body size** (`[mcp] max_body_bytes`): a larger `Content-Length` is 413 before the body
@@ -166,17 +167,22 @@ async fn check(State(guard): State<Arc<HttpGuard>>, request: Request, next: Next
     }
     let monitoring = matches!(request.uri().path(), "/health" | "/metrics");
     if let Some(token) = guard.token.as_deref() {
+        let from_query = request.uri().query().and_then(|q| {
+            q.split('&')
+                .find_map(|pair| pair.strip_prefix("access_token="))
+        });
         let given = headers
             .get(header::AUTHORIZATION)
             .and_then(|v| v.to_str().ok())
             .and_then(|v| v.strip_prefix("Bearer "))
+            .or(from_query)
             .unwrap_or("");
         let exempt = monitoring && guard.loopback;
         if !exempt && !constant_time_eq(given.as_bytes(), token.as_bytes()) {
             return (
                 StatusCode::UNAUTHORIZED,
                 [(header::WWW_AUTHENTICATE, "Bearer")],
-                "Unauthorized: send Authorization: Bearer <token>",
+                "Unauthorized: send Authorization: Bearer <token> (or ?access_token=<token>)",
             )
                 .into_response();
         }

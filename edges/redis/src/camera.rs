@@ -12,13 +12,13 @@
 //! detector's, or an external one's through the consumer), the frame is drawn with boxes and
 //! labels and sent to `annotated_camera`, at most `annotated_fps` times a second.
 
-use crate::annotate::draw_objects;
 use crate::status::EdgeStatus;
 use crate::wire::{camera_entry, FrameMeta};
 use crate::writer::EntrySender;
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::objects::Detections;
 use robotd_protocol::workspace::WorkspaceInfo;
+use robotd_render::annotate::draw_objects;
 use robotd_runtime::bus::Bus;
 use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
 use std::collections::VecDeque;

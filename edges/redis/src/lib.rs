@@ -32,7 +32,6 @@
 pub mod config;
 pub use config::RedisConfig;
 
-pub mod annotate;
 pub mod camera;
 pub mod consume;
 pub mod relay;

@@ -1,4 +1,5 @@
-//! Boxes and labels drawn onto a frame, for the `annotated_camera` stream a lab's viewer shows.
+//! Boxes and labels drawn onto a frame: the Redis edge's `annotated_camera` stream and the
+//! dashboard's camera view.
 //!
 //! Each object gets its bounding box (2 px, one colour per label) and a filled tag above it
 //! with `label 0.87` in an 8×8 bitmap font (ASCII; other characters show as `?`). Drawing

@@ -62,6 +62,7 @@
 //! # Ok::<(), robotd_render::RenderError>(())
 //! ```
 
+pub mod annotate;
 mod intrinsics;
 mod mesh;
 mod noise;
@@ -120,6 +121,26 @@ pub fn encode_jpeg(
         )));
     }
     let mut jpeg = Vec::with_capacity(expected / 8);
+    jpeg_encoder::Encoder::new(&mut jpeg, quality.clamp(1, 100))
+        .encode(
+            rgb,
+            width as u16,
+            height as u16,
+            jpeg_encoder::ColorType::Rgb,
+        )
+        .map_err(|e| RenderError::Jpeg(e.to_string()))?;
+    Ok(jpeg)
+}
+
+/// The same frame through the `image` crate's JPEG encoder, robotd's encoder before
+/// `jpeg-encoder`: kept as the benchmark's baseline (`robotd bench jpeg`), not for use.
+pub fn encode_jpeg_with_image_crate(
+    rgb: &[u8],
+    width: u32,
+    height: u32,
+    quality: u8,
+) -> Result<Vec<u8>, RenderError> {
+    let mut jpeg = Vec::with_capacity(rgb.len() / 8);
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, quality.clamp(1, 100))
         .encode(rgb, width, height, image::ExtendedColorType::Rgb8)
         .map_err(|e| RenderError::Jpeg(e.to_string()))?;

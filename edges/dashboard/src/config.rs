@@ -1,0 +1,41 @@
+//! `[dashboard]`: the web page at `/` and its API under `/api/`.
+
+use robotd_runtime::config::{Checks, Section};
+use serde::{Deserialize, Serialize};
+
+/// `[dashboard]`
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DashboardConfig {
+    /// Serve the page and its API (behind the port's guard, like MCP).
+    pub enabled: bool,
+    /// Most camera frames per second encoded for the page (0.5 … 30).
+    pub camera_fps: f64,
+    /// JPEG quality of the page's camera view (10 … 100).
+    pub jpeg_quality: u8,
+}
+
+impl Default for DashboardConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            camera_fps: 10.0,
+            jpeg_quality: 80,
+        }
+    }
+}
+
+impl Section for DashboardConfig {
+    fn check(&self, checks: &mut Checks) {
+        if !(0.5..=30.0).contains(&self.camera_fps) {
+            checks.problem(
+                "camera_fps",
+                format!(
+                    "must be 0.5 … 30 frames per second, got {}",
+                    self.camera_fps
+                ),
+            );
+        }
+        checks.range_u64("jpeg_quality", u64::from(self.jpeg_quality), 10..=100, "");
+    }
+}

@@ -1,0 +1,317 @@
+//! What the page shows, kept up to date from the bus by one thread.
+//!
+//! The thread reads the bus the way every edge does (its ports live on the thread that opened
+//! them) and keeps:
+//!
+//! - the **camera**: at most `camera_fps` times a second the newest frame, with the newest
+//!   detections drawn on it, encoded as JPEG into a `watch` cell — each viewer takes the
+//!   newest frame when it is ready for one, so a slow browser skips frames and the camera
+//!   never waits (drop, don't queue);
+//! - a **snapshot** (arm, objects, recent overlays and restarts, camera and detection rates),
+//!   served as JSON by `/api/status` and `/api/objects`;
+//! - a **broadcast** of events (agent events as they happen, overlays, restarts) for
+//!   `/api/events` and `/api/chat`. A viewer that falls behind loses events, never blocks.
+
+use bytes::Bytes;
+use robotd_protocol::agent::AgentEvent;
+use robotd_protocol::objects::DetectedObject;
+use robotd_runtime::bus::{Bus, BusError};
+use robotd_runtime::catalog::{
+    AGENT_EVENTS, ARM_STATE, CAMERA_FRAMES, HEALTH_RESTARTS, OVERLAY_TEXT, PERCEPTION_DETECTIONS,
+    WORKSPACE_OBJECTS,
+};
+use serde::Serialize;
+use serde_json::{json, Value};
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use tokio::sync::{broadcast, watch};
+
+/// Recent overlays and restarts kept for the page.
+const RECENT: usize = 20;
+/// Encode times kept for the median.
+const ENCODE_SAMPLES: usize = 64;
+
+/// One encoded camera frame.
+#[derive(Debug, Clone)]
+pub struct CameraJpeg {
+    /// The JPEG file.
+    pub jpeg: Bytes,
+    /// The camera's frame id.
+    pub frame_id: u64,
+    /// Capture time, ns since the Unix epoch.
+    pub timestamp_unix_ns: u64,
+}
+
+/// An event pushed to the page.
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum LiveEvent {
+    /// An event of an agent request (plan, tool call, tool result, answer, error, cancelled).
+    Agent(AgentEvent),
+    /// A text shown over the video (`speak`, `set_user_task`, system messages).
+    Overlay(Value),
+    /// An actor restarted.
+    Restart(Value),
+}
+
+/// The snapshot the page polls.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Snapshot {
+    /// The arm's last state (`tool_pose`, `moving`, `collision_detected`, …), if heard.
+    pub arm: Option<Value>,
+    /// The tracked objects of the workspace model.
+    pub objects: Vec<DetectedObject>,
+    /// Recent overlays, newest last.
+    pub overlays: VecDeque<Value>,
+    /// Recent restarts, newest last.
+    pub restarts: VecDeque<Value>,
+    /// The camera view's figures.
+    pub camera: CameraFigures,
+}
+
+/// Camera figures over the last second or so.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct CameraFigures {
+    /// Frames per second arriving on the bus.
+    pub bus_fps: f64,
+    /// Frames per second encoded for the page.
+    pub page_fps: f64,
+    /// Detections per second from perception.
+    pub detections_per_s: f64,
+    /// Median JPEG encode time of the last frames, ms.
+    pub encode_ms_p50: f64,
+    /// The last encoded frame's id.
+    pub frame_id: u64,
+    /// Its capture time, ns since the Unix epoch.
+    pub timestamp_unix_ns: u64,
+}
+
+/// The live state shared by the thread and the HTTP handlers.
+#[derive(Debug)]
+pub struct Live {
+    snapshot: Mutex<Snapshot>,
+    events: broadcast::Sender<LiveEvent>,
+    camera: watch::Sender<Option<CameraJpeg>>,
+    stop: AtomicBool,
+}
+
+impl Live {
+    /// The current snapshot.
+    pub fn snapshot(&self) -> Snapshot {
+        self.snapshot
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+
+    /// Events from now on.
+    pub fn events(&self) -> broadcast::Receiver<LiveEvent> {
+        self.events.subscribe()
+    }
+
+    /// The newest camera frame, and changes from now on.
+    pub fn camera(&self) -> watch::Receiver<Option<CameraJpeg>> {
+        self.camera.subscribe()
+    }
+
+    fn update(&self, change: impl FnOnce(&mut Snapshot)) {
+        change(&mut self.snapshot.lock().unwrap_or_else(|e| e.into_inner()));
+    }
+
+    /// Stops the thread (at its next poll).
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+/// Starts the thread reading `bus`; it encodes at most `camera_fps` frames a second at
+/// `jpeg_quality`.
+pub fn start(bus: Bus, camera_fps: f64, jpeg_quality: u8) -> std::io::Result<Arc<Live>> {
+    let (events, _) = broadcast::channel(256);
+    let (camera, _) = watch::channel(None);
+    let live = Arc::new(Live {
+        snapshot: Mutex::default(),
+        events,
+        camera,
+        stop: AtomicBool::new(false),
+    });
+    let shared = live.clone();
+    std::thread::Builder::new()
+        .name("dashboard-live".into())
+        .spawn(move || run(bus, &shared, camera_fps, jpeg_quality))?;
+    Ok(live)
+}
+
+/// Counts over a one-second window, as a rate.
+#[derive(Debug)]
+struct Rate {
+    since: Instant,
+    count: u32,
+    value: f64,
+}
+
+impl Rate {
+    fn new() -> Self {
+        Self {
+            since: Instant::now(),
+            count: 0,
+            value: 0.0,
+        }
+    }
+
+    fn tick(&mut self) {
+        self.count += 1;
+    }
+
+    /// The rate, refreshed once a second.
+    fn value(&mut self) -> f64 {
+        let elapsed = self.since.elapsed();
+        if elapsed >= Duration::from_secs(1) {
+            self.value = f64::from(self.count) / elapsed.as_secs_f64();
+            (self.since, self.count) = (Instant::now(), 0);
+        }
+        self.value
+    }
+}
+
+fn to_json(value: impl Serialize) -> Value {
+    serde_json::to_value(value).unwrap_or(Value::Null)
+}
+
+fn push_recent(list: &mut VecDeque<Value>, value: Value) {
+    if list.len() == RECENT {
+        list.pop_front();
+    }
+    list.push_back(value);
+}
+
+fn now_unix_s() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+fn run(bus: Bus, live: &Live, camera_fps: f64, jpeg_quality: u8) {
+    let runtime = match tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(error) => {
+            tracing::error!(%error, "dashboard: the live thread cannot start its runtime");
+            return;
+        }
+    };
+    runtime.block_on(async move {
+        if let Err(error) = follow(&bus, live, camera_fps, jpeg_quality).await {
+            tracing::error!(%error, "dashboard: the live view stopped: its bus ports failed");
+        }
+    });
+}
+
+async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<(), BusError> {
+    let mut frames = bus.frame_subscriber(&CAMERA_FRAMES)?;
+    let mut arm = bus.subscriber(&ARM_STATE)?;
+    let mut detections = bus.subscriber(&PERCEPTION_DETECTIONS)?;
+    let mut objects = bus.subscriber(&WORKSPACE_OBJECTS)?;
+    let mut overlays = bus.subscriber(&OVERLAY_TEXT)?;
+    let mut restarts = bus.subscriber(&HEALTH_RESTARTS)?;
+    let mut agent = bus.subscriber(&AGENT_EVENTS)?;
+    let every = Duration::from_secs_f64(1.0 / camera_fps);
+    let mut last_encoded: Option<Instant> = None;
+    let mut drawn: Vec<DetectedObject> = Vec::new();
+    let (mut bus_rate, mut page_rate, mut detection_rate) = (Rate::new(), Rate::new(), Rate::new());
+    let mut encode_ms: VecDeque<f64> = VecDeque::new();
+    while !live.stop.load(Ordering::SeqCst) {
+        if let Some(state) = arm.try_recv()?.map(|m| m.body) {
+            let mut latest = state;
+            while let Some(newer) = arm.try_recv()? {
+                latest = newer.body;
+            }
+            live.update(|s| s.arm = Some(to_json(&latest)));
+        }
+        while let Some(message) = detections.try_recv()? {
+            detection_rate.tick();
+            drawn = message.body.objects;
+        }
+        while let Some(message) = objects.try_recv()? {
+            live.update(|s| s.objects = message.body.objects);
+        }
+        while let Some(message) = overlays.try_recv()? {
+            let mut value = to_json(&message.body);
+            value["time_unix_s"] = json!(now_unix_s());
+            live.update(|s| push_recent(&mut s.overlays, value.clone()));
+            let _ = live.events.send(LiveEvent::Overlay(value));
+        }
+        while let Some(message) = restarts.try_recv()? {
+            let mut value = to_json(&message.body);
+            value["time_unix_s"] = json!(now_unix_s());
+            live.update(|s| push_recent(&mut s.restarts, value.clone()));
+            let _ = live.events.send(LiveEvent::Restart(value));
+        }
+        while let Some(message) = agent.try_recv()? {
+            let _ = live.events.send(LiveEvent::Agent(message.body));
+        }
+        let sample = match tokio::time::timeout(Duration::from_millis(25), frames.recv()).await {
+            Err(_) => None,
+            Ok(Err(error)) => {
+                tracing::debug!(%error, "dashboard: receiving a frame failed");
+                tokio::time::sleep(Duration::from_millis(25)).await;
+                None
+            }
+            Ok(Ok(sample)) => Some(sample),
+        };
+        if let Some(sample) = sample {
+            bus_rate.tick();
+            let header = *sample.header();
+            let (w, h) = (header.width as usize, header.height as usize);
+            let bytes = w * h * 3;
+            let due = last_encoded.is_none_or(|t| t.elapsed() >= every);
+            let rgb8 = header.channels == 3 && header.encoding == 0;
+            if due && rgb8 && sample.pixels().len() >= bytes {
+                last_encoded = Some(Instant::now());
+                let mut rgb = sample.pixels()[..bytes].to_vec();
+                drop(sample);
+                robotd_render::annotate::draw_objects(&mut rgb, w, h, &drawn);
+                let started = Instant::now();
+                match robotd_render::encode_jpeg(&rgb, w as u32, h as u32, quality) {
+                    Ok(jpeg) => {
+                        if encode_ms.len() == ENCODE_SAMPLES {
+                            encode_ms.pop_front();
+                        }
+                        encode_ms.push_back(started.elapsed().as_secs_f64() * 1e3);
+                        page_rate.tick();
+                        live.camera.send_replace(Some(CameraJpeg {
+                            jpeg: Bytes::from(jpeg),
+                            frame_id: header.frame_id,
+                            timestamp_unix_ns: header.timestamp_unix_ns,
+                        }));
+                        live.update(|s| {
+                            s.camera.frame_id = header.frame_id;
+                            s.camera.timestamp_unix_ns = header.timestamp_unix_ns;
+                        });
+                    }
+                    Err(error) => tracing::warn!(%error, "dashboard: JPEG encoding failed"),
+                }
+            }
+        }
+        let median = median(&encode_ms);
+        let (bus_fps, page_fps, per_s) =
+            (bus_rate.value(), page_rate.value(), detection_rate.value());
+        live.update(|s| {
+            s.camera.bus_fps = bus_fps;
+            s.camera.page_fps = page_fps;
+            s.camera.detections_per_s = per_s;
+            s.camera.encode_ms_p50 = median;
+        });
+    }
+    Ok(())
+}
+
+fn median(values: &VecDeque<f64>) -> f64 {
+    let mut sorted: Vec<f64> = values.iter().copied().collect();
+    sorted.sort_by(f64::total_cmp);
+    sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
+}

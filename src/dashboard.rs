@@ -1,0 +1,41 @@
+//! `robotd serve`'s dashboard: the live view on the bus and the page's routes, wired to the
+//! running service (health, workspaces, the agent).
+
+use crate::serve::Runtime;
+use anyhow::{Context, Result};
+use robotd_config::Config;
+use robotd_dashboard::live::Live;
+use robotd_dashboard::{AgentLink, DashboardApi};
+use robotd_runtime::catalog::{AGENT_CANCEL, AGENT_REQUEST};
+use std::sync::{Arc, Mutex};
+
+/// The dashboard's routes and its live state (stop it at shutdown). `agent` is the agent
+/// actor, or why none runs.
+pub fn routes<A>(
+    config: &Config,
+    runtime: &Runtime,
+    agent: &Result<A, String>,
+) -> Result<(axum::Router, Arc<Live>)> {
+    let settings = &config.dashboard;
+    let live = robotd_dashboard::live::start(
+        runtime.bus.clone(),
+        settings.camera_fps,
+        settings.jpeg_quality,
+    )
+    .context("starting the dashboard's live view")?;
+    let agent = match agent {
+        Ok(_) => AgentLink::Available {
+            requests: Mutex::new(runtime.bus.publisher(&AGENT_REQUEST)?),
+            cancels: Mutex::new(runtime.bus.publisher(&AGENT_CANCEL)?),
+        },
+        Err(reason) => AgentLink::Off(reason.clone()),
+    };
+    let health = runtime.health_source.clone();
+    let api = DashboardApi {
+        live: live.clone(),
+        health: Arc::new(move || health()),
+        workspaces: serde_json::to_value(&runtime.workspaces)?,
+        agent: Arc::new(agent),
+    };
+    Ok((robotd_dashboard::router(api), live))
+}

@@ -1,0 +1,406 @@
+//! The dashboard in a real browser: Debian's `chromium`, driven over WebDriver by
+//! `chromedriver`, against a served robotd on the simulator with the scripted mock LLM as its
+//! agent. The page loads; the camera image arrives and its frame changes; the objects table
+//! lists the scene; a chat request moves the pencil (checked against the simulator's ground
+//! truth); the e-stop button stops a motion under way. Screenshots of the key states are
+//! kept in `target/test-artifacts/`.
+
+mod common;
+
+use robotd_agent::mock::{MockLlm, MockReply};
+use robotd_protocol::diagnostics::SimWorldRequest;
+use robotd_runtime::bus::{Bus, BusOptions};
+use robotd_runtime::catalog::SIM_WORLD;
+use serde_json::{json, Value};
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A WebDriver session of one headless chromium.
+struct Browser {
+    http: reqwest::Client,
+    base: String,
+    _driver: common::Running,
+}
+
+impl Browser {
+    async fn start() -> Browser {
+        let port = common::free_port();
+        let child = Command::new("chromedriver")
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("chromedriver (apt install chromium-driver; ./scripts/test.sh does)");
+        let driver = common::Running {
+            child,
+            name: "chromedriver",
+        };
+        robotd_runtime::telemetry::install_tls_provider();
+        let http = reqwest::Client::new();
+        let root = format!("http://127.0.0.1:{port}");
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while http.get(format!("{root}/status")).send().await.is_err() {
+            assert!(Instant::now() < deadline, "chromedriver did not start");
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        let capabilities = json!({"capabilities": {"alwaysMatch": {
+            "browserName": "chrome",
+            "goog:chromeOptions": {
+                "binary": "/usr/bin/chromium",
+                "args": ["--headless=new", "--no-sandbox", "--disable-gpu",
+                         "--disable-dev-shm-usage", "--window-size=1280,1000"]
+            }
+        }}});
+        let reply: Value = http
+            .post(format!("{root}/session"))
+            .json(&capabilities)
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        let session = reply["value"]["sessionId"]
+            .as_str()
+            .unwrap_or_else(|| panic!("no WebDriver session: {reply}"));
+        Browser {
+            base: format!("{root}/session/{session}"),
+            http,
+            _driver: driver,
+        }
+    }
+
+    async fn command(&self, path: &str, body: Value) -> Value {
+        let reply: Value = self
+            .http
+            .post(format!("{}{path}", self.base))
+            .json(&body)
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        if reply["value"]["error"].is_string() {
+            panic!("WebDriver {path}: {reply}");
+        }
+        reply["value"].clone()
+    }
+
+    async fn open(&self, url: &str) {
+        self.command("/url", json!({ "url": url })).await;
+    }
+
+    /// Runs `script` (a function body) in the page and returns its value.
+    async fn eval(&self, script: &str) -> Value {
+        self.command("/execute/sync", json!({"script": script, "args": []}))
+            .await
+    }
+
+    /// Waits until `script` returns something truthy; returns it.
+    async fn wait_for(&self, what: &str, script: &str, within: Duration) -> Value {
+        let deadline = Instant::now() + within;
+        loop {
+            let value = self.eval(script).await;
+            let truthy = !matches!(&value, Value::Null | Value::Bool(false))
+                && value != json!(0)
+                && value != json!("");
+            if truthy {
+                return value;
+            }
+            assert!(Instant::now() < deadline, "the page never showed {what}");
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    }
+
+    async fn element(&self, css: &str) -> String {
+        let found = self
+            .command("/element", json!({"using": "css selector", "value": css}))
+            .await;
+        found
+            .as_object()
+            .and_then(|o| o.values().next())
+            .and_then(Value::as_str)
+            .unwrap_or_else(|| panic!("no element {css}: {found}"))
+            .to_owned()
+    }
+
+    async fn click(&self, css: &str) {
+        let id = self.element(css).await;
+        self.command(&format!("/element/{id}/click"), json!({}))
+            .await;
+    }
+
+    async fn type_into(&self, css: &str, text: &str) {
+        let id = self.element(css).await;
+        self.command(&format!("/element/{id}/value"), json!({ "text": text }))
+            .await;
+    }
+
+    async fn accept_dialog(&self) {
+        self.command("/alert/accept", json!({})).await;
+    }
+
+    /// Saves a screenshot as `target/test-artifacts/<name>.png`.
+    async fn screenshot(&self, name: &str) -> PathBuf {
+        use base64::Engine;
+        let reply: Value = self
+            .http
+            .get(format!("{}/screenshot", self.base))
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        let png = base64::engine::general_purpose::STANDARD
+            .decode(reply["value"].as_str().unwrap())
+            .unwrap();
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/test-artifacts");
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(format!("{name}.png"));
+        std::fs::write(&path, png).unwrap();
+        path
+    }
+
+    async fn close(&self) {
+        let _ = self.http.delete(&self.base).send().await;
+    }
+}
+
+fn start_robotd(
+    namespace: &str,
+    port: u16,
+    mock: &MockLlm,
+    dir: &std::path::Path,
+) -> common::Running {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_robotd"));
+    command
+        .args(["serve", "--namespace", namespace, "--http"])
+        .arg(format!("127.0.0.1:{port}"))
+        .args(["--set", "robot.time_scale=1.0", "--set"])
+        .arg(format!("telemetry.log_dir={}", dir.display()))
+        .current_dir(dir)
+        .env("OPENAI_API_KEY", "sk-test-dashboard")
+        .env("OPENAI_BASE_URL", mock.openai_base_url())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    for v in [
+        "GROQ_API_KEY",
+        "GEMINI_API_KEY",
+        "API_KEY",
+        "LLM_BASE_URL",
+        "ROBOTD_CONFIG",
+    ] {
+        command.env_remove(v);
+    }
+    let mut robotd = common::Running {
+        child: command.spawn().expect("start robotd serve"),
+        name: "robotd",
+    };
+    let stderr = robotd.child.stderr.take().unwrap();
+    let mut lines = BufReader::new(stderr).lines();
+    assert!(
+        lines.any(|l| l.is_ok_and(|l| l.contains("robotd: serving on"))),
+        "robotd did not start"
+    );
+    std::thread::spawn(move || for _ in lines {});
+    robotd
+}
+
+async fn pencil_in_the_world(bus: &Bus) -> [f64; 2] {
+    let world = bus
+        .client(&SIM_WORLD)
+        .unwrap()
+        .request(&SimWorldRequest {}, Duration::from_secs(5))
+        .await
+        .unwrap();
+    let pencil = world
+        .objects
+        .iter()
+        .find(|o| o.label == "pencil")
+        .expect("a pencil in the scene");
+    [pencil.x_m, pencil.y_m]
+}
+
+#[test]
+fn the_dashboard_shows_the_robot_chats_and_stops_it() {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    runtime.block_on(async {
+        let mock = MockLlm::start(vec![
+            MockReply::plan_and_call(
+                "Plan: pick the pencil and place it right next to the red cube.",
+                "pick_place_object",
+                json!({"object_name": "pencil", "pick_coordinate": [0.22, -0.05],
+                       "place_coordinate": [0.28, 0.04], "location": "right next to"}),
+            ),
+            MockReply::text("Done: the pencil lies right next to the red cube."),
+        ])
+        .await
+        .unwrap();
+        let namespace = common::fresh_namespace("dashboard");
+        let port = common::free_port();
+        let dir = tempfile::tempdir().unwrap();
+        let _robotd = start_robotd(&namespace, port, &mock, dir.path());
+        let bus = Bus::open(BusOptions::new(&namespace, "dashboard-test")).unwrap();
+        let pencil_before = pencil_in_the_world(&bus).await;
+        // The detection tools look from the observation pose; the table fills from then on.
+        let url = format!("http://127.0.0.1:{port}/mcp");
+        let looked = Command::new(env!("CARGO_BIN_EXE_robotd"))
+            .args(["call", "get_detected_objects", "--url", &url])
+            .output()
+            .unwrap();
+        assert!(looked.status.success(), "{looked:?}");
+
+        let browser = Browser::start().await;
+        browser.open(&format!("http://127.0.0.1:{port}/")).await;
+        // The camera: frames arrive and change.
+        let first = browser
+            .wait_for(
+                "a camera frame",
+                "return Number(document.getElementById('camera-info').dataset.frameId || 0)",
+                Duration::from_secs(20),
+            )
+            .await;
+        browser
+            .wait_for(
+                "a newer camera frame",
+                &format!(
+                    "return Number(document.getElementById('camera-info').dataset.frameId) > {first}"
+                ),
+                Duration::from_secs(10),
+            )
+            .await;
+        let width = browser
+            .eval("return document.getElementById('camera').naturalWidth")
+            .await;
+        assert_eq!(width, 640, "the camera image is shown");
+        // Capture → in the page: read the MJPEG stream in the page itself and compare each
+        // part's capture time with the page's clock (same machine, same clock).
+        browser
+            .eval(
+                "window.frameAges = []; (async () => { \
+                   const r = await fetch('/api/camera.mjpg'); const reader = r.body.getReader(); \
+                   const dec = new TextDecoder('latin1'); let buf = ''; \
+                   while (window.frameAges.length < 30) { \
+                     const { value, done } = await reader.read(); if (done) break; \
+                     buf += dec.decode(value, { stream: true }); let m; \
+                     while ((m = buf.match(/X-Frame-Timestamp-Ns: (\\d+)/))) { \
+                       window.frameAges.push(Date.now() - Number(m[1]) / 1e6); \
+                       buf = buf.slice(m.index + m[0].length); } } \
+                   reader.cancel(); })(); return true",
+            )
+            .await;
+        let ages = browser
+            .wait_for(
+                "30 frames read in the page",
+                "return window.frameAges.length >= 30 ? window.frameAges : null",
+                Duration::from_secs(20),
+            )
+            .await;
+        let mut ages: Vec<f64> = ages
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(Value::as_f64)
+            .collect();
+        ages.sort_by(f64::total_cmp);
+        eprintln!(
+            "camera frame capture -> received in the page: p50 {:.1} ms, max {:.1} ms ({} frames)",
+            ages[ages.len() / 2],
+            ages[ages.len() - 1],
+            ages.len()
+        );
+        assert!(ages[ages.len() / 2] < 500.0, "frames reach the page late: {ages:?}");
+        // The objects table lists the scene.
+        let labels = browser
+            .wait_for(
+                "the objects",
+                "const rows = [...document.querySelectorAll('#objects tr')].map(r => r.dataset.label); \
+                 return rows.length >= 4 ? rows.sort().join(',') : ''",
+                Duration::from_secs(10),
+            )
+            .await;
+        assert_eq!(labels, "blue square,green cylinder,pencil,red cube");
+        browser.screenshot("dashboard-loaded").await;
+
+        // Chat: the mock LLM moves the pencil; the page shows the plan, the call, the answer.
+        browser
+            .type_into("#chat-input", "put the pencil right next to the red cube")
+            .await;
+        browser.click("#chat-send").await;
+        let log = browser
+            .wait_for(
+                "the agent's answer",
+                "const t = document.getElementById('chat-log').innerText; \
+                 return t.includes('Done: the pencil') ? t : ''",
+                Duration::from_secs(60),
+            )
+            .await;
+        let log = log.as_str().unwrap();
+        for expected in [
+            "plan: Plan: pick the pencil",
+            "→ pick_place_object",
+            "← ✓",
+        ] {
+            assert!(log.contains(expected), "{expected:?} in {log}");
+        }
+        browser.screenshot("dashboard-after-chat").await;
+        let pencil_after = pencil_in_the_world(&bus).await;
+        let moved = (pencil_after[0] - pencil_before[0]).hypot(pencil_after[1] - pencil_before[1]);
+        assert!(
+            moved > 0.03,
+            "the pencil moved {moved:.3} m: {pencil_before:?} -> {pencil_after:?}"
+        );
+
+        // The e-stop button stops a motion under way.
+        let motion = std::thread::spawn({
+            let url = url.clone();
+            move || {
+                Command::new(env!("CARGO_BIN_EXE_robotd"))
+                    .args(["call", "move2by", "--url", &url])
+                    .args(["--arg", "direction=forward", "--arg", "distance=0.1"])
+                    .output()
+                    .unwrap()
+            }
+        });
+        browser
+            .wait_for(
+                "the arm moving",
+                "return window.lastStatus && window.lastStatus.arm && window.lastStatus.arm.moving",
+                Duration::from_secs(20),
+            )
+            .await;
+        browser.click("#estop").await;
+        let engaged_at = Instant::now();
+        browser
+            .wait_for(
+                "the e-stop engaged and the arm at rest",
+                "const s = window.lastStatus; return s && s.health.safety.estop.engaged && !s.arm.moving",
+                Duration::from_secs(5),
+            )
+            .await;
+        eprintln!("e-stop shown with the arm at rest {:?} after the click", engaged_at.elapsed());
+        let answer = motion.join().unwrap();
+        let text = String::from_utf8_lossy(&answer.stdout);
+        assert!(text.contains("❌"), "the motion was stopped: {text}");
+        browser.screenshot("dashboard-estop").await;
+        // Release, confirming the dialog.
+        browser.click("#release").await;
+        browser.accept_dialog().await;
+        browser
+            .wait_for(
+                "the e-stop released",
+                "const s = window.lastStatus; return s && !s.health.safety.estop.engaged",
+                Duration::from_secs(5),
+            )
+            .await;
+        browser.close().await;
+    });
+}
