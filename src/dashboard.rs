@@ -25,8 +25,8 @@ pub fn routes<A>(
     .context("starting the dashboard's live view")?;
     let agent = match agent {
         Ok(_) => AgentLink::Available {
-            requests: Mutex::new(runtime.bus.publisher(&AGENT_REQUEST)?),
-            cancels: Mutex::new(runtime.bus.publisher(&AGENT_CANCEL)?),
+            requests: Box::new(Mutex::new(runtime.bus.publisher(&AGENT_REQUEST)?)),
+            cancels: Box::new(Mutex::new(runtime.bus.publisher(&AGENT_CANCEL)?)),
         },
         Err(reason) => AgentLink::Off(reason.clone()),
     };

@@ -38,9 +38,9 @@ pub enum AgentLink {
     /// The agent runs: requests and cancels go on the bus.
     Available {
         /// `agent/request`.
-        requests: Mutex<Publisher<AgentRequest>>,
+        requests: Box<Mutex<Publisher<AgentRequest>>>,
         /// `agent/cancel`.
-        cancels: Mutex<Publisher<AgentCancel>>,
+        cancels: Box<Mutex<Publisher<AgentCancel>>>,
     },
     /// No agent runs, for this reason (no provider configured, `[agent] serve = false`, …).
     Off(String),
