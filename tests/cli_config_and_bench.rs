@@ -98,3 +98,30 @@ fn bench_bus_json_reports_every_figure() {
     assert_eq!(figures["bus_frames_lost"], 0);
     assert_eq!(figures["raw_frames_lost"], 0);
 }
+
+#[test]
+fn bench_jpeg_json_reports_every_figure() {
+    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["bench", "jpeg", "--json", "--frames", "20"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let figures: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    for key in [
+        "encode_q85_ms_p50",
+        "encode_q85_ms_p99",
+        "image_crate_q85_ms_p50",
+        "encode_q80_ms_p50",
+        "copy_ms_p50",
+        "q85_bytes",
+        "image_crate_q85_bytes",
+    ] {
+        let value = figures[key].as_f64().unwrap_or(f64::NAN);
+        assert!(value.is_finite() && value > 0.0, "{key} = {}", figures[key]);
+    }
+    // The encoder robotd uses is the faster one (≈ 3× here; the margin allows a noisy run).
+    let ours = figures["encode_q85_ms_p50"].as_f64().unwrap();
+    let old = figures["image_crate_q85_ms_p50"].as_f64().unwrap();
+    assert!(ours < old, "jpeg-encoder {ours} ms, image {old} ms");
+}
