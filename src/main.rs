@@ -13,6 +13,7 @@ mod doctor;
 mod estop;
 mod fake_niryo;
 mod fake_widowx;
+mod recording;
 mod say;
 mod serve;
 
@@ -83,6 +84,12 @@ enum Command {
     Chat(chat::ChatArgs),
     /// Engage the emergency stop of the running robotd (or release it with --release).
     Estop(EstopArgs),
+    /// Record the running robotd's bus (camera, arm, objects, every topic) into an MCAP file
+    /// that Foxglove opens; until Ctrl-C or --duration.
+    Record(RecordArgs),
+    /// Publish an MCAP recording back on the bus (camera frames, arm and gripper state by
+    /// default), so a running robotd's perception and tools work on recorded data.
+    Replay(ReplayArgs),
     /// Serve the simulator behind the Niryo Ned2's TCP protocol: a fake robot for the niryo
     /// driver and pyniryo scripts (`--set robot.scene=…`, `--set robot.time_scale=…`).
     FakeNiryo(fake_niryo::FakeNiryoArgs),
@@ -221,6 +228,31 @@ struct BenchNiryoArgs {
     /// Random scenes for perception through JPEG.
     #[arg(long, default_value_t = 60)]
     scenes: usize,
+}
+
+#[derive(Debug, Args)]
+struct RecordArgs {
+    /// The file to write (never overwritten).
+    file: std::path::PathBuf,
+    /// Comma-separated topics to record (camera/frames and bus topics); default all.
+    #[arg(long)]
+    topics: Option<String>,
+    /// How long to record, e.g. 30s, 2m, 1h; default until Ctrl-C.
+    #[arg(long, value_parser = recording::parse_duration)]
+    duration: Option<std::time::Duration>,
+}
+
+#[derive(Debug, Args)]
+struct ReplayArgs {
+    /// The MCAP file to replay.
+    file: std::path::PathBuf,
+    /// Comma-separated topics to publish; default camera/frames, arm/state, gripper/state.
+    #[arg(long)]
+    topics: Option<String>,
+    /// Pace relative to the recording: 1 = as recorded, 2 = twice as fast, 0 = as fast as
+    /// possible.
+    #[arg(long, default_value_t = 1.0)]
+    speed: f64,
 }
 
 #[derive(Debug, Args)]
@@ -407,6 +439,19 @@ fn run() -> Result<std::process::ExitCode> {
             let config = load_config(&cli.config)?;
             let _telemetry = telemetry::init(&config.telemetry, Mode::Command)?;
             fake_widowx::run(config, args)?;
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Record(args) => {
+            let config = load_config(&cli.config)?;
+            let done =
+                recording::record(&config, &args.file, args.topics.as_deref(), args.duration)?;
+            eprintln!("robotd: {done}");
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Replay(args) => {
+            let config = load_config(&cli.config)?;
+            let done = recording::replay(&config, &args.file, args.topics.as_deref(), args.speed)?;
+            eprintln!("robotd: {done}");
             Ok(std::process::ExitCode::SUCCESS)
         }
         Command::Estop(args) => {

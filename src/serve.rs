@@ -453,6 +453,26 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
     } else {
         None
     };
+    let foxglove = match config.foxglove.bind {
+        Some(bind) => {
+            let settings = robotd_foxglove::bridge::BridgeSettings {
+                camera_fps: config.foxglove.camera_fps,
+                jpeg_quality: config.foxglove.jpeg_quality,
+                model: config.robot.driver.model(),
+                workspaces: runtime.workspaces.clone(),
+                topics: None,
+                camera: true,
+            };
+            let live = robotd_foxglove::live::start(runtime.bus.clone(), bind, settings).await?;
+            eprintln!(
+                "robotd: Foxglove live view on ws://{}:{}",
+                bind.ip(),
+                live.port()
+            );
+            Some(live)
+        }
+        None => None,
+    };
     tracing::info!("HTTP edge on http://{address} (/health, /metrics, MCP /sse and /mcp)");
     eprintln!(
         "robotd: serving on http://{address} ({}/health, /metrics{}); bus namespace '{}'",
@@ -478,6 +498,7 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
     if let Some(live) = dashboard {
         live.stop();
     }
+    drop(foxglove);
     drop(agent);
     runtime.shutdown().await;
     Ok(())

@@ -10,7 +10,7 @@ mod common;
 use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_protocol::diagnostics::SimWorldRequest;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::SIM_WORLD;
+use robotd_runtime::catalog::{ARM_STATE, SIM_WORLD};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
@@ -359,24 +359,30 @@ fn the_dashboard_shows_the_robot_chats_and_stops_it() {
             "the pencil moved {moved:.3} m: {pencil_before:?} -> {pencil_after:?}"
         );
 
-        // The e-stop button stops a motion under way.
+        // The e-stop button stops a motion under way (a pick: several seconds of motion).
+        let mut states = bus.subscriber(&ARM_STATE).unwrap();
         let motion = std::thread::spawn({
             let url = url.clone();
             move || {
                 Command::new(env!("CARGO_BIN_EXE_robotd"))
-                    .args(["call", "move2by", "--url", &url])
-                    .args(["--arg", "direction=forward", "--arg", "distance=0.1"])
+                    .args(["call", "pick_object", "--url", &url])
+                    .args(["--arg", "object_name=blue square"])
+                    .args(["--arg", "pick_coordinate=[0.22,0.05]"])
                     .output()
                     .unwrap()
             }
         });
-        browser
-            .wait_for(
-                "the arm moving",
-                "return window.lastStatus && window.lastStatus.arm && window.lastStatus.arm.moving",
-                Duration::from_secs(20),
-            )
-            .await;
+        let deadline = Instant::now() + Duration::from_secs(20);
+        loop {
+            let state = tokio::time::timeout(Duration::from_secs(5), states.recv())
+                .await
+                .expect("arm states")
+                .unwrap();
+            if state.body.moving {
+                break;
+            }
+            assert!(Instant::now() < deadline, "the pick never moved the arm");
+        }
         browser.click("#estop").await;
         let engaged_at = Instant::now();
         browser

@@ -43,12 +43,10 @@ fn dynamixel_sdk_drives_the_fake_servo_bus() {
             .contains("exceeds the limit"),
         "{seen}"
     );
+    // The session waits until the waist is within one tick of its goal (it settles there).
     let start = seen["waist_start"].as_i64().unwrap();
-    assert_eq!(
-        seen["waist_after_goal"].as_i64().unwrap(),
-        start + 200,
-        "{seen}"
-    );
+    let reached = seen["waist_after_goal"].as_i64().unwrap();
+    assert!((reached - (start + 200)).abs() <= 1, "{seen}");
     let sync = &seen["sync_read"];
     assert_eq!(sync["6"], 2148, "{seen}");
     assert_eq!(sync["8"], 1948, "{seen}");

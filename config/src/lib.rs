@@ -37,6 +37,7 @@
 pub use robotd_agent::AgentSection;
 pub use robotd_dashboard::DashboardConfig;
 pub use robotd_driver::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
+pub use robotd_foxglove::FoxgloveConfig;
 pub use robotd_http::HttpConfig;
 pub use robotd_mcp::McpConfig;
 pub use robotd_perception::PerceptionConfig;
@@ -87,6 +88,9 @@ robotd_runtime::compose_config! {
         /// `[dashboard]`: the web page at `/` and its API.
         #[serde(default)]
         dashboard: DashboardConfig,
+        /// `[foxglove]`: the live view for the Foxglove app.
+        #[serde(default)]
+        foxglove: FoxgloveConfig,
         /// `[agent]`: the LLM agent (`robotd chat`, and the agent actor of `robotd serve`).
         #[serde(default)]
         agent: AgentSection,

@@ -267,6 +267,35 @@ impl Kinematics {
         Ok(chains.tcp.end_transform())
     }
 
+    /// The model's URDF (the built-in one the kinematics come from).
+    pub fn urdf(&self) -> &'static str {
+        match self.model {
+            RobotModel::Ned2 => NED2_URDF,
+            RobotModel::WidowX250 => WX250S_URDF,
+        }
+    }
+
+    /// Every link from the base to the tool centre point with its pose in the base frame, for
+    /// joints `q` (for viewers that draw the arm: Foxglove's transforms).
+    pub fn link_poses(&self, q: &[f64]) -> Result<Vec<(String, Isometry3<f64>)>, KinematicsError> {
+        self.check_joints(q)?;
+        let chains = self.lock();
+        chains.tcp.set_joint_positions_unchecked(q);
+        let poses = chains.tcp.update_transforms();
+        Ok(chains
+            .tcp
+            .iter()
+            .zip(poses)
+            .map(|(node, pose)| {
+                let name = match node.link().as_ref() {
+                    Some(link) => link.name.clone(),
+                    None => node.joint().name.clone(),
+                };
+                (name, pose)
+            })
+            .collect())
+    }
+
     /// Pose of the flange (Ned2 `tool_link`, WidowX `ee_gripper`) for joints `q`.
     pub fn flange_pose(&self, q: &[f64]) -> Result<Isometry3<f64>, KinematicsError> {
         self.check_joints(q)?;
@@ -455,6 +484,20 @@ mod tests {
             "{p}"
         );
         assert!(close(p.pitch_rad, 0.75, 0.01), "{p}");
+    }
+
+    #[test]
+    fn link_poses_run_from_the_base_to_the_tool() {
+        for model in [RobotModel::Ned2, RobotModel::WidowX250] {
+            let kinematics = Kinematics::new(model);
+            let q = [0.1, 0.2, -0.3, 0.0, 0.4, 0.0];
+            let links = kinematics.link_poses(&q).unwrap();
+            assert!(links.len() >= 7, "{model:?}: {links:?}");
+            let last = links.last().unwrap().1;
+            let tool = kinematics.tool_pose(&q).unwrap();
+            assert!((last.translation.vector - tool.translation.vector).norm() < 1e-9);
+            assert!(kinematics.urdf().contains("<robot"));
+        }
     }
 
     #[test]

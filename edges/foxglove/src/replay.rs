@@ -1,0 +1,216 @@
+//! `robotd replay`: a recording published back on the bus, so perception, the workspace model,
+//! the dashboard and the tools run on recorded data (a lab's session debugged without the
+//! robot).
+//!
+//! Messages go out in log-time order, at the recorded pace times `speed` (`0` = as fast as
+//! possible). Camera frames are rebuilt from `/camera` (JPEG, decoded) and `/camera/meta`
+//! (the header: frame id, size, camera pose) and published on `camera/frames` stamped with
+//! the replay's clock, so readers that want fresh frames take them. Bus topics come from
+//! `/bus/<topic>`; each message is decoded as its type before it is sent, and one that does
+//! not decode is skipped and counted, never sent half-read.
+//!
+//! By default only what sensors produce is replayed — camera frames, `arm/state`,
+//! `gripper/state` — and the running robotd computes the rest (detections, objects) again;
+//! `--topics` chooses others. Replaying commands (`agent/request`, `speech/speak`) makes the
+//! running robotd act on them: choose them on purpose.
+
+use crate::topics::{self, JsonPublisher};
+use foxglove::messages::CompressedImage;
+use foxglove::Decode;
+use robotd_runtime::bus::{Bus, BusError, FRAME_CHANNELS, FRAME_HEIGHT, FRAME_WIDTH};
+use robotd_runtime::catalog::CAMERA_FRAMES;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// The topics replayed when none are chosen.
+pub const DEFAULT_TOPICS: &[&str] = &["camera/frames", "arm/state", "gripper/state"];
+
+/// Why a replay failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// The file cannot be read or is not MCAP.
+    #[error("cannot read {path} as MCAP: {reason}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// A topic asked for is not one of robotd's.
+    #[error("unknown topic '{0}': choose from camera/frames and the bus topics ({1})")]
+    UnknownTopic(String, String),
+    /// The bus refused a port.
+    #[error(transparent)]
+    Bus(#[from] BusError),
+}
+
+/// What a replay did.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct ReplaySummary {
+    /// Messages published per bus topic.
+    pub published: BTreeMap<String, u64>,
+    /// Messages skipped, by reason.
+    pub skipped: BTreeMap<String, u64>,
+    /// Wall time of the replay, seconds.
+    pub seconds: f64,
+    /// Recorded time span, seconds.
+    pub recorded_seconds: f64,
+}
+
+/// How to replay.
+#[derive(Debug, Clone)]
+pub struct ReplayOptions {
+    /// Pace relative to the recording (1 = as recorded, 0 = as fast as possible).
+    pub speed: f64,
+    /// Topics to publish (`camera/frames` and bus topics); `None` = [`DEFAULT_TOPICS`].
+    pub topics: Option<Vec<String>>,
+}
+
+fn skip(summary: &mut ReplaySummary, reason: &str) {
+    *summary.skipped.entry(reason.to_owned()).or_insert(0) += 1;
+}
+
+/// Replays the file at `path` onto `bus`.
+pub async fn replay(
+    bus: &Bus,
+    path: &Path,
+    options: &ReplayOptions,
+) -> Result<ReplaySummary, ReplayError> {
+    let read_fail = |reason: String| ReplayError::Read {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let wanted: Vec<String> = match &options.topics {
+        Some(list) => list.clone(),
+        None => DEFAULT_TOPICS.iter().map(|t| (*t).to_owned()).collect(),
+    };
+    let known: Vec<String> = topics::all().iter().map(|t| t.name().to_owned()).collect();
+    let mut publishers: BTreeMap<String, Box<dyn JsonPublisher>> = BTreeMap::new();
+    let mut camera = None;
+    for topic in &wanted {
+        if topic == "camera/frames" {
+            camera = Some(bus.frame_publisher(&CAMERA_FRAMES)?);
+            continue;
+        }
+        let Some(json_topic) = topics::find(topic) else {
+            return Err(ReplayError::UnknownTopic(topic.clone(), known.join(", ")));
+        };
+        publishers.insert(topics::channel_name(topic), json_topic.publisher(bus)?);
+    }
+    let bytes = std::fs::read(path).map_err(|e| read_fail(e.to_string()))?;
+    let stream = mcap::MessageStream::new(&bytes).map_err(|e| read_fail(e.to_string()))?;
+    let mut summary = ReplaySummary::default();
+    let started = Instant::now();
+    let mut first_log_time: Option<u64> = None;
+    let mut last_log_time = 0;
+    let mut pending_image: Option<(u64, image::RgbImage)> = None;
+    for message in stream {
+        let message = message.map_err(|e| read_fail(e.to_string()))?;
+        let topic = message.channel.topic.as_str();
+        let is_camera = topic == "/camera" || topic == "/camera/meta";
+        if !(publishers.contains_key(topic) || (is_camera && camera.is_some())) {
+            continue;
+        }
+        let first = *first_log_time.get_or_insert(message.log_time);
+        last_log_time = message.log_time;
+        if options.speed > 0.0 {
+            let due =
+                Duration::from_nanos(message.log_time.saturating_sub(first)).div_f64(options.speed);
+            if let Some(wait) = due.checked_sub(started.elapsed()) {
+                tokio::time::sleep(wait).await;
+            }
+        }
+        match topic {
+            "/camera" => match decode_image(&message.data) {
+                Ok(image) => pending_image = Some((message.log_time, image)),
+                Err(reason) => skip(&mut summary, &reason),
+            },
+            "/camera/meta" => {
+                let Some((time, image)) = pending_image.take() else {
+                    skip(&mut summary, "camera meta without its image");
+                    continue;
+                };
+                if time != message.log_time {
+                    skip(&mut summary, "camera meta of another image");
+                    continue;
+                }
+                let Some(publisher) = camera.as_ref() else {
+                    continue;
+                };
+                match publish_frame(publisher, &image, &message.data) {
+                    Ok(()) => *summary.published.entry("camera/frames".into()).or_insert(0) += 1,
+                    Err(reason) => skip(&mut summary, &reason),
+                }
+            }
+            _ => {
+                let Some(publisher) = publishers.get(topic) else {
+                    continue;
+                };
+                match publisher.publish_json(&message.data) {
+                    Ok(()) => {
+                        let name = topic.trim_start_matches("/bus/").to_owned();
+                        *summary.published.entry(name).or_insert(0) += 1;
+                    }
+                    Err(reason) => {
+                        tracing::warn!(topic, %reason, "replay: message skipped");
+                        skip(&mut summary, &format!("{topic}: undecodable"));
+                    }
+                }
+            }
+        }
+    }
+    summary.seconds = started.elapsed().as_secs_f64();
+    summary.recorded_seconds =
+        last_log_time.saturating_sub(first_log_time.unwrap_or(last_log_time)) as f64 / 1e9;
+    Ok(summary)
+}
+
+fn decode_image(data: &[u8]) -> Result<image::RgbImage, String> {
+    let compressed =
+        CompressedImage::decode(data).map_err(|e| format!("camera: not a CompressedImage: {e}"))?;
+    if compressed.format != "jpeg" {
+        return Err(format!(
+            "camera: format '{}' (only jpeg is replayed)",
+            compressed.format
+        ));
+    }
+    let decoded = image::load_from_memory_with_format(&compressed.data, image::ImageFormat::Jpeg)
+        .map_err(|e| format!("camera: JPEG does not decode: {e}"))?;
+    let rgb = decoded.to_rgb8();
+    if rgb.width() as usize > FRAME_WIDTH || rgb.height() as usize > FRAME_HEIGHT {
+        return Err(format!(
+            "camera: {}x{} is larger than a bus frame ({FRAME_WIDTH}x{FRAME_HEIGHT})",
+            rgb.width(),
+            rgb.height()
+        ));
+    }
+    Ok(rgb)
+}
+
+#[derive(serde::Deserialize)]
+struct FrameMeta {
+    frame_id: u64,
+    camera_pose: [f64; 6],
+}
+
+fn publish_frame(
+    publisher: &robotd_runtime::bus::FramePublisher,
+    image: &image::RgbImage,
+    meta: &[u8],
+) -> Result<(), String> {
+    let meta: FrameMeta = serde_json::from_slice(meta).map_err(|e| format!("camera meta: {e}"))?;
+    let mut loan = publisher.loan().map_err(|e| e.to_string())?;
+    let header = loan.header_mut();
+    header.frame_id = meta.frame_id;
+    header.width = image.width();
+    header.height = image.height();
+    header.channels = FRAME_CHANNELS as u32;
+    header.encoding = 0;
+    header.camera_pose = meta.camera_pose;
+    // Stamped now: the replayed frame is what the camera "sees" at this moment.
+    header.timestamp_unix_ns = 0;
+    let bytes = image.as_raw();
+    loan.pixels_mut()[..bytes.len()].copy_from_slice(bytes);
+    loan.send().map(drop).map_err(|e| e.to_string())
+}

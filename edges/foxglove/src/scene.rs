@@ -1,0 +1,192 @@
+//! robotd's state as Foxglove messages: transforms of the arm's links, the objects and the
+//! workspace as 3D scene entities, texts as log lines. All in the robot's base frame
+//! (`base_link`), metres, with `world` = `base_link`.
+
+use foxglove::messages::{
+    Color, CubePrimitive, FrameTransform, FrameTransforms, LinePrimitive, Log, Point3, Pose,
+    Quaternion, SceneEntity, SceneUpdate, TextPrimitive, Timestamp, Vector3,
+};
+use nalgebra::Isometry3;
+use robotd_protocol::objects::DetectedObject;
+use robotd_protocol::workspace::WorkspaceInfo;
+
+/// The frame everything is expressed in.
+pub const BASE_FRAME: &str = "base_link";
+
+/// `ns` (since the Unix epoch) as a Foxglove timestamp.
+pub fn timestamp(ns: u64) -> Timestamp {
+    Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32)
+}
+
+fn vector(x: f64, y: f64, z: f64) -> Vector3 {
+    Vector3 { x, y, z }
+}
+
+fn quaternion(iso: &Isometry3<f64>) -> Quaternion {
+    let q = iso.rotation.quaternion();
+    Quaternion {
+        x: q.i,
+        y: q.j,
+        z: q.k,
+        w: q.w,
+    }
+}
+
+fn pose_at(x: f64, y: f64, z: f64, yaw: f64) -> Pose {
+    let (s, c) = (yaw / 2.0).sin_cos();
+    Pose {
+        position: Some(vector(x, y, z)),
+        orientation: Some(Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: s,
+            w: c,
+        }),
+    }
+}
+
+const fn colour(r: f64, g: f64, b: f64, a: f64) -> Color {
+    Color { r, g, b, a }
+}
+
+/// The pose of every link (`(name, pose in the base frame)`) as transforms from the base.
+pub fn link_transforms(links: &[(String, Isometry3<f64>)], ns: u64) -> FrameTransforms {
+    let transforms = links
+        .iter()
+        .filter(|(name, _)| name != BASE_FRAME)
+        .map(|(name, iso)| FrameTransform {
+            timestamp: Some(timestamp(ns)),
+            parent_frame_id: BASE_FRAME.to_owned(),
+            child_frame_id: name.clone(),
+            translation: Some(vector(
+                iso.translation.x,
+                iso.translation.y,
+                iso.translation.z,
+            )),
+            rotation: Some(quaternion(iso)),
+        })
+        .collect();
+    FrameTransforms { transforms }
+}
+
+/// The arm drawn as a line through its link origins (the models carry no meshes).
+pub fn arm_scene(links: &[(String, Isometry3<f64>)], ns: u64) -> SceneUpdate {
+    let points = links
+        .iter()
+        .map(|(_, iso)| Point3 {
+            x: iso.translation.x,
+            y: iso.translation.y,
+            z: iso.translation.z,
+        })
+        .collect();
+    let line = LinePrimitive {
+        r#type: foxglove::messages::line_primitive::Type::LineStrip as i32,
+        pose: Some(pose_at(0.0, 0.0, 0.0, 0.0)),
+        thickness: 0.02,
+        scale_invariant: false,
+        points,
+        color: Some(colour(0.95, 0.55, 0.1, 1.0)),
+        ..Default::default()
+    };
+    SceneUpdate {
+        deletions: vec![],
+        entities: vec![SceneEntity {
+            timestamp: Some(timestamp(ns)),
+            frame_id: BASE_FRAME.to_owned(),
+            id: "arm".to_owned(),
+            lines: vec![line],
+            ..Default::default()
+        }],
+    }
+}
+
+/// The tracked objects as boxes on the table with their label and id above them. Objects no
+/// longer tracked disappear: the update replaces all entities of the `objects/` namespace.
+pub fn objects_scene(objects: &[DetectedObject], previous: &[String], ns: u64) -> SceneUpdate {
+    let entities: Vec<SceneEntity> = objects
+        .iter()
+        .map(|o| {
+            let c = &o.position.center_of_mass;
+            let height = (2.0 * c.z_m).max(0.005);
+            SceneEntity {
+                timestamp: Some(timestamp(ns)),
+                frame_id: BASE_FRAME.to_owned(),
+                id: format!("objects/{}", o.id),
+                cubes: vec![CubePrimitive {
+                    pose: Some(pose_at(c.x_m, c.y_m, height / 2.0, 0.0)),
+                    // `height_m` lies along x (away from the robot), `width_m` along y.
+                    size: Some(vector(o.dimensions.height_m, o.dimensions.width_m, height)),
+                    color: Some(colour(0.1, 0.6, 0.25, 0.7)),
+                }],
+                texts: vec![TextPrimitive {
+                    pose: Some(pose_at(c.x_m, c.y_m, height + 0.02, 0.0)),
+                    billboard: true,
+                    font_size: 14.0,
+                    scale_invariant: true,
+                    color: Some(colour(1.0, 1.0, 1.0, 1.0)),
+                    text: format!("{} ({})", o.label, o.id),
+                }],
+                ..Default::default()
+            }
+        })
+        .collect();
+    let current: Vec<&str> = entities.iter().map(|e| e.id.as_str()).collect();
+    let deletions = previous
+        .iter()
+        .filter(|id| !current.contains(&id.as_str()))
+        .map(|id| foxglove::messages::SceneEntityDeletion {
+            timestamp: Some(timestamp(ns)),
+            r#type: foxglove::messages::scene_entity_deletion::Type::MatchingId as i32,
+            id: id.clone(),
+        })
+        .collect();
+    SceneUpdate {
+        deletions,
+        entities,
+    }
+}
+
+/// The workspaces' sheets as flat boxes with their ids.
+pub fn workspace_scene(workspaces: &[WorkspaceInfo], ns: u64) -> SceneUpdate {
+    let entities = workspaces
+        .iter()
+        .map(|w| {
+            let (a, b) = (w.upper_left, w.lower_right);
+            let (cx, cy) = ((a.x_m + b.x_m) / 2.0, (a.y_m + b.y_m) / 2.0);
+            SceneEntity {
+                timestamp: Some(timestamp(ns)),
+                frame_id: BASE_FRAME.to_owned(),
+                id: format!("workspaces/{}", w.id),
+                cubes: vec![CubePrimitive {
+                    pose: Some(pose_at(cx, cy, -0.001, 0.0)),
+                    size: Some(vector((a.x_m - b.x_m).abs(), (a.y_m - b.y_m).abs(), 0.002)),
+                    color: Some(colour(0.95, 0.95, 0.95, 0.9)),
+                }],
+                texts: vec![TextPrimitive {
+                    pose: Some(pose_at(a.x_m.max(b.x_m) + 0.02, cy, 0.0, 0.0)),
+                    billboard: true,
+                    font_size: 12.0,
+                    scale_invariant: true,
+                    color: Some(colour(0.2, 0.2, 0.2, 1.0)),
+                    text: w.id.clone(),
+                }],
+                ..Default::default()
+            }
+        })
+        .collect();
+    SceneUpdate {
+        deletions: vec![],
+        entities,
+    }
+}
+
+/// A log line of `level` from `name` (an actor, `speech`, `agent`).
+pub fn log(level: foxglove::messages::log::Level, name: &str, message: String, ns: u64) -> Log {
+    Log {
+        timestamp: Some(timestamp(ns)),
+        level: level as i32,
+        message,
+        name: name.to_owned(),
+        ..Default::default()
+    }
+}

@@ -1,0 +1,271 @@
+//! robotd in Foxglove, against a served robotd on the simulator:
+//!
+//! - the live view: a WebSocket client speaking the Foxglove protocol subscribes to the
+//!   camera, transforms, objects, URDF and a bus topic, and decodes what arrives;
+//! - a recording: `robotd record` writes an MCAP file that the reference Python reader opens,
+//!   with the channels, schemas and messages expected;
+//! - a replay: `robotd replay` publishes the recording on another bus namespace, and
+//!   perception on the replayed frames finds what the original run's perception found.
+
+mod common;
+
+use foxglove::messages::{CompressedImage, FrameTransforms, SceneUpdate};
+use foxglove::Decode;
+use futures::{SinkExt, StreamExt};
+use robotd_perception::eval::Lab;
+use robotd_runtime::bus::{Bus, BusOptions};
+use robotd_runtime::catalog::CAMERA_FRAMES;
+use serde_json::{json, Value};
+use std::collections::HashMap;
+use std::process::Command;
+use std::time::{Duration, Instant};
+use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+use tokio_tungstenite::tungstenite::Message;
+
+fn look(port: u16) {
+    let url = format!("http://127.0.0.1:{port}/mcp");
+    let looked = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["call", "get_detected_objects", "--url", &url])
+        .output()
+        .unwrap();
+    assert!(looked.status.success(), "{looked:?}");
+}
+
+#[test]
+fn the_live_view_serves_camera_transforms_objects_and_topics() {
+    let namespace = common::fresh_namespace("foxglove");
+    let port = common::free_port();
+    let fox = common::free_port();
+    let _robotd = common::start_robotd(
+        &namespace,
+        port,
+        &[
+            "--set",
+            &format!("foxglove.bind=\"127.0.0.1:{fox}\""),
+            "--set",
+            "robot.time_scale=0.05",
+        ],
+    );
+    look(port);
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    runtime.block_on(async {
+        let mut request = format!("ws://127.0.0.1:{fox}")
+            .into_client_request()
+            .unwrap();
+        request
+            .headers_mut()
+            .insert("sec-websocket-protocol", "foxglove.sdk.v1".parse().unwrap());
+        let (mut socket, _) = tokio_tungstenite::connect_async(request).await.unwrap();
+        let wanted = [
+            "/camera",
+            "/tf",
+            "/scene/objects",
+            "/robot_description",
+            "/bus/arm/state",
+        ];
+        // Channels are advertised (possibly over several messages); subscribe to ours.
+        let mut channels: HashMap<String, (u64, Value)> = HashMap::new();
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !wanted.iter().all(|w| channels.contains_key(*w)) {
+            assert!(
+                Instant::now() < deadline,
+                "advertised: {:?}",
+                channels.keys()
+            );
+            let message = tokio::time::timeout(Duration::from_secs(5), socket.next())
+                .await
+                .expect("a message from the server")
+                .unwrap()
+                .unwrap();
+            if let Message::Text(text) = message {
+                let value: Value = serde_json::from_str(&text).unwrap();
+                if value["op"] == "advertise" {
+                    for channel in value["channels"].as_array().unwrap() {
+                        let topic = channel["topic"].as_str().unwrap().to_owned();
+                        channels.insert(topic, (channel["id"].as_u64().unwrap(), channel.clone()));
+                    }
+                }
+            }
+        }
+        assert_eq!(
+            channels["/camera"].1["schemaName"],
+            "foxglove.CompressedImage"
+        );
+        assert_eq!(channels["/bus/arm/state"].1["encoding"], "json");
+        let subscriptions: Vec<Value> = wanted
+            .iter()
+            .enumerate()
+            .map(|(i, topic)| json!({"id": i, "channelId": channels[*topic].0}))
+            .collect();
+        let subscribe = json!({"op": "subscribe", "subscriptions": subscriptions});
+        socket
+            .send(Message::Text(subscribe.to_string().into()))
+            .await
+            .unwrap();
+        // Message data: opcode 1, subscription id (u32 LE), log time (u64 LE), payload.
+        let mut seen: HashMap<&str, Vec<u8>> = HashMap::new();
+        let deadline = Instant::now() + Duration::from_secs(15);
+        while seen.len() < wanted.len() {
+            assert!(Instant::now() < deadline, "received only {:?}", seen.keys());
+            let message = tokio::time::timeout(Duration::from_secs(5), socket.next())
+                .await
+                .expect("data from the server")
+                .unwrap()
+                .unwrap();
+            let Message::Binary(data) = message else {
+                continue;
+            };
+            if data.first() != Some(&1) || data.len() < 13 {
+                continue;
+            }
+            let subscription = u32::from_le_bytes(data[1..5].try_into().unwrap()) as usize;
+            seen.insert(wanted[subscription], data[13..].to_vec());
+        }
+        let image = CompressedImage::decode(seen["/camera"].as_slice()).unwrap();
+        assert_eq!(image.format, "jpeg");
+        let decoded = image::load_from_memory(&image.data).unwrap();
+        assert_eq!((decoded.width(), decoded.height()), (640, 480));
+        let transforms = FrameTransforms::decode(seen["/tf"].as_slice()).unwrap();
+        let children: Vec<&str> = transforms
+            .transforms
+            .iter()
+            .map(|t| t.child_frame_id.as_str())
+            .collect();
+        assert!(children.contains(&"tcp_link"), "{children:?}");
+        let scene = SceneUpdate::decode(seen["/scene/objects"].as_slice()).unwrap();
+        let labels: Vec<&str> = scene
+            .entities
+            .iter()
+            .flat_map(|e| e.texts.iter().map(|t| t.text.as_str()))
+            .collect();
+        assert!(labels.iter().any(|l| l.starts_with("pencil")), "{labels:?}");
+        let urdf: Value = serde_json::from_slice(&seen["/robot_description"]).unwrap();
+        assert!(urdf["data"].as_str().unwrap().contains("<robot"));
+        let arm: Value = serde_json::from_slice(&seen["/bus/arm/state"]).unwrap();
+        assert_eq!(
+            arm["joints"]["positions_rad"].as_array().unwrap().len(),
+            6,
+            "{arm}"
+        );
+    });
+}
+
+#[test]
+fn a_recording_opens_in_the_mcap_reader_and_replays_into_perception() {
+    let namespace = common::fresh_namespace("record");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=0.05"]);
+    look(port);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("session.mcap");
+    let recorded = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["record", "--namespace", &namespace, "--duration", "2s"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&recorded.stderr);
+    assert!(recorded.status.success(), "{stderr}");
+    assert!(stderr.contains("robotd: wrote"), "{stderr}");
+    // It never overwrites.
+    let again = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["record", "--namespace", &namespace, "--duration", "1s"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(!again.status.success());
+    assert!(String::from_utf8_lossy(&again.stderr).contains("never overwrite"));
+
+    // The reference reader.
+    let read = common::run_python_json("mcap_read.py", &[file.display().to_string()]);
+    let channels = &read["channels"];
+    for topic in [
+        "/camera",
+        "/camera/meta",
+        "/tf",
+        "/scene/arm",
+        "/scene/workspace",
+        "/robot_description",
+        "/bus/arm/state",
+        "/bus/perception/detections",
+    ] {
+        assert!(
+            channels[topic]["count"].as_u64().unwrap_or(0) > 0,
+            "{topic} missing: {read}"
+        );
+    }
+    assert_eq!(
+        channels["/camera"]["schema_name"],
+        "foxglove.CompressedImage"
+    );
+    assert_eq!(channels["/camera"]["message_encoding"], "protobuf");
+    assert_eq!(channels["/bus/arm/state"]["schema_name"], "arm.state");
+    assert_eq!(read["last"]["/camera"]["has_jpeg"], true, "{read}");
+    let recorded_objects = read["last"]["/bus/perception/detections"]["objects"]
+        .as_array()
+        .unwrap()
+        .clone();
+    assert_eq!(recorded_objects.len(), 4, "{read}");
+
+    // Replay into an empty namespace, and run perception on what arrives there.
+    let replay_ns = common::fresh_namespace("replay");
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let _inside = runtime.enter();
+    let bus = Bus::open(BusOptions::new(&replay_ns, "replay-test")).unwrap();
+    let mut frames = bus.frame_subscriber(&CAMERA_FRAMES).unwrap();
+    let replayer = std::thread::spawn({
+        let file = file.clone();
+        let replay_ns = replay_ns.clone();
+        move || {
+            Command::new(env!("CARGO_BIN_EXE_robotd"))
+                .args(["replay", "--namespace", &replay_ns, "--speed", "1"])
+                .arg(&file)
+                .output()
+                .unwrap()
+        }
+    });
+    let mut lab = Lab::new(0.0, false).unwrap();
+    let (mut received, mut detected) = (0, None);
+    runtime.block_on(async {
+        while let Ok(Ok(frame)) = tokio::time::timeout(Duration::from_secs(5), frames.recv()).await
+        {
+            received += 1;
+            let (w, h) = (
+                frame.header().width as usize,
+                frame.header().height as usize,
+            );
+            lab.frame_mut()
+                .copy_from_slice(&frame.pixels()[..w * h * 3]);
+            let id = frame.header().frame_id;
+            drop(frame);
+            detected = Some(lab.detect(id, 0).unwrap());
+        }
+    });
+    let output = replayer.join().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("camera/frames"), "{stderr}");
+    assert!(received > 3, "{received} frames replayed: {stderr}");
+    let detected = detected.unwrap();
+    for object in &recorded_objects {
+        let label = object["label"].as_str().unwrap();
+        let at = &object["position"]["center_of_mass"];
+        let (x, y) = (at["x"].as_f64().unwrap(), at["y"].as_f64().unwrap());
+        let found = detected
+            .objects
+            .iter()
+            .find(|o| o.label == label)
+            .unwrap_or_else(|| panic!("{label} not found on the replayed frames"));
+        let c = &found.position.center_of_mass;
+        let off = (c.x_m - x).hypot(c.y_m - y);
+        assert!(
+            off < 0.005,
+            "{label}: {off:.4} m from the original run's position"
+        );
+    }
+}
