@@ -453,16 +453,23 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
     } else {
         None
     };
+    let bridge_settings = robotd_foxglove::bridge::BridgeSettings {
+        camera_fps: config.foxglove.camera_fps,
+        jpeg_quality: config.foxglove.jpeg_quality,
+        model: config.robot.driver.model(),
+        workspaces: runtime.workspaces.clone(),
+        topics: None,
+        camera: true,
+    };
+    let recording = robotd_foxglove::always_on::start(
+        runtime.bus.clone(),
+        &config.record,
+        bridge_settings.clone(),
+    )
+    .map_err(|e| anyhow::anyhow!("[record]: {e}"))?;
     let foxglove = match config.foxglove.bind {
         Some(bind) => {
-            let settings = robotd_foxglove::bridge::BridgeSettings {
-                camera_fps: config.foxglove.camera_fps,
-                jpeg_quality: config.foxglove.jpeg_quality,
-                model: config.robot.driver.model(),
-                workspaces: runtime.workspaces.clone(),
-                topics: None,
-                camera: true,
-            };
+            let settings = bridge_settings;
             let live = robotd_foxglove::live::start(runtime.bus.clone(), bind, settings).await?;
             eprintln!(
                 "robotd: Foxglove live view on ws://{}:{}",
@@ -499,6 +506,7 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
         live.stop();
     }
     drop(foxglove);
+    drop(recording);
     drop(agent);
     runtime.shutdown().await;
     Ok(())

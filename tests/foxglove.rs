@@ -269,3 +269,61 @@ fn a_recording_opens_in_the_mcap_reader_and_replays_into_perception() {
         );
     }
 }
+
+/// `[record]`: files are closed at `max_file_bytes`, the oldest beyond `keep_files` deleted,
+/// and every closed file reads back as MCAP.
+#[test]
+fn always_on_recording_rotates_and_keeps_the_newest_files() {
+    let namespace = common::fresh_namespace("always");
+    let port = common::free_port();
+    let dir = tempfile::tempdir().unwrap();
+    let record_dir = format!("record.dir=\"{}\"", dir.path().display());
+    let robotd = common::start_robotd(
+        &namespace,
+        port,
+        &[
+            "--set",
+            &record_dir,
+            "--set",
+            "record.max_file_bytes=1048576",
+            "--set",
+            "record.keep_files=2",
+            "--set",
+            "robot.camera.fps=30",
+            "--set",
+            "foxglove.camera_fps=30",
+        ],
+    );
+    let names = || {
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    // Wait until a file has been started and rotated away at least twice.
+    let mut seen: Vec<String> = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while seen.len() < 4 {
+        assert!(Instant::now() < deadline, "files seen: {seen:?}, now {:?}", names());
+        let now = names();
+        assert!(now.len() <= 3, "more files than keep_files (+ the open one): {now:?}");
+        for name in now {
+            if !seen.contains(&name) {
+                seen.push(name);
+            }
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    drop(robotd);
+    let left = names();
+    assert!(left.len() <= 2, "{left:?}");
+    assert!(!left.contains(&seen[0]), "the oldest file was deleted: {left:?}");
+    for name in left {
+        let summary = robotd_foxglove::record::summarize(&dir.path().join(&name))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(summary.messages.get("/camera").copied().unwrap_or(0) > 0, "{summary:?}");
+    }
+}

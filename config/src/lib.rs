@@ -37,7 +37,7 @@
 pub use robotd_agent::AgentSection;
 pub use robotd_dashboard::DashboardConfig;
 pub use robotd_driver::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
-pub use robotd_foxglove::FoxgloveConfig;
+pub use robotd_foxglove::{FoxgloveConfig, RecordConfig};
 pub use robotd_http::HttpConfig;
 pub use robotd_mcp::McpConfig;
 pub use robotd_perception::PerceptionConfig;
@@ -91,6 +91,9 @@ robotd_runtime::compose_config! {
         /// `[foxglove]`: the live view for the Foxglove app.
         #[serde(default)]
         foxglove: FoxgloveConfig,
+        /// `[record]`: always-on recording of the bus into MCAP files.
+        #[serde(default)]
+        record: RecordConfig,
         /// `[agent]`: the LLM agent (`robotd chat`, and the agent actor of `robotd serve`).
         #[serde(default)]
         agent: AgentSection,

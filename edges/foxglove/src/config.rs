@@ -52,3 +52,48 @@ impl Section for FoxgloveConfig {
         }
     }
 }
+
+/// `[record]`: always-on recording of the bus by `robotd serve`, in size-limited MCAP files.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecordConfig {
+    /// Directory of the files (`robotd_<UTC stamp>.mcap`); empty = off.
+    pub dir: std::path::PathBuf,
+    /// Size at which a file is closed and the next one started, bytes (1 MiB … 64 GiB).
+    pub max_file_bytes: u64,
+    /// Files kept; the oldest beyond are deleted (1 … 10,000).
+    pub keep_files: usize,
+    /// Topics recorded (`camera/frames` and bus topics); empty = all.
+    pub topics: Vec<String>,
+}
+
+impl Default for RecordConfig {
+    fn default() -> Self {
+        Self {
+            dir: std::path::PathBuf::new(),
+            max_file_bytes: 1024 * 1024 * 1024,
+            keep_files: 10,
+            topics: Vec::new(),
+        }
+    }
+}
+
+impl Section for RecordConfig {
+    fn check(&self, checks: &mut Checks) {
+        checks.range_u64(
+            "max_file_bytes",
+            self.max_file_bytes,
+            1024 * 1024..=64 * 1024 * 1024 * 1024,
+            "",
+        );
+        checks.range_u64("keep_files", self.keep_files as u64, 1..=10_000, "");
+        for topic in &self.topics {
+            if topic != "camera/frames" && crate::topics::find(topic).is_none() {
+                checks.problem(
+                    "topics",
+                    format!("unknown topic '{topic}' (camera/frames or a bus topic such as arm/state)"),
+                );
+            }
+        }
+    }
+}

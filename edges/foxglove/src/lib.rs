@@ -14,6 +14,7 @@
 //! `config/foxglove-layout.json` is a layout that opens the useful panels (import it in the
 //! app: Layouts → Import).
 
+pub mod always_on;
 pub mod bridge;
 pub mod config;
 pub mod live;
@@ -22,4 +23,4 @@ pub mod replay;
 pub mod scene;
 pub mod topics;
 
-pub use config::FoxgloveConfig;
+pub use config::{FoxgloveConfig, RecordConfig};
