@@ -1,7 +1,7 @@
 //! `[record]`: `robotd serve` recording its bus all the time, into MCAP files of bounded size.
 //!
 //! One [`crate::bridge`] feeds a Foxglove context; the current file is that context's MCAP
-//! sink. Once a second a watcher looks at the file's size: past `max_file_bytes` it opens the
+//! sink. Four times a second a watcher looks at the file's size: past `max_file_bytes` it opens the
 //! next file (a new sink on the same context, so no message falls between the two), closes the
 //! full one, and deletes the oldest files beyond `keep_files`. Files are named
 //! `robotd_<UTC YYYYmmdd_HHMMSS>.mcap` and sort by time. A file that cannot be opened stops
