@@ -36,6 +36,10 @@ pub fn routes<A>(
         health: Arc::new(move || health()),
         workspaces: serde_json::to_value(&runtime.workspaces)?,
         agent: Arc::new(agent),
+        tool_calls: Arc::new(|| {
+            let calls = robotd_tools::timings::recent(std::time::Duration::from_secs(300));
+            serde_json::to_value(calls).unwrap_or_default()
+        }),
     };
     Ok((robotd_dashboard::router(api), live))
 }

@@ -351,6 +351,14 @@ fn the_dashboard_shows_the_robot_chats_and_stops_it() {
         ] {
             assert!(log.contains(expected), "{expected:?} in {log}");
         }
+        // The tool latency plot counts the calls (the chat's pick_place_object at least).
+        browser
+            .wait_for(
+                "tool calls in the latency plot",
+                "return /[1-9][0-9]* calls, p50/.test(document.getElementById('latency-p50').textContent)",
+                Duration::from_secs(5),
+            )
+            .await;
         browser.screenshot("dashboard-after-chat").await;
         let pencil_after = pencil_in_the_world(&bus).await;
         let moved = (pencil_after[0] - pencil_before[0]).hypot(pencil_after[1] - pencil_before[1]);
@@ -397,6 +405,22 @@ fn the_dashboard_shows_the_robot_chats_and_stops_it() {
         let text = String::from_utf8_lossy(&answer.stdout);
         assert!(text.contains("❌"), "the motion was stopped: {text}");
         browser.screenshot("dashboard-estop").await;
+        // A phone-sized screen: one column, nothing wider than the screen.
+        browser
+            .command("/window/rect", json!({"width": 390, "height": 844}))
+            .await;
+        let overflow = browser
+            .wait_for(
+                "the page laid out for a phone",
+                "return window.innerWidth <= 400 ? String(Math.max(0, document.documentElement.scrollWidth - window.innerWidth)) : ''",
+                Duration::from_secs(5),
+            )
+            .await;
+        assert_eq!(overflow, "0", "the page is wider than a phone's screen");
+        browser.screenshot("dashboard-phone").await;
+        browser
+            .command("/window/rect", json!({"width": 1280, "height": 1000}))
+            .await;
         // Release, confirming the dialog.
         browser.click("#release").await;
         browser.accept_dialog().await;

@@ -307,9 +307,16 @@ fn always_on_recording_rotates_and_keeps_the_newest_files() {
     let mut seen: Vec<String> = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(60);
     while seen.len() < 4 {
-        assert!(Instant::now() < deadline, "files seen: {seen:?}, now {:?}", names());
+        assert!(
+            Instant::now() < deadline,
+            "files seen: {seen:?}, now {:?}",
+            names()
+        );
         let now = names();
-        assert!(now.len() <= 3, "more files than keep_files (+ the open one): {now:?}");
+        assert!(
+            now.len() <= 3,
+            "more files than keep_files (+ the open one): {now:?}"
+        );
         for name in now {
             if !seen.contains(&name) {
                 seen.push(name);
@@ -320,10 +327,16 @@ fn always_on_recording_rotates_and_keeps_the_newest_files() {
     drop(robotd);
     let left = names();
     assert!(left.len() <= 2, "{left:?}");
-    assert!(!left.contains(&seen[0]), "the oldest file was deleted: {left:?}");
+    assert!(
+        !left.contains(&seen[0]),
+        "the oldest file was deleted: {left:?}"
+    );
     for name in left {
         let summary = robotd_foxglove::record::summarize(&dir.path().join(&name))
             .unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert!(summary.messages.get("/camera").copied().unwrap_or(0) > 0, "{summary:?}");
+        assert!(
+            summary.messages.get("/camera").copied().unwrap_or(0) > 0,
+            "{summary:?}"
+        );
     }
 }

@@ -38,6 +38,7 @@ pub mod args;
 pub mod definitions;
 pub mod schema;
 mod skill;
+pub mod timings;
 mod tools;
 mod view;
 
@@ -319,7 +320,10 @@ impl Registry {
             name: name.to_owned(),
         })?;
         let args = arguments.unwrap_or_default();
-        Ok((tool.call)(self, &args, hooks).await)
+        let started = std::time::Instant::now();
+        let output = (tool.call)(self, &args, hooks).await;
+        timings::record(name, started.elapsed(), !output.is_failure);
+        Ok(output)
     }
 
     fn query_client(&self) -> &Client<WorkspaceQuery, WorkspaceReply> {

@@ -2,7 +2,7 @@
 //!
 //! | route | answers |
 //! |---|---|
-//! | `GET /api/status` | health (actors, restarts, e-stop, Redis edge), the arm, camera figures, recent overlays and restarts, whether the agent is available (and why not), the workspaces |
+//! | `GET /api/status` | health (actors, restarts, e-stop, Redis edge), the arm, camera figures, recent overlays and restarts, the tool calls of the last 5 minutes with their durations, whether the agent is available (and why not), the workspaces |
 //! | `GET /api/objects` | `{"objects": [...]}`: the workspace model's tracked objects (id, label, position, size, …) |
 //! | `GET /api/camera.jpg` | the newest annotated camera frame; `X-Frame-Id`, `X-Frame-Timestamp-Ns` headers; 503 before the first frame |
 //! | `GET /api/camera.mjpg` | the same as an MJPEG stream (`multipart/x-mixed-replace`) an `<img>` shows; a slow viewer skips frames |
@@ -57,6 +57,8 @@ pub struct DashboardApi {
     pub workspaces: Value,
     /// The agent.
     pub agent: Arc<AgentLink>,
+    /// The tool calls of the last minutes (`[{"tool", "ms", "ok", "at_unix_s"}]`).
+    pub tool_calls: HealthReport,
 }
 
 /// The API's routes.
@@ -90,6 +92,7 @@ fn status_json(api: &DashboardApi) -> Value {
         "restarts": snapshot.restarts,
         "objects": snapshot.objects,
         "agent": agent,
+        "tool_calls": (api.tool_calls)(),
         "workspaces": api.workspaces,
     })
 }

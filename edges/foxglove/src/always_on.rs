@@ -119,7 +119,12 @@ fn close(path: &Path, writer: Writer) {
     }
 }
 
-fn watch(context: &Arc<Context>, config: &RecordConfig, first: (PathBuf, Writer), stop: &AtomicBool) {
+fn watch(
+    context: &Arc<Context>,
+    config: &RecordConfig,
+    first: (PathBuf, Writer),
+    stop: &AtomicBool,
+) {
     let (mut path, mut writer) = first;
     while !stop.load(Ordering::SeqCst) {
         std::thread::sleep(Duration::from_millis(250));

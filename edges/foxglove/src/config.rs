@@ -91,7 +91,9 @@ impl Section for RecordConfig {
             if topic != "camera/frames" && crate::topics::find(topic).is_none() {
                 checks.problem(
                     "topics",
-                    format!("unknown topic '{topic}' (camera/frames or a bus topic such as arm/state)"),
+                    format!(
+                        "unknown topic '{topic}' (camera/frames or a bus topic such as arm/state)"
+                    ),
                 );
             }
         }
