@@ -251,12 +251,8 @@ fn the_dashboard_shows_the_robot_chats_and_stops_it() {
         let bus = Bus::open(BusOptions::new(&namespace, "dashboard-test")).unwrap();
         let pencil_before = pencil_in_the_world(&bus).await;
         // The detection tools look from the observation pose; the table fills from then on.
+        common::look_at_the_workspace(port);
         let url = format!("http://127.0.0.1:{port}/mcp");
-        let looked = Command::new(env!("CARGO_BIN_EXE_robotd"))
-            .args(["call", "get_detected_objects", "--url", &url])
-            .output()
-            .unwrap();
-        assert!(looked.status.success(), "{looked:?}");
 
         let browser = Browser::start().await;
         browser.open(&format!("http://127.0.0.1:{port}/")).await;
@@ -380,17 +376,7 @@ fn the_dashboard_shows_the_robot_chats_and_stops_it() {
                     .unwrap()
             }
         });
-        let deadline = Instant::now() + Duration::from_secs(20);
-        loop {
-            let state = tokio::time::timeout(Duration::from_secs(5), states.recv())
-                .await
-                .expect("arm states")
-                .unwrap();
-            if state.body.moving {
-                break;
-            }
-            assert!(Instant::now() < deadline, "the pick never moved the arm");
-        }
+        common::wait_until_the_arm_moves(&mut states).await;
         browser.click("#estop").await;
         let engaged_at = Instant::now();
         browser

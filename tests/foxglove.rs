@@ -22,15 +22,6 @@ use std::time::{Duration, Instant};
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_tungstenite::tungstenite::Message;
 
-fn look(port: u16) {
-    let url = format!("http://127.0.0.1:{port}/mcp");
-    let looked = Command::new(env!("CARGO_BIN_EXE_robotd"))
-        .args(["call", "get_detected_objects", "--url", &url])
-        .output()
-        .unwrap();
-    assert!(looked.status.success(), "{looked:?}");
-}
-
 #[test]
 fn the_live_view_serves_camera_transforms_objects_and_topics() {
     let namespace = common::fresh_namespace("foxglove");
@@ -46,7 +37,7 @@ fn the_live_view_serves_camera_transforms_objects_and_topics() {
             "robot.time_scale=0.05",
         ],
     );
-    look(port);
+    common::look_at_the_workspace(port);
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -158,7 +149,7 @@ fn a_recording_opens_in_the_mcap_reader_and_replays_into_perception() {
     let namespace = common::fresh_namespace("record");
     let port = common::free_port();
     let _robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=0.05"]);
-    look(port);
+    common::look_at_the_workspace(port);
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("session.mcap");
     let recorded = Command::new(env!("CARGO_BIN_EXE_robotd"))

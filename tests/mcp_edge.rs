@@ -501,18 +501,7 @@ fn a_cancelled_pick_stops_the_arm() {
             .await
             .unwrap();
         // Wait until the arm moves, then cancel.
-        let deadline = Instant::now() + Duration::from_secs(20);
-        loop {
-            let state: ArmState = tokio::time::timeout(Duration::from_secs(5), states.recv())
-                .await
-                .expect("arm states")
-                .unwrap()
-                .body;
-            if state.moving {
-                break;
-            }
-            assert!(Instant::now() < deadline, "the arm never moved");
-        }
+        common::wait_until_the_arm_moves(&mut states).await;
         let cancelled_at = Instant::now();
         handle.cancel(Some("test".into())).await.unwrap();
         // The arm comes to rest promptly and stays there.
@@ -681,18 +670,7 @@ fn a_new_client_does_not_cancel_another_transports_motion() {
             sse.cancel().await.unwrap();
             text
         });
-        let deadline = Instant::now() + Duration::from_secs(20);
-        loop {
-            let state: ArmState = tokio::time::timeout(Duration::from_secs(5), states.recv())
-                .await
-                .expect("arm states")
-                .unwrap()
-                .body;
-            if state.moving {
-                break;
-            }
-            assert!(Instant::now() < deadline, "the arm never moved");
-        }
+        common::wait_until_the_arm_moves(&mut states).await;
         let streamable = connect(&format!("http://127.0.0.1:{port}/mcp"), None)
             .await
             .unwrap();

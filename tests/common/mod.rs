@@ -371,3 +371,31 @@ pub fn run_python_json(script: &str, args: &[String]) -> serde_json::Value {
     );
     serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("{e}: {stdout}\n{stderr}"))
 }
+
+/// Waits (at most 20 s) until `states` reports the arm moving.
+pub async fn wait_until_the_arm_moves(
+    states: &mut robotd_runtime::bus::Subscriber<robotd_protocol::arm::ArmState>,
+) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    loop {
+        let state = tokio::time::timeout(Duration::from_secs(5), states.recv())
+            .await
+            .expect("arm states")
+            .expect("an arm state");
+        if state.body.moving {
+            return;
+        }
+        assert!(std::time::Instant::now() < deadline, "the arm never moved");
+    }
+}
+
+/// Calls `get_detected_objects` on the robotd at `port` (it moves the arm to the observation
+/// pose, from where the detection tools and the workspace model's objects come).
+pub fn look_at_the_workspace(port: u16) {
+    let url = format!("http://127.0.0.1:{port}/mcp");
+    let looked = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["call", "get_detected_objects", "--url", &url])
+        .output()
+        .expect("robotd call");
+    assert!(looked.status.success(), "{looked:?}");
+}

@@ -138,9 +138,11 @@ pub fn start(bus: Bus, camera_fps: f64, jpeg_quality: u8) -> std::io::Result<Arc
         stop: AtomicBool::new(false),
     });
     let shared = live.clone();
-    std::thread::Builder::new()
-        .name("dashboard-live".into())
-        .spawn(move || run(bus, &shared, camera_fps, jpeg_quality))?;
+    robotd_runtime::bus::spawn_reader_thread("dashboard-live", move || async move {
+        if let Err(error) = follow(&bus, &shared, camera_fps, jpeg_quality).await {
+            tracing::error!(%error, "dashboard: the live view stopped: its bus ports failed");
+        }
+    })?;
     Ok(live)
 }
 
@@ -191,24 +193,6 @@ fn now_unix_s() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())
-}
-
-fn run(bus: Bus, live: &Live, camera_fps: f64, jpeg_quality: u8) {
-    let runtime = match tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(error) => {
-            tracing::error!(%error, "dashboard: the live thread cannot start its runtime");
-            return;
-        }
-    };
-    runtime.block_on(async move {
-        if let Err(error) = follow(&bus, live, camera_fps, jpeg_quality).await {
-            tracing::error!(%error, "dashboard: the live view stopped: its bus ports failed");
-        }
-    });
 }
 
 async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<(), BusError> {

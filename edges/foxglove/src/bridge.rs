@@ -76,9 +76,11 @@ impl Drop for Bridge {
 pub fn start(bus: Bus, context: Arc<Context>, settings: BridgeSettings) -> std::io::Result<Bridge> {
     let stop = Arc::new(AtomicBool::new(false));
     let stopping = stop.clone();
-    let thread = std::thread::Builder::new()
-        .name("foxglove-bridge".into())
-        .spawn(move || run(bus, &context, &settings, &stopping))?;
+    let thread = robotd_runtime::bus::spawn_reader_thread("foxglove-bridge", move || async move {
+        if let Err(error) = follow(&bus, &context, &settings, &stopping).await {
+            tracing::error!(%error, "foxglove: the bridge stopped: its bus ports failed");
+        }
+    })?;
     Ok(Bridge {
         stop,
         thread: Some(thread),
@@ -147,24 +149,6 @@ impl Channels {
             log: ChannelBuilder::new("/log").context(context).build(),
         }
     }
-}
-
-fn run(bus: Bus, context: &Arc<Context>, settings: &BridgeSettings, stop: &AtomicBool) {
-    let runtime = match tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-    {
-        Ok(rt) => rt,
-        Err(error) => {
-            tracing::error!(%error, "foxglove: the bridge cannot start its runtime");
-            return;
-        }
-    };
-    runtime.block_on(async move {
-        if let Err(error) = follow(&bus, context, settings, stop).await {
-            tracing::error!(%error, "foxglove: the bridge stopped: its bus ports failed");
-        }
-    });
 }
 
 async fn follow(

@@ -129,16 +129,16 @@ pub fn start(
     status: Arc<EdgeStatus>,
     stop: Arc<AtomicBool>,
 ) -> std::io::Result<std::thread::JoinHandle<()>> {
-    std::thread::Builder::new()
-        .name("redis-camera".into())
-        .spawn(move || run(bus, settings, ring, sender, status, stop))
+    robotd_runtime::bus::spawn_reader_thread("redis-camera", move || {
+        run(bus, settings, ring, sender, status, stop)
+    })
 }
 
 fn interval(fps: f64) -> Option<Duration> {
     (fps > 0.0 && fps.is_finite()).then(|| Duration::from_secs_f64(1.0 / fps))
 }
 
-fn run(
+async fn run(
     bus: Bus,
     settings: CameraSettings,
     ring: SharedRing,
@@ -146,17 +146,7 @@ fn run(
     status: Arc<EdgeStatus>,
     stop: Arc<AtomicBool>,
 ) {
-    let runtime = match tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
     {
-        Ok(rt) => rt,
-        Err(error) => {
-            tracing::error!(%error, "redis edge: the camera thread cannot start its runtime");
-            return;
-        }
-    };
-    runtime.block_on(async move {
         let ports = (|| {
             Ok::<_, robotd_runtime::bus::BusError>((
                 bus.frame_subscriber(&CAMERA_FRAMES)?,
@@ -250,7 +240,7 @@ fn run(
                 ring.push(record);
             }
         }
-    });
+    }
 }
 
 fn frame_meta<'a>(settings: &'a CameraSettings, record: &FrameRecord) -> FrameMeta<'a> {

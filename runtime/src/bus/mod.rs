@@ -51,6 +51,7 @@ mod error;
 mod frame;
 mod pubsub;
 mod rpc;
+mod thread;
 mod wake;
 
 pub use error::BusError;
@@ -60,6 +61,7 @@ pub use frame::{
 };
 pub use pubsub::{Overflow, Publisher, Subscriber, Topic};
 pub use rpc::{Client, Fault, FaultKind, Incoming, PendingReply, Reply, Server, Service};
+pub use thread::spawn_reader_thread;
 
 use iceoryx2::prelude::*;
 use std::sync::Arc;
