@@ -31,10 +31,19 @@ pub fn routes<A>(
         Err(reason) => AgentLink::Off(reason.clone()),
     };
     let health = runtime.health_source.clone();
+    let fence = runtime.safety_api()?.safety.fence().clone();
+    let geofence = serde_json::json!({
+        "min": [fence.min.x, fence.min.y, fence.min.z],
+        "max": [fence.max.x, fence.max.y, fence.max.z],
+        "keep_out": fence.keep_out.iter().map(|k| serde_json::json!({
+            "name": k.name, "min": k.min, "max": k.max,
+        })).collect::<Vec<_>>(),
+    });
     let api = DashboardApi {
         live: live.clone(),
         health: Arc::new(move || health()),
         workspaces: serde_json::to_value(&runtime.workspaces)?,
+        geofence,
         agent: Arc::new(agent),
         tool_calls: Arc::new(|| {
             let calls = robotd_tools::timings::recent(std::time::Duration::from_secs(300));

@@ -55,6 +55,28 @@ fn topic_list(text: &str, with_camera: bool) -> Result<Vec<String>> {
     Ok(topics)
 }
 
+/// The motion policy's fence and keep-out zones as boxes to draw.
+pub fn geofence_boxes(
+    fence: &robotd_safety::fence::Fence,
+) -> (
+    robotd_foxglove::scene::Box3,
+    Vec<robotd_foxglove::scene::Box3>,
+) {
+    let boxed = |name: &str, min: [f64; 3], max: [f64; 3]| robotd_foxglove::scene::Box3 {
+        name: name.to_owned(),
+        min,
+        max,
+    };
+    (
+        boxed("geofence", fence.min.into(), fence.max.into()),
+        fence
+            .keep_out
+            .iter()
+            .map(|k| boxed(&k.name, k.min, k.max))
+            .collect(),
+    )
+}
+
 fn runtime() -> Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -80,6 +102,7 @@ pub fn record(
         jpeg_quality: config.foxglove.jpeg_quality,
         model: config.robot.driver.model(),
         workspaces: config.robot.workspace_infos(),
+        geofence: None,
         topics: chosen.map(|list| list.into_iter().filter(|t| t != "camera/frames").collect()),
         camera,
     };

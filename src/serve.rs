@@ -458,6 +458,9 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
         jpeg_quality: config.foxglove.jpeg_quality,
         model: config.robot.driver.model(),
         workspaces: runtime.workspaces.clone(),
+        geofence: Some(crate::recording::geofence_boxes(
+            runtime.safety_api()?.safety.fence(),
+        )),
         topics: None,
         camera: true,
     };

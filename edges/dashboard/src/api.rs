@@ -2,7 +2,7 @@
 //!
 //! | route | answers |
 //! |---|---|
-//! | `GET /api/status` | health (actors, restarts, e-stop, Redis edge), the arm, camera figures, recent overlays and restarts, the tool calls of the last 5 minutes with their durations, whether the agent is available (and why not), the workspaces |
+//! | `GET /api/status` | health (actors, restarts, e-stop, Redis edge), the arm, camera figures, recent overlays and restarts, the tool calls of the last 5 minutes with their durations, whether the agent is available (and why not), the workspaces, the geofence, the largest free space |
 //! | `GET /api/objects` | `{"objects": [...]}`: the workspace model's tracked objects (id, label, position, size, …) |
 //! | `GET /api/camera.jpg` | the newest annotated camera frame; `X-Frame-Id`, `X-Frame-Timestamp-Ns` headers; 503 before the first frame |
 //! | `GET /api/camera.mjpg` | the same as an MJPEG stream (`multipart/x-mixed-replace`) an `<img>` shows; a slow viewer skips frames |
@@ -55,6 +55,9 @@ pub struct DashboardApi {
     pub health: HealthReport,
     /// The workspaces (ids, corners, observation poses) as JSON.
     pub workspaces: Value,
+    /// The motion policy's geofence: `{"min": [x, y, z], "max": [x, y, z], "keep_out":
+    /// [{"name", "min", "max"}]}`, metres.
+    pub geofence: Value,
     /// The agent.
     pub agent: Arc<AgentLink>,
     /// The tool calls of the last minutes (`[{"tool", "ms", "ok", "at_unix_s"}]`).
@@ -94,6 +97,8 @@ fn status_json(api: &DashboardApi) -> Value {
         "agent": agent,
         "tool_calls": (api.tool_calls)(),
         "workspaces": api.workspaces,
+        "geofence": api.geofence,
+        "free_space": snapshot.free_space,
     })
 }
 

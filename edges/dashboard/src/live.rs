@@ -15,10 +15,11 @@
 use bytes::Bytes;
 use robotd_protocol::agent::AgentEvent;
 use robotd_protocol::objects::DetectedObject;
+use robotd_protocol::workspace::{WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
 use robotd_runtime::bus::{Bus, BusError};
 use robotd_runtime::catalog::{
     AGENT_EVENTS, ARM_STATE, CAMERA_FRAMES, HEALTH_RESTARTS, OVERLAY_TEXT, PERCEPTION_DETECTIONS,
-    WORKSPACE_OBJECTS,
+    WORKSPACE_OBJECTS, WORKSPACE_QUERY,
 };
 use serde::Serialize;
 use serde_json::{json, Value};
@@ -69,6 +70,8 @@ pub struct Snapshot {
     pub restarts: VecDeque<Value>,
     /// The camera view's figures.
     pub camera: CameraFigures,
+    /// The workspace model's largest free space (`area_m2`, `center`), asked every 2 s.
+    pub free_space: Option<Value>,
 }
 
 /// Camera figures over the last second or so.
@@ -203,6 +206,8 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
     let mut overlays = bus.subscriber(&OVERLAY_TEXT)?;
     let mut restarts = bus.subscriber(&HEALTH_RESTARTS)?;
     let mut agent = bus.subscriber(&AGENT_EVENTS)?;
+    let workspace = bus.client(&WORKSPACE_QUERY)?;
+    let mut last_free_space: Option<Instant> = None;
     let every = Duration::from_secs_f64(1.0 / camera_fps);
     let mut last_encoded: Option<Instant> = None;
     let mut drawn: Vec<DetectedObject> = Vec::new();
@@ -237,6 +242,19 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
         }
         while let Some(message) = agent.try_recv()? {
             let _ = live.events.send(LiveEvent::Agent(message.body));
+        }
+        if last_free_space.is_none_or(|t| t.elapsed() >= Duration::from_secs(2)) {
+            last_free_space = Some(Instant::now());
+            // From the workspace model's memory (never moves the arm); a short deadline so a
+            // busy model costs the camera at most a frame.
+            let query = WorkspaceQuery::now(WorkspaceRequest::GetLargestFreeSpace);
+            let free = match workspace.request(&query, Duration::from_millis(150)).await {
+                Ok(WorkspaceReply::FreeSpace { area_m2, center }) => {
+                    Some(json!({"area_m2": area_m2, "center": [center.x_m, center.y_m]}))
+                }
+                _ => None,
+            };
+            live.update(|s| s.free_space = free);
         }
         let sample = match tokio::time::timeout(Duration::from_millis(25), frames.recv()).await {
             Err(_) => None,

@@ -13,7 +13,7 @@
 //! | `/robot_description` | JSON `std_msgs/String`: the URDF | once a second (late viewers get it too) |
 //! | `/scene/arm` | `foxglove.SceneUpdate` | the arm as a line through its links (the URDFs carry no meshes) |
 //! | `/scene/objects` | `foxglove.SceneUpdate` | `workspace/objects`: a box and a label per object |
-//! | `/scene/workspace` | `foxglove.SceneUpdate` | the workspaces' sheets, once a second |
+//! | `/scene/workspace` | `foxglove.SceneUpdate` | the workspaces' sheets, the geofence's edges and the keep-out zones, once a second |
 //! | `/log` | `foxglove.Log` | overlays (speech, tasks, system messages), restarts, agent answers and errors |
 //! | `/bus/<topic>` | JSON, schema named by the message type | every message topic ([`crate::topics`]) |
 //!
@@ -50,6 +50,8 @@ pub struct BridgeSettings {
     pub model: RobotModel,
     /// The workspaces drawn.
     pub workspaces: Vec<WorkspaceInfo>,
+    /// The motion policy's geofence and keep-out zones, drawn with the workspaces.
+    pub geofence: Option<(scene::Box3, Vec<scene::Box3>)>,
     /// Bus topics logged under `/bus/…`: `None` = all.
     pub topics: Option<Vec<String>>,
     /// Log the camera.
@@ -199,9 +201,10 @@ async fn follow(
             if let Some(channel) = &channels.description {
                 channel.log_with_meta(urdf.as_bytes(), at(ns));
             }
-            channels
-                .workspace
-                .log_with_time(&scene::workspace_scene(&settings.workspaces, ns), ns);
+            channels.workspace.log_with_time(
+                &scene::workspace_scene(&settings.workspaces, settings.geofence.as_ref(), ns),
+                ns,
+            );
         }
         while let Some(message) = arm.try_recv()? {
             let ns = message.sent_at_unix_ns;

@@ -146,9 +146,88 @@ pub fn objects_scene(objects: &[DetectedObject], previous: &[String], ns: u64) -
     }
 }
 
-/// The workspaces' sheets as flat boxes with their ids.
-pub fn workspace_scene(workspaces: &[WorkspaceInfo], ns: u64) -> SceneUpdate {
-    let entities = workspaces
+/// An axis-aligned box, metres in the base frame: the geofence or a keep-out zone.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Box3 {
+    /// What it is (`geofence`, or the keep-out zone's name).
+    pub name: String,
+    /// Lowest corner.
+    pub min: [f64; 3],
+    /// Highest corner.
+    pub max: [f64; 3],
+}
+
+/// The twelve edges of `b` as a line list.
+fn box_edges(b: &Box3) -> Vec<Point3> {
+    let corner = |i: usize| Point3 {
+        x: if i & 1 == 0 { b.min[0] } else { b.max[0] },
+        y: if i & 2 == 0 { b.min[1] } else { b.max[1] },
+        z: if i & 4 == 0 { b.min[2] } else { b.max[2] },
+    };
+    // Pairs of corners differing in one bit.
+    let mut points = Vec::with_capacity(24);
+    for i in 0..8usize {
+        for bit in [1, 2, 4] {
+            if i & bit == 0 {
+                points.push(corner(i));
+                points.push(corner(i | bit));
+            }
+        }
+    }
+    points
+}
+
+/// The geofence (red edges) and keep-out zones (translucent red boxes with their names).
+fn fence_entities(fence: &Box3, keep_out: &[Box3], ns: u64) -> Vec<SceneEntity> {
+    let mut entities = vec![SceneEntity {
+        timestamp: Some(timestamp(ns)),
+        frame_id: BASE_FRAME.to_owned(),
+        id: "geofence".to_owned(),
+        lines: vec![LinePrimitive {
+            r#type: foxglove::messages::line_primitive::Type::LineList as i32,
+            pose: Some(pose_at(0.0, 0.0, 0.0, 0.0)),
+            thickness: 2.0,
+            scale_invariant: true,
+            points: box_edges(fence),
+            color: Some(colour(0.85, 0.15, 0.15, 1.0)),
+            ..Default::default()
+        }],
+        ..Default::default()
+    }];
+    for zone in keep_out {
+        let centre = |axis: usize| (zone.min[axis] + zone.max[axis]) / 2.0;
+        let size = |axis: usize| (zone.max[axis] - zone.min[axis]).abs();
+        entities.push(SceneEntity {
+            timestamp: Some(timestamp(ns)),
+            frame_id: BASE_FRAME.to_owned(),
+            id: format!("keep_out/{}", zone.name),
+            cubes: vec![CubePrimitive {
+                pose: Some(pose_at(centre(0), centre(1), centre(2), 0.0)),
+                size: Some(vector(size(0), size(1), size(2))),
+                color: Some(colour(0.85, 0.15, 0.15, 0.25)),
+            }],
+            texts: vec![TextPrimitive {
+                pose: Some(pose_at(centre(0), centre(1), zone.max[2] + 0.02, 0.0)),
+                billboard: true,
+                font_size: 12.0,
+                scale_invariant: true,
+                color: Some(colour(0.85, 0.15, 0.15, 1.0)),
+                text: zone.name.clone(),
+            }],
+            ..Default::default()
+        });
+    }
+    entities
+}
+
+/// The workspaces' sheets as flat boxes with their ids, and the geofence with its keep-out
+/// zones when given.
+pub fn workspace_scene(
+    workspaces: &[WorkspaceInfo],
+    geofence: Option<&(Box3, Vec<Box3>)>,
+    ns: u64,
+) -> SceneUpdate {
+    let mut entities: Vec<SceneEntity> = workspaces
         .iter()
         .map(|w| {
             let (a, b) = (w.upper_left, w.lower_right);
@@ -174,6 +253,9 @@ pub fn workspace_scene(workspaces: &[WorkspaceInfo], ns: u64) -> SceneUpdate {
             }
         })
         .collect();
+    if let Some((fence, keep_out)) = geofence {
+        entities.extend(fence_entities(fence, keep_out, ns));
+    }
     SceneUpdate {
         deletions: vec![],
         entities,

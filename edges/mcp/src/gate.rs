@@ -5,6 +5,9 @@
 //! `notifications/initialized` it waits for. [`InitGate`] wraps a session's transport instead
 //! and looks at the client's messages in the order they arrive:
 //!
+//! - before `initialize`, a `ping` is answered here (rmcp's handshake would end the session
+//!   on anything but `initialize`), other requests get `-32600` and notifications are
+//!   dropped: a confused first message does not close the session;
 //! - until the client sends `notifications/initialized`, only `initialize` and `ping` pass;
 //!   any other request is answered `-32600` (Invalid Request) and never reaches a tool — a
 //!   motion cannot start in a half-open session;
@@ -15,8 +18,8 @@
 //! Every transport (legacy SSE, streamable HTTP, stdio) serves through this gate.
 
 use rmcp::model::{
-    ClientJsonRpcMessage, ClientNotification, ClientRequest, ErrorCode, ErrorData, JsonRpcMessage,
-    ServerJsonRpcMessage,
+    ClientJsonRpcMessage, ClientNotification, ClientRequest, EmptyResult, ErrorCode, ErrorData,
+    JsonRpcMessage, ServerJsonRpcMessage, ServerResult,
 };
 use rmcp::transport::{IntoTransport, Transport};
 use rmcp::RoleServer;
@@ -60,6 +63,7 @@ pub fn invalid_params(method: &str) -> ErrorData {
 /// A server transport that refuses requests out of order (see the module documentation).
 pub struct InitGate<T> {
     inner: T,
+    initialize_seen: bool,
     initialized: bool,
 }
 
@@ -68,9 +72,20 @@ impl<T> InitGate<T> {
     pub fn new(inner: T) -> Self {
         Self {
             inner,
+            initialize_seen: false,
             initialized: false,
         }
     }
+}
+
+/// What the gate does with a client message.
+enum Verdict {
+    /// Hand it to the server.
+    Pass,
+    /// Answer it here and hold it back.
+    Answer(Box<ServerJsonRpcMessage>),
+    /// Drop it (a notification or response before `initialize`).
+    Drop,
 }
 
 /// Gates anything rmcp accepts as a server transport (a sink/stream pair, stdio, …).
@@ -84,6 +99,43 @@ where
 }
 
 impl<T> InitGate<T> {
+    /// What to do with `message`.
+    fn verdict(&mut self, message: &ClientJsonRpcMessage) -> Verdict {
+        if !self.initialize_seen {
+            return match message {
+                JsonRpcMessage::Request(r) => match &r.request {
+                    ClientRequest::InitializeRequest(_) => {
+                        self.initialize_seen = true;
+                        Verdict::Pass
+                    }
+                    ClientRequest::PingRequest(_) => {
+                        Verdict::Answer(Box::new(ServerJsonRpcMessage::response(
+                            ServerResult::EmptyResult(EmptyResult {}),
+                            r.id.clone(),
+                        )))
+                    }
+                    request => Verdict::Answer(Box::new(ServerJsonRpcMessage::error(
+                        ErrorData::new(
+                            ErrorCode::INVALID_REQUEST,
+                            format!(
+                                "{} before initialize: a session starts with an initialize \
+                                 request",
+                                request.method()
+                            ),
+                            None,
+                        ),
+                        Some(r.id.clone()),
+                    ))),
+                },
+                _ => Verdict::Drop,
+            };
+        }
+        match self.refusal(message) {
+            None => Verdict::Pass,
+            Some(error) => Verdict::Answer(Box::new(error)),
+        }
+    }
+
     /// The error answering `message`, when it must not reach the server.
     fn refusal(&mut self, message: &ClientJsonRpcMessage) -> Option<ServerJsonRpcMessage> {
         match message {
@@ -135,11 +187,12 @@ impl<T: Transport<RoleServer>> Transport<RoleServer> for InitGate<T> {
     async fn receive(&mut self) -> Option<ClientJsonRpcMessage> {
         loop {
             let message = self.inner.receive().await?;
-            match self.refusal(&message) {
-                None => return Some(message),
-                Some(error) => {
-                    tracing::info!(?error, "MCP request refused by the session gate");
-                    if self.inner.send(error).await.is_err() {
+            match self.verdict(&message) {
+                Verdict::Pass => return Some(message),
+                Verdict::Drop => tracing::debug!("MCP message before initialize dropped"),
+                Verdict::Answer(answer) => {
+                    tracing::info!(?answer, "MCP request answered by the session gate");
+                    if self.inner.send(*answer).await.is_err() {
                         return None;
                     }
                 }
@@ -149,5 +202,57 @@ impl<T: Transport<RoleServer>> Transport<RoleServer> for InitGate<T> {
 
     fn close(&mut self) -> impl Future<Output = Result<(), Self::Error>> + Send {
         self.inner.close()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn message(value: serde_json::Value) -> ClientJsonRpcMessage {
+        serde_json::from_value(value).unwrap()
+    }
+
+    fn answer(gate: &mut InitGate<()>, value: serde_json::Value) -> Option<serde_json::Value> {
+        match gate.verdict(&message(value)) {
+            Verdict::Pass => None,
+            Verdict::Drop => Some(serde_json::json!("dropped")),
+            Verdict::Answer(a) => Some(serde_json::to_value(*a).unwrap()),
+        }
+    }
+
+    #[test]
+    fn a_session_goes_initialize_then_initialized_then_anything() {
+        let mut gate = InitGate::new(());
+        let call = serde_json::json!({"jsonrpc": "2.0", "id": 2, "method": "tools/call",
+            "params": {"name": "speak", "arguments": {"text": "hi"}}});
+        // Before initialize: a call is refused, a ping answered, a notification dropped.
+        let refused = answer(&mut gate, call.clone()).unwrap();
+        assert_eq!(refused["error"]["code"], -32600, "{refused}");
+        let pong = answer(
+            &mut gate,
+            serde_json::json!({"jsonrpc": "2.0", "id": 3, "method": "ping"}),
+        )
+        .unwrap();
+        assert_eq!(pong["result"], serde_json::json!({}), "{pong}");
+        let initialized =
+            serde_json::json!({"jsonrpc": "2.0", "method": "notifications/initialized"});
+        assert_eq!(
+            answer(&mut gate, initialized.clone()),
+            Some(serde_json::json!("dropped"))
+        );
+        // initialize passes; a call before initialized is still refused.
+        let init = serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
+            "protocolVersion": "2025-06-18", "capabilities": {}, "clientInfo": {"name": "t", "version": "1"}}});
+        assert_eq!(answer(&mut gate, init), None);
+        assert_eq!(
+            answer(&mut gate, call.clone()).unwrap()["error"]["code"],
+            -32600
+        );
+        // After initialized the call passes; malformed params are -32602.
+        assert_eq!(answer(&mut gate, initialized), None);
+        assert_eq!(answer(&mut gate, call), None);
+        let bad = serde_json::json!({"jsonrpc": "2.0", "id": 4, "method": "tools/call", "params": {"x": 1}});
+        assert_eq!(answer(&mut gate, bad).unwrap()["error"]["code"], -32602);
     }
 }
