@@ -11,7 +11,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use robotd_agent::agent::WorkspaceHint;
 use robotd_agent::providers::{resolve, Env, ProviderSettings};
-use robotd_agent::{Agent, AgentConfig, RegistryTools, ToolBackend};
+use robotd_agent::{Agent, RegistryTools, ToolBackend};
 use robotd_config::Config;
 use robotd_mcp::agent_tools::McpTools;
 use robotd_protocol::agent::AgentEventKind;
@@ -114,7 +114,7 @@ async fn session(
             )
         }
     };
-    let mut agent = Agent::new(settings, tools, &workspaces, AgentConfig::default())?;
+    let mut agent = Agent::new(settings, tools, &workspaces, config.agent.agent_config())?;
     let code = match &args.command {
         Some(text) => single_shot(&mut agent, text).await,
         None => {

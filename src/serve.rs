@@ -549,7 +549,7 @@ fn start_agent(
         settings.clone(),
         Arc::new(tools),
         &hints,
-        robotd_agent::AgentConfig::default(),
+        config.agent.agent_config(),
     )?;
     let actor = robotd_agent::actor::spawn(&runtime.bus, agent)?;
     tracing::info!(provider = %settings.provider, model = %settings.model, "LLM agent on the bus");

@@ -38,6 +38,9 @@ pub struct AgentSection {
     /// Any OpenAI-compatible server (as `LLM_BASE_URL`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub llm_base_url: Option<String>,
+    /// Largest LLM reply read, bytes (64 KiB … 256 MiB); a larger one is an error.
+    #[serde(default = "defaults::max_reply_bytes")]
+    pub max_reply_bytes: usize,
 }
 
 impl Default for AgentSection {
@@ -51,6 +54,7 @@ impl Default for AgentSection {
             gemini_base_url: None,
             ollama_host: None,
             llm_base_url: None,
+            max_reply_bytes: defaults::max_reply_bytes(),
         }
     }
 }
@@ -78,10 +82,33 @@ mod defaults {
     pub fn yes() -> bool {
         true
     }
+    pub fn max_reply_bytes() -> usize {
+        crate::llm::DEFAULT_MAX_REPLY_BYTES
+    }
+}
+
+impl AgentSection {
+    /// The agent's settings with this section's limits.
+    pub fn agent_config(&self) -> crate::AgentConfig {
+        let defaults = crate::AgentConfig::default();
+        crate::AgentConfig {
+            retry: crate::llm::RetryPolicy {
+                max_reply_bytes: self.max_reply_bytes,
+                ..defaults.retry
+            },
+            ..defaults
+        }
+    }
 }
 
 impl Section for AgentSection {
     fn check(&self, checks: &mut Checks) {
+        checks.range_u64(
+            "max_reply_bytes",
+            self.max_reply_bytes as u64,
+            64 * 1024..=256 * 1024 * 1024,
+            "",
+        );
         for (key, url) in [
             ("openai_base_url", &self.openai_base_url),
             ("groq_base_url", &self.groq_base_url),

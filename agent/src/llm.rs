@@ -129,6 +129,33 @@ pub struct RetryPolicy {
     pub max_backoff: Duration,
     /// Longest one request may take (connect, send, reply).
     pub request_timeout: Duration,
+    /// Largest reply body read, bytes; a larger one is an error, never read whole.
+    pub max_reply_bytes: usize,
+}
+
+/// The default of [`RetryPolicy::max_reply_bytes`]: 8 MiB (a long completion is well under
+/// 1 MiB).
+pub const DEFAULT_MAX_REPLY_BYTES: usize = 8 * 1024 * 1024;
+
+/// The body of `response`, or why it was not read: larger than `max` bytes (by its
+/// `Content-Length` or as it streams in), or the connection failed.
+async fn read_limited(mut response: reqwest::Response, max: usize) -> Result<String, String> {
+    let too_large = || format!("the reply is larger than {max} bytes ([agent] max_reply_bytes)");
+    if response.content_length().is_some_and(|n| n > max as u64) {
+        return Err(too_large());
+    }
+    let mut body = Vec::new();
+    while let Some(chunk) = response
+        .chunk()
+        .await
+        .map_err(|e| format!("reading the reply: {}", error_chain(&e)))?
+    {
+        if body.len() + chunk.len() > max {
+            return Err(too_large());
+        }
+        body.extend_from_slice(&chunk);
+    }
+    Ok(String::from_utf8_lossy(&body).into_owned())
 }
 
 impl Default for RetryPolicy {
@@ -138,6 +165,7 @@ impl Default for RetryPolicy {
             initial_backoff: Duration::from_millis(1000),
             max_backoff: Duration::from_secs(30),
             request_timeout: Duration::from_secs(120),
+            max_reply_bytes: DEFAULT_MAX_REPLY_BYTES,
         }
     }
 }
@@ -345,13 +373,13 @@ impl LlmClient {
             };
             let status = response.status().as_u16();
             let wait_hint = retry_after(response.headers());
-            let text = match response.text().await {
+            let text = match read_limited(response, self.retry.max_reply_bytes).await {
                 Ok(t) => t,
-                Err(e) => {
+                Err(reason) => {
                     return Err(LlmError::Unreachable {
                         provider,
                         url,
-                        reason: format!("reading the reply: {}", error_chain(&e)),
+                        reason,
                     })
                 }
             };

@@ -58,6 +58,7 @@ fn fast_retry() -> RetryPolicy {
         initial_backoff: Duration::from_millis(20),
         max_backoff: Duration::from_millis(200),
         request_timeout: Duration::from_secs(10),
+        max_reply_bytes: 64 * 1024,
     }
 }
 
@@ -545,4 +546,21 @@ async fn every_llm_call_is_a_span_with_its_token_counts() {
     ] {
         assert!(line.contains(field), "{field} missing in: {line}");
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reply_larger_than_the_limit_is_refused_not_read_whole() {
+    let huge = "x".repeat(200 * 1024);
+    let mock = MockLlm::start(vec![MockReply::text(&huge)]).await.unwrap();
+    let client = LlmClient::new(openai_at(&mock), fast_retry()).unwrap();
+    let error = client
+        .complete(&[Message::user("hi")], &[])
+        .await
+        .unwrap_err();
+    assert!(
+        error
+            .to_string()
+            .contains("larger than 65536 bytes ([agent] max_reply_bytes)"),
+        "{error}"
+    );
 }
