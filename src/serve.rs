@@ -185,6 +185,9 @@ pub struct Runtime {
     speech: Speech,
     skills: Skills,
     processes: Vec<SupervisedProcess>,
+    /// The one tool registry of this instance (MCP and the agent share it: each registry's
+    /// bus publishers cost megabytes of iceoryx2 bookkeeping, see BENCHMARKS.md).
+    registry: Mutex<Option<Registry>>,
 }
 
 impl Runtime {
@@ -338,6 +341,7 @@ impl Runtime {
             speech,
             skills,
             processes,
+            registry: Mutex::new(None),
         })
     }
 
@@ -351,8 +355,18 @@ impl Runtime {
         })
     }
 
-    /// The tool registry over this runtime's bus.
+    /// The tool registry over this runtime's bus: created once, then shared by every caller.
     pub fn tool_registry(&self, config: &Config) -> Result<Registry> {
+        let mut shared = self.registry.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(registry) = shared.as_ref() {
+            return Ok(registry.clone());
+        }
+        let registry = self.new_tool_registry(config)?;
+        *shared = Some(registry.clone());
+        Ok(registry)
+    }
+
+    fn new_tool_registry(&self, config: &Config) -> Result<Registry> {
         // `robot_id` is the robot type, as the Python server answers (`niryo`, `widowx`).
         let robot_type = self.hardware.arm_context.kinematics.model().robot_type();
         let mut settings = ToolSettings::new(robot_type, self.workspaces.clone());

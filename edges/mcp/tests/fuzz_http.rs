@@ -203,12 +203,20 @@ fn check(status: u16, body: &str) -> Result<(), TestCaseError> {
     Ok(())
 }
 
+/// `PROPTEST_CASES` when set (a longer run), else `default` (the bounded CI run).
+fn cases(default: u32) -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
 /// Random bytes, then JSON-RPC of every shape over both transports, then a good client: all in
 /// one test, so that "after the fuzzing" holds under a runner that starts each test alone.
 #[test]
 fn fuzzed_requests_get_clear_answers_and_a_good_client_is_served_after() {
     let edge = edge();
-    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig::with_cases(300));
+    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig::with_cases(cases(300)));
     runner
         .run(&proptest::collection::vec(any::<u8>(), 0..300), |body| {
             let (status, text, _) =
