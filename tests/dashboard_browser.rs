@@ -21,7 +21,16 @@ use std::time::{Duration, Instant};
 struct Browser {
     http: reqwest::Client,
     base: String,
-    _driver: common::Running,
+    driver: common::Running,
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        // chromium is chromedriver's child: stop it first, or a failed test leaves it running.
+        let _ = Command::new("pkill")
+            .args(["-TERM", "-P", &self.driver.pid().to_string()])
+            .status();
+    }
 }
 
 impl Browser {
@@ -68,7 +77,7 @@ impl Browser {
         Browser {
             base: format!("{root}/session/{session}"),
             http,
-            _driver: driver,
+            driver,
         }
     }
 

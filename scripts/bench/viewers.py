@@ -18,6 +18,7 @@ Prints one JSON object.
 """
 
 import asyncio
+import atexit
 import json
 import os
 import socket
@@ -54,6 +55,8 @@ for line in served.stderr:
     if "robotd: serving on" in line:
         break
 threading.Thread(target=lambda: [None for _ in served.stderr], daemon=True).start()
+# Whatever happens below, the service started here does not outlive the script.
+atexit.register(lambda: (served.terminate(), served.wait()))
 
 HEADERS = {"Content-Type": "application/json", "Accept": "application/json, text/event-stream"}
 client = httpx.Client(timeout=30)
