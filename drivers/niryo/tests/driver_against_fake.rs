@@ -222,10 +222,11 @@ async fn an_uncalibrated_robot_is_calibrated_on_connect_or_refuses_motions() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_unreachable_robot_is_reported_and_becomes_available_by_itself() {
-    let port = {
-        let probe = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-        probe.local_addr().unwrap().port()
-    };
+    // A port held by a bound socket that does not listen: connections to it are refused, and
+    // no other test can take it meanwhile.
+    let holder = tokio::net::TcpSocket::new_v4().unwrap();
+    holder.bind("127.0.0.1:0".parse().unwrap()).unwrap();
+    let port = holder.local_addr().unwrap().port();
     let niryo = robotd_driver_niryo::open(&config(port, ""), Duration::ZERO).await;
     let arm = niryo.drivers.arm.clone();
     let reason = arm.connection().unwrap_err();
@@ -234,6 +235,7 @@ async fn an_unreachable_robot_is_reported_and_becomes_available_by_itself() {
     assert!(error.starts_with("robot not connected: "), "{error}");
     // Let the reconnector back off to its longest wait before the robot appears.
     tokio::time::sleep(Duration::from_millis(2500)).await;
+    drop(holder);
     let (_fake, _) = fake_on(port, 0.05, FakeFaults::default()).await;
     let back = until("reconnected", Duration::from_secs(4), || {
         arm.connection().is_ok()
