@@ -13,6 +13,7 @@ mod doctor;
 mod estop;
 mod fake_niryo;
 mod fake_widowx;
+mod foxglove;
 mod recording;
 mod say;
 mod serve;

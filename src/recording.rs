@@ -55,28 +55,6 @@ fn topic_list(text: &str, with_camera: bool) -> Result<Vec<String>> {
     Ok(topics)
 }
 
-/// The motion policy's fence and keep-out zones as boxes to draw.
-pub fn geofence_boxes(
-    fence: &robotd_safety::fence::Fence,
-) -> (
-    robotd_foxglove::scene::Box3,
-    Vec<robotd_foxglove::scene::Box3>,
-) {
-    let boxed = |name: &str, min: [f64; 3], max: [f64; 3]| robotd_foxglove::scene::Box3 {
-        name: name.to_owned(),
-        min,
-        max,
-    };
-    (
-        boxed("geofence", fence.min.into(), fence.max.into()),
-        fence
-            .keep_out
-            .iter()
-            .map(|k| boxed(&k.name, k.min, k.max))
-            .collect(),
-    )
-}
-
 fn runtime() -> Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_current_thread()
         .enable_all()

@@ -467,36 +467,7 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
     } else {
         None
     };
-    let bridge_settings = robotd_foxglove::bridge::BridgeSettings {
-        camera_fps: config.foxglove.camera_fps,
-        jpeg_quality: config.foxglove.jpeg_quality,
-        model: config.robot.driver.model(),
-        workspaces: runtime.workspaces.clone(),
-        geofence: Some(crate::recording::geofence_boxes(
-            runtime.safety_api()?.safety.fence(),
-        )),
-        topics: None,
-        camera: true,
-    };
-    let recording = robotd_foxglove::always_on::start(
-        runtime.bus.clone(),
-        &config.record,
-        bridge_settings.clone(),
-    )
-    .map_err(|e| anyhow::anyhow!("[record]: {e}"))?;
-    let foxglove = match config.foxglove.bind {
-        Some(bind) => {
-            let settings = bridge_settings;
-            let live = robotd_foxglove::live::start(runtime.bus.clone(), bind, settings).await?;
-            eprintln!(
-                "robotd: Foxglove live view on ws://{}:{}",
-                bind.ip(),
-                live.port()
-            );
-            Some(live)
-        }
-        None => None,
-    };
+    let viewers = crate::foxglove::start(&config, &runtime).await?;
     tracing::info!("HTTP edge on http://{address} (/health, /metrics, MCP /sse and /mcp)");
     eprintln!(
         "robotd: serving on http://{address} ({}/health, /metrics{}); bus namespace '{}'",
@@ -522,8 +493,7 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
     if let Some(live) = dashboard {
         live.stop();
     }
-    drop(foxglove);
-    drop(recording);
+    drop(viewers);
     drop(agent);
     runtime.shutdown().await;
     Ok(())

@@ -27,15 +27,6 @@ impl Default for DashboardConfig {
 
 impl Section for DashboardConfig {
     fn check(&self, checks: &mut Checks) {
-        if !(0.5..=30.0).contains(&self.camera_fps) {
-            checks.problem(
-                "camera_fps",
-                format!(
-                    "must be 0.5 … 30 frames per second, got {}",
-                    self.camera_fps
-                ),
-            );
-        }
-        checks.range_u64("jpeg_quality", u64::from(self.jpeg_quality), 10..=100, "");
+        checks.camera_stream(self.camera_fps, self.jpeg_quality);
     }
 }

@@ -150,6 +150,18 @@ impl<'a> Checks<'a> {
         }
     }
 
+    /// The two keys of a camera stream a viewer gets (`camera_fps`, `jpeg_quality`): 0.5 … 30
+    /// frames a second, quality 10 … 100.
+    pub fn camera_stream(&mut self, camera_fps: f64, jpeg_quality: u8) {
+        if !(0.5..=30.0).contains(&camera_fps) {
+            self.problem(
+                "camera_fps",
+                format!("must be 0.5 … 30 frames per second, got {camera_fps}"),
+            );
+        }
+        self.range_u64("jpeg_quality", u64::from(jpeg_quality), 10..=100, "");
+    }
+
     /// A problem when `value` is not in `range`, worded "must be from … to …{unit}, got …".
     pub fn range_u64(
         &mut self,
