@@ -177,7 +177,12 @@ fn python_tools_read_frames_and_their_detections_reach_the_tools() {
         std::thread::sleep(std::time::Duration::from_millis(100));
     };
     let screwdriver = &found["data"][0];
-    assert_eq!(screwdriver["label"], "screwdriver", "{found}");
+    assert_eq!(
+        screwdriver["label"],
+        "screwdriver",
+        "{found}\nthe edge's counts: {}",
+        health(port)["redis"]
+    );
     let at = &screwdriver["position"]["center_of_mass"];
     let (x, y) = (at["x"].as_f64().unwrap(), at["y"].as_f64().unwrap());
     assert!(

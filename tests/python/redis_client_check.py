@@ -46,11 +46,23 @@ def main(port: int) -> None:
     report["image"] = {"format": image.format, "size": list(image.size), "mode": image.mode}
     report["camera_metadata"] = json.loads(camera["metadata"])
 
+    def published_frame_ids():
+        return {
+            json.loads(fields["metadata"]).get("frame_id")
+            for _id, fields in r.xrevrange("robot_camera", count=10)
+        }
+
     def has_steady_pencil(fields):
-        # A view taken with the arm at rest: the frame robotd keeps for answers like ours.
+        # A view taken with the arm at rest, of a frame robotd published to robot_camera (the
+        # camera runs faster than the stream, so not every detected frame is one a detector
+        # reading the stream could answer): the frames robotd keeps for answers like ours.
         pose = json.loads(fields.get("camera_pose", "{}"))
         objects = json.loads(fields.get("objects", "[]"))
-        return pose.get("steady") is True and any(o.get("label") == "pencil" for o in objects)
+        return (
+            pose.get("steady") is True
+            and any(o.get("label") == "pencil" for o in objects)
+            and pose.get("frame_id") in published_frame_ids()
+        )
 
     ours = newest(r, "detected_objects", has_steady_pencil)
     ours_pose = json.loads(ours["camera_pose"])

@@ -156,9 +156,8 @@ impl MjpegCamera {
     }
 
     fn decode(&self, jpeg: &[u8]) -> Result<Vec<u8>, String> {
-        let image = image::load_from_memory_with_format(jpeg, image::ImageFormat::Jpeg)
-            .map_err(|e| format!("a frame of {} is not a JPEG: {e}", self.url))?;
-        let (w, h) = (image.width(), image.height());
+        let (rgb, w, h) = robotd_render::decode_jpeg(jpeg)
+            .map_err(|e| format!("a frame of {} is not usable: {e}", self.url))?;
         if (w, h) != (self.intrinsics.width, self.intrinsics.height) {
             return Err(format!(
                 "the camera sends {w}×{h} frames but its intrinsics are for {}×{}; set \
@@ -166,7 +165,7 @@ impl MjpegCamera {
                 self.intrinsics.width, self.intrinsics.height
             ));
         }
-        Ok(image.into_rgb8().into_raw())
+        Ok(rgb)
     }
 
     fn publish(&self, rgb: Vec<u8>) {

@@ -137,23 +137,14 @@ impl NiryoCamera {
 
 /// Decodes a `GET_IMAGE_COMPRESSED` JPEG into 640×480 RGB.
 pub fn decode(jpeg: &[u8]) -> Result<Vec<u8>, String> {
-    if jpeg.len() < 4 || jpeg[..2] != [0xFF, 0xD8] {
+    let (rgb, width, height) =
+        robotd_render::decode_jpeg(jpeg).map_err(|e| format!("the camera sent {e}"))?;
+    if (width, height) != (WIDTH, HEIGHT) {
         return Err(format!(
-            "the camera sent {} bytes that are not a JPEG image",
-            jpeg.len()
+            "the camera sent a {width}×{height} image; robotd expects the Ned2's {WIDTH}×{HEIGHT}"
         ));
     }
-    let image = image::load_from_memory_with_format(jpeg, image::ImageFormat::Jpeg)
-        .map_err(|e| format!("the camera's JPEG does not decode: {e}"))?
-        .to_rgb8();
-    if image.dimensions() != (WIDTH, HEIGHT) {
-        return Err(format!(
-            "the camera sent a {}×{} image; robotd expects the Ned2's {WIDTH}×{HEIGHT}",
-            image.width(),
-            image.height()
-        ));
-    }
-    Ok(image.into_raw())
+    Ok(rgb)
 }
 
 impl CameraDriver for NiryoCamera {

@@ -6,9 +6,10 @@
 //! skips are simply overwritten on the bus (latest wins), and frames the writer cannot take
 //! are dropped and counted.
 //!
-//! The frames it published are kept in a small [`FrameRing`] with the arm's pose and whether
-//! the arm stood still: an external detector's answer names one of them, and the consumer
-//! maps its pixels through that frame. When detections of a kept frame arrive (the built-in
+//! The frames it published are kept in a [`FrameRing`] — as the JPEG that went to Redis, the
+//! very image an external detector saw, about 50 KB where the raw frame is 900 KB — with the
+//! arm's pose and whether the arm stood still: an external detector's answer names one of
+//! them, and the consumer decodes that frame and maps the answer's pixels through it. When detections of a kept frame arrive (the built-in
 //! detector's, or an external one's through the consumer), the frame is drawn with boxes and
 //! labels and sent to `annotated_camera`, at most `annotated_fps` times a second.
 
@@ -28,8 +29,9 @@ use std::time::{Duration, Instant};
 
 /// JPEG quality of the camera streams (the Python tools' value).
 pub const JPEG_QUALITY: u8 = 85;
-/// Published frames kept for external detections and annotation.
-pub const RING_FRAMES: usize = 8;
+/// Published frames kept for external detections and annotation: 3.2 s at the default
+/// 10 fps, time for a detector a second behind (a GPU model under load) to answer.
+pub const RING_FRAMES: usize = 32;
 
 /// A frame the edge published.
 #[derive(Debug, Clone)]
@@ -40,12 +42,26 @@ pub struct FrameRecord {
     pub timestamp_unix_ns: u64,
     /// Width, height.
     pub size: (usize, usize),
-    /// RGB8 pixels.
-    pub rgb: Arc<Vec<u8>>,
+    /// The frame as published: JPEG at [`JPEG_QUALITY`].
+    pub jpeg: Arc<Vec<u8>>,
     /// The arm's tool pose at capture, if known.
     pub tool_pose: Option<Pose>,
     /// Whether the arm stood still.
     pub steady: bool,
+}
+
+impl FrameRecord {
+    /// The frame's RGB8 pixels, decoded from its JPEG.
+    pub fn rgb(&self) -> Result<Vec<u8>, String> {
+        let (rgb, w, h) = robotd_render::decode_jpeg(&self.jpeg).map_err(|e| e.to_string())?;
+        if (w as usize, h as usize) != self.size {
+            return Err(format!(
+                "kept frame {} decodes to {w}×{h}, not its {}×{}",
+                self.frame_id, self.size.0, self.size.1
+            ));
+        }
+        Ok(rgb)
+    }
 }
 
 /// The last [`RING_FRAMES`] frames published.
@@ -217,16 +233,7 @@ async fn run(
                 continue;
             }
             last_camera = Some(Instant::now());
-            let record = FrameRecord {
-                frame_id: header.frame_id,
-                timestamp_unix_ns: header.timestamp_unix_ns,
-                size: (w, h),
-                rgb: Arc::new(sample.pixels()[..bytes].to_vec()),
-                tool_pose,
-                steady: !heard || (!moving && header.timestamp_unix_ns > last_moving_ns),
-            };
-            drop(sample);
-            let jpeg = match encode_jpeg(&record.rgb, w, h) {
+            let jpeg = match encode_jpeg(&sample.pixels()[..bytes], w, h) {
                 Ok(jpeg) => jpeg,
                 Err(error) => {
                     tracing::warn!(%error, "redis edge: JPEG encoding failed");
@@ -234,8 +241,17 @@ async fn run(
                     continue;
                 }
             };
+            drop(sample);
+            let record = FrameRecord {
+                frame_id: header.frame_id,
+                timestamp_unix_ns: header.timestamp_unix_ns,
+                size: (w, h),
+                jpeg: Arc::new(jpeg),
+                tool_pose,
+                steady: !heard || (!moving && header.timestamp_unix_ns > last_moving_ns),
+            };
             let meta = frame_meta(&settings, &record);
-            sender.offer(camera_entry(&settings.instance, &meta, &jpeg, None));
+            sender.offer(camera_entry(&settings.instance, &meta, &record.jpeg, None));
             if let Ok(mut ring) = ring.lock() {
                 ring.push(record);
             }
@@ -262,7 +278,14 @@ fn publish_annotated(
     status: &EdgeStatus,
 ) {
     let (w, h) = frame.size;
-    let mut rgb = frame.rgb.as_ref().clone();
+    let mut rgb = match frame.rgb() {
+        Ok(rgb) => rgb,
+        Err(error) => {
+            tracing::warn!(%error, "redis edge: a kept frame does not decode");
+            status.count(crate::wire::ANNOTATED_CAMERA, "skipped_encoding_failed");
+            return;
+        }
+    };
     draw_objects(&mut rgb, w, h, &detections.objects);
     match encode_jpeg(&rgb, w, h) {
         Ok(jpeg) => {

@@ -396,26 +396,29 @@ impl Consumer {
             let mut pipeline = pipeline
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner);
+            let rgb = frame.rgb()?;
             let view = FrameView {
-                rgb: &frame.rgb,
+                rgb: &rgb,
                 width: w,
                 height: h,
                 frame_id: frame.frame_id,
                 timestamp_unix_ns: frame.timestamp_unix_ns,
             };
-            pipeline.locate_pixel_objects(
+            Ok::<_, String>(pipeline.locate_pixel_objects(
                 &view,
                 frame.tool_pose.as_ref(),
                 frame.steady && parsed.steady,
                 &source_for_task,
                 &objects,
                 &table,
-            )
+            ))
         })
         .await
-        .map_err(|e| Skip::Malformed {
+        .map_err(|e| e.to_string())
+        .and_then(|located| located)
+        .map_err(|reason| Skip::Malformed {
             field: "objects",
-            reason: format!("mapping the pixels failed: {e}"),
+            reason: format!("mapping the pixels failed: {reason}"),
         })?;
         let (detections, sheet, skipped) = located;
         for _ in &skipped {

@@ -96,6 +96,9 @@ pub enum RenderError {
     /// JPEG encoding failed.
     #[error("JPEG encoding failed: {0}")]
     Jpeg(String),
+    /// The bytes are not a JPEG image robotd can decode.
+    #[error("{0}")]
+    NotJpeg(String),
 }
 
 /// Encodes an RGB8 image (row-major, `width × height × 3` bytes) as a baseline JPEG.
@@ -145,6 +148,29 @@ pub fn encode_jpeg_with_image_crate(
         .encode(rgb, width, height, image::ExtendedColorType::Rgb8)
         .map_err(|e| RenderError::Jpeg(e.to_string()))?;
     Ok(jpeg)
+}
+
+/// Decodes a JPEG image into RGB8 (row-major, `width × height × 3` bytes) and its size:
+/// robotd's one decoder, for camera drivers that receive JPEG and for frames kept as JPEG.
+/// Bytes without the JPEG start marker, or that do not decode, are
+/// [`RenderError::NotJpeg`] naming their length and the decoder's reason.
+pub fn decode_jpeg(jpeg: &[u8]) -> Result<(Vec<u8>, u32, u32), RenderError> {
+    if jpeg.len() < 4 || jpeg[..2] != [0xFF, 0xD8] {
+        return Err(RenderError::NotJpeg(format!(
+            "{} bytes that are not a JPEG image (no start-of-image marker)",
+            jpeg.len()
+        )));
+    }
+    let image = image::load_from_memory_with_format(jpeg, image::ImageFormat::Jpeg)
+        .map_err(|e| {
+            RenderError::NotJpeg(format!(
+                "a JPEG of {} bytes does not decode: {e}",
+                jpeg.len()
+            ))
+        })?
+        .into_rgb8();
+    let (width, height) = image.dimensions();
+    Ok((image.into_raw(), width, height))
 }
 
 /// The pose of a camera's optical frame at `eye` looking at `target`, with the image's top
