@@ -1,7 +1,9 @@
 //! The WidowX gripper (servo 9 in PWM mode): a grasp that stops on contact and knows whether it
 //! holds something.
 //!
-//! Closing drives the fingers with `gripper_pwm` until they stop moving. Stopped short of
+//! Closing drives the fingers with `gripper_pwm` until they stop moving: still for a few ticks
+//! while pushing (Present Load at least `gripper_holding_load`), or still for
+//! 300 ms whatever the load. Stopped short of
 //! closed with a Present Load of at least `gripper_holding_load` means an object is between
 //! them: the PWM drops to `gripper_hold_pwm`, enough to hold it without overheating the servo.
 //! Stopped at closed means nothing was caught: the PWM goes to 0. Opening drives them the
@@ -34,8 +36,12 @@ pub struct GripperSettings {
 
 /// Ticks from an end that count as being there.
 const AT_END_TICKS: i32 = 25;
-/// Ticks without movement that count as stopped.
+/// Ticks without movement after which the fingers may have stopped.
 const STILL_TICKS: u32 = 4;
+/// How long the fingers must stay still to count as stopped when the servo does not push
+/// (a load under `gripper_holding_load`): a few ticks without movement and without load can
+/// also be a servo that has not started yet, or a late position on a busy bus.
+const STILL_WITHOUT_LOAD: Duration = Duration::from_millis(300);
 /// Longest a finger motion may take.
 const MOTION_DEADLINE: Duration = Duration::from_secs(3);
 
@@ -93,18 +99,24 @@ impl WidowxGripper {
         let deadline = tokio::time::Instant::now() + MOTION_DEADLINE;
         let mut last = self.ticks_now()?;
         let mut still = 0;
+        let mut still_since = tokio::time::Instant::now();
         while tokio::time::Instant::now() < deadline {
             self.bus.next_tick().await?;
             let now = self.ticks_now()?;
             if (now - end).abs() <= AT_END_TICKS {
                 return Ok(now);
             }
-            still = if (now - last).abs() <= 1 {
-                still + 1
+            if (now - last).abs() <= 1 {
+                still += 1;
             } else {
-                0
-            };
-            if still >= STILL_TICKS {
+                still = 0;
+                still_since = tokio::time::Instant::now();
+            }
+            if still >= STILL_TICKS
+                && (still_since.elapsed() >= STILL_WITHOUT_LOAD
+                    || self.present_load().await?.unsigned_abs()
+                        >= self.settings.holding_load.unsigned_abs())
+            {
                 return Ok(now);
             }
             last = now;
