@@ -89,6 +89,11 @@ if [ -f "$REQUIREMENTS" ] && grep -qvE '^[[:space:]]*(#|$)' "$REQUIREMENTS"; the
 else
     echo "no Python requirements to install"
 fi
+# robotd's own Python package (python/robotd: Python actors on the bus), editable, so the tests
+# run the checkout's code; its dependencies are pinned in requirements.txt.
+if ! .venv/bin/python -c "import robotd, sys; sys.exit(0 if robotd.__file__.startswith('$ROOT/python/robotd/') else 1)" 2>/dev/null; then
+    .venv/bin/python -m pip install --quiet --disable-pip-version-check --no-deps -e python/robotd
+fi
 # Tests find the venv's python (and its packages) first on PATH.
 export VIRTUAL_ENV="$ROOT/.venv"
 export PATH="$VIRTUAL_ENV/bin:$PATH"

@@ -6,6 +6,7 @@
 mod audit;
 mod bench;
 mod call;
+mod catalog;
 mod chat;
 mod dashboard;
 mod detect;
@@ -14,6 +15,7 @@ mod estop;
 mod fake_niryo;
 mod fake_widowx;
 mod foxglove;
+mod health_parts;
 mod recording;
 mod say;
 mod serve;
@@ -98,6 +100,14 @@ enum Command {
     /// pseudo-terminal) and its camera (MJPEG over HTTP): a fake arm for the widowx driver and
     /// dynamixel-sdk scripts.
     FakeWidowx(fake_widowx::FakeWidowxArgs),
+    /// Print the bus catalogue: every topic, frame topic and service with its message types,
+    /// schema versions and the exact iceoryx2 settings an actor in another language must use
+    /// (`--json`: the file the Python package in python/ ships).
+    Catalog {
+        /// JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
     /// The motion audit log.
     Audit {
         #[command(subcommand)]
@@ -459,6 +469,10 @@ fn run() -> Result<std::process::ExitCode> {
             let config = load_config(&cli.config)?;
             let done = estop::run(&config, args.reason.as_deref(), args.release)?;
             eprintln!("robotd: {done}");
+            Ok(std::process::ExitCode::SUCCESS)
+        }
+        Command::Catalog { json } => {
+            print!("{}", catalog::render(json));
             Ok(std::process::ExitCode::SUCCESS)
         }
         Command::Audit {

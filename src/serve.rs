@@ -33,21 +33,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tokio_util::sync::CancellationToken;
 
-/// `/health`'s `workspace_view`: whether the camera sees the workspace from the observation
-/// pose (`null` before the first such view, or when the built-in detector does not run).
-fn workspace_view_report(view: Option<&robotd_perception::WorkspaceView>) -> serde_json::Value {
-    let Some(view) = view else {
-        return serde_json::Value::Null;
-    };
-    let age_s =
-        robotd_protocol::envelope::unix_now_ns().saturating_sub(view.taken_unix_ns) as f64 / 1e9;
-    serde_json::json!({
-        "workspace_id": view.workspace_id,
-        "visible": view.visible,
-        "reason": view.reason,
-        "age_s": (age_s * 10.0).round() / 10.0,
-    })
-}
+use crate::health_parts::{external_detections_report, safety_report, workspace_view_report};
 
 /// What /health says about the robot.
 struct RobotInfo {
@@ -323,6 +309,9 @@ impl Runtime {
                 report["status"] = "degraded".into();
             }
             report["workspace_view"] = workspace_view_report(view.as_ref());
+            if let Some(stats) = &perception_stats {
+                report["external_detections"] = external_detections_report(&stats.external);
+            }
             report["redis"] = match &redis_status {
                 Some(status) => status.to_json(),
                 None => serde_json::json!({"state": "off"}),
@@ -697,17 +686,6 @@ fn start_skills(
     Ok(Skills::start(bus, settings)?)
 }
 
-/// The safety part of `/health`: e-stop, mode, approvals waiting.
-fn safety_report(safety: &robotd_safety::Safety) -> serde_json::Value {
-    let estop = safety.estop();
-    serde_json::json!({
-        "estop": {"engaged": estop.is_some(), "reason": estop},
-        "mode": safety.config().mode,
-        "approvals_waiting": safety.approvals().pending().len(),
-        "audit_log": safety.audit().path(),
-    })
-}
-
 /// Starts the perception actor on the camera's frames.
 fn start_perception(
     bus: &Bus,
@@ -715,10 +693,10 @@ fn start_perception(
     workspaces: Vec<WorkspaceInfo>,
     labels: LabelTable,
 ) -> Result<Perception> {
-    let detector = ColourDetector::new(labels, ColourDetectorSettings::default());
+    let detector = ColourDetector::new(labels.clone(), ColourDetectorSettings::default());
     let pipeline = Pipeline::new(&hardware.camera_intrinsics, workspaces, Box::new(detector))
         .context("setting up perception")?;
-    Ok(Perception::start(bus, pipeline)?)
+    Ok(Perception::start(bus, pipeline, labels)?)
 }
 
 /// Starts the text-to-speech actor with the configured engine and output (falling back to the

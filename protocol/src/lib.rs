@@ -75,6 +75,7 @@ pub mod gripper;
 pub mod health;
 pub mod location;
 pub mod objects;
+pub mod pixels;
 pub mod safety;
 pub mod skills;
 pub mod speech;

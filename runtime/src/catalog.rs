@@ -4,7 +4,7 @@
 //! declares topics from here, so both ends always agree on names and policies — a mismatch is
 //! refused by iceoryx2 when the port is created.
 
-use crate::bus::{FrameTopic, Overflow, Service};
+use crate::bus::{Description, Entry, FrameTopic, Overflow, Service};
 use robotd_protocol::diagnostics::{
     Ping, Pong, SimWorldReply, SimWorldRequest, TestPatternReply, TestPatternRequest,
 };
@@ -66,6 +66,13 @@ pub const SAFETY_ESTOP: crate::bus::Topic<robotd_protocol::health::EmergencyStop
 pub const PERCEPTION_DETECTIONS: crate::bus::Topic<robotd_protocol::objects::Detections> =
     crate::bus::Topic::new("perception/detections", Overflow::latest_wins(16));
 
+/// Objects a detector outside robotd (a Python actor) found in the pixels of one camera frame;
+/// perception maps them onto the table and publishes them on `perception/detections`. Latest
+/// wins, like the detections themselves; up to 4 MiB (masks as pixel lists).
+pub const PERCEPTION_PIXEL_DETECTIONS: crate::bus::Topic<robotd_protocol::pixels::PixelDetections> =
+    crate::bus::Topic::new("perception/pixel_detections", Overflow::latest_wins(16))
+        .with_max_bytes(4 * 1024 * 1024);
+
 /// Questions to the workspace model (the detection and workspace tools), optionally asking
 /// for a view fresher than a given time.
 pub const WORKSPACE_QUERY: Service<
@@ -124,3 +131,64 @@ pub const AGENT_EVENTS: crate::bus::Topic<robotd_protocol::agent::AgentEvent> =
 /// dropped.
 pub const AGENT_CANCEL: crate::bus::Topic<robotd_protocol::agent::AgentCancel> =
     crate::bus::Topic::new("agent/cancel", Overflow::back_pressure(16));
+
+/// Every entry above, in order: what `robotd catalog` prints and what an actor in another
+/// language declares (see [`crate::bus::describe`]).
+pub fn entries() -> Vec<Entry> {
+    vec![
+        SYSTEM_PING.describe(),
+        SIM_WORLD.describe(),
+        TEST_PATTERN.describe(),
+        TEST_PATTERN_FRAMES.describe(),
+        HEALTH_RESTARTS.describe(),
+        ARM_COMMAND.describe(),
+        ARM_STATE.describe(),
+        GRIPPER_COMMAND.describe(),
+        GRIPPER_STATE.describe(),
+        CAMERA_FRAMES.describe(),
+        SAFETY_ESTOP.describe(),
+        PERCEPTION_DETECTIONS.describe(),
+        PERCEPTION_PIXEL_DETECTIONS.describe(),
+        WORKSPACE_QUERY.describe(),
+        WORKSPACE_OBJECTS.describe(),
+        WORKSPACE_LABELS.describe(),
+        SPEECH_SPEAK.describe(),
+        SPEECH_EVENTS.describe(),
+        OVERLAY_TEXT.describe(),
+        SKILLS_RUN.describe(),
+        SKILLS_PROGRESS.describe(),
+        SKILLS_CANCEL.describe(),
+        AGENT_REQUEST.describe(),
+        AGENT_EVENTS.describe(),
+        AGENT_CANCEL.describe(),
+    ]
+}
+
+/// The catalogue with the bus's shared settings.
+pub fn description() -> Description {
+    crate::bus::describe(entries())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_constant_of_the_catalogue_is_listed_once() {
+        let source = include_str!("catalog.rs");
+        let constants = source
+            .lines()
+            .filter(|line| line.starts_with("pub const "))
+            .count();
+        let entries = entries();
+        assert_eq!(
+            entries.len(),
+            constants,
+            "add the new constant to entries()"
+        );
+        let mut names: Vec<&str> = entries.iter().map(Entry::name).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), entries.len(), "a name is listed twice");
+    }
+}

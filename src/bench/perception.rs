@@ -200,7 +200,7 @@ fn through_the_bus(lab: &mut Lab, frames: usize) -> Result<(f64, f64, usize)> {
                 ColourDetectorSettings::default(),
             )),
         )?;
-        let perception = Perception::start(&bus, pipeline)?;
+        let perception = Perception::start(&bus, pipeline, LabelTable::builtin())?;
         let model = crate::serve::start_workspace_model(
             &bus,
             vec![workspace.clone()],

@@ -357,8 +357,15 @@ pub fn python() -> String {
 /// object it prints; panics with its stderr when it fails.
 pub fn run_python_json(script: &str, args: &[String]) -> serde_json::Value {
     let path = format!("{}/tests/python/{script}", env!("CARGO_MANIFEST_DIR"));
+    run_python_json_at(&path, args)
+}
+
+/// Runs the Python script at `path` with the venv's python and `args`, and reads the one JSON
+/// object it prints; panics with its stderr when it fails.
+pub fn run_python_json_at(path: &str, args: &[String]) -> serde_json::Value {
+    let script = path;
     let output = Command::new(python())
-        .arg(&path)
+        .arg(path)
         .args(args)
         .output()
         .expect("run python (install the test venv with ./scripts/test.sh)");

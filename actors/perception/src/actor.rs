@@ -16,12 +16,17 @@
 //! counted, and the next frame is processed as usual.
 
 use crate::detector::FrameView;
+use crate::external::KnownSheet;
+use crate::external_detections::{self, ExternalStats};
+use crate::labels::LabelTable;
 use crate::pipeline::{Pipeline, SheetStatus};
 use robotd_protocol::arm::ArmState;
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::objects::Detections;
 use robotd_runtime::bus::{Bus, BusError};
-use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES, GRIPPER_STATE, PERCEPTION_DETECTIONS};
+use robotd_runtime::catalog::{
+    ARM_STATE, CAMERA_FRAMES, GRIPPER_STATE, PERCEPTION_DETECTIONS, PERCEPTION_PIXEL_DETECTIONS,
+};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -41,6 +46,8 @@ pub struct PerceptionStats {
     pub last_objects: AtomicU64,
     /// What the last steady view from an observation pose showed (`None`: none yet).
     pub view: std::sync::Mutex<Option<WorkspaceView>>,
+    /// Detections in pixels from detectors outside robotd ([`crate::external_detections`]).
+    pub external: ExternalStats,
 }
 
 /// Whether the camera sees the workspace from its observation pose: what `/health` and
@@ -85,9 +92,14 @@ pub struct Perception {
 }
 
 impl Perception {
-    /// Starts the actor on `bus` with `pipeline`. Returns once its bus ports are open, so a
-    /// frame published afterwards is seen.
-    pub fn start(bus: &Bus, pipeline: Pipeline) -> Result<Perception, PerceptionStartError> {
+    /// Starts the actor on `bus` with `pipeline`; `heights` places external detections of
+    /// known labels at their top face. Returns once its bus ports are open, so a frame
+    /// published afterwards is seen.
+    pub fn start(
+        bus: &Bus,
+        pipeline: Pipeline,
+        heights: LabelTable,
+    ) -> Result<Perception, PerceptionStartError> {
         let stop = Arc::new(AtomicBool::new(false));
         let stats = Arc::new(PerceptionStats::default());
         let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), BusError>>();
@@ -97,7 +109,7 @@ impl Perception {
             let stats = stats.clone();
             std::thread::Builder::new()
                 .name("perception".into())
-                .spawn(move || run(bus, pipeline, stop, stats, ready_tx))
+                .spawn(move || run(bus, pipeline, heights, stop, stats, ready_tx))
                 .map_err(PerceptionStartError::Thread)?
         };
         match ready_rx.recv() {
@@ -204,6 +216,7 @@ impl ArmView {
 fn run(
     bus: Bus,
     mut pipeline: Pipeline,
+    heights: LabelTable,
     stop: Arc<AtomicBool>,
     stats: Arc<PerceptionStats>,
     ready: std::sync::mpsc::Sender<Result<(), BusError>>,
@@ -228,9 +241,11 @@ fn run(
                 bus.subscriber(&ARM_STATE)?,
                 bus.publisher(&PERCEPTION_DETECTIONS)?,
                 bus.subscriber(&GRIPPER_STATE)?,
+                bus.subscriber(&PERCEPTION_PIXEL_DETECTIONS)?,
             ))
         })();
-        let (mut frames, mut arm_states, publisher, mut gripper_states) = match ports {
+        let (mut frames, mut arm_states, publisher, mut gripper_states, mut pixel_detections) =
+            match ports {
             Ok(p) => {
                 let _ = ready.send(Ok(()));
                 p
@@ -247,7 +262,22 @@ fn run(
         );
         let mut arm = ArmView::default();
         let mut missing_sheet_streak = 0u64;
+        let mut known_sheet: Option<KnownSheet> = None;
         while !stop.load(Ordering::SeqCst) {
+            while let Ok(Some(message)) = pixel_detections.try_recv() {
+                let placed = external_detections::place(
+                    &pipeline,
+                    known_sheet.as_ref(),
+                    &message.body,
+                    &heights,
+                    &stats.external,
+                );
+                if let Some(detections) = placed {
+                    if let Err(error) = publisher.publish(&detections) {
+                        tracing::warn!(%error, "perception: publishing external detections failed");
+                    }
+                }
+            }
             let first =
                 match tokio::time::timeout(Duration::from_millis(100), frames.recv()).await {
                     Err(_) => continue,
@@ -304,6 +334,16 @@ fn run(
                 pipeline.process(&frame, arm.tool_pose.as_ref(), steady)
             }));
             let elapsed = started.elapsed();
+            known_sheet = pipeline
+                .last_sheet()
+                .map(|(plane, workspace)| KnownSheet {
+                    frame_id: header.frame_id,
+                    timestamp_unix_ns: header.timestamp_unix_ns,
+                    camera_pose: header.camera_pose,
+                    steady,
+                    workspace: workspace.clone(),
+                    plane: plane.clone(),
+                });
             stats.frames.fetch_add(1, Ordering::Relaxed);
             stats
                 .last_processing_us

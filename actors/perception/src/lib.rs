@@ -14,6 +14,7 @@ pub use config::PerceptionConfig;
 pub mod actor;
 #[cfg(feature = "eval")]
 pub mod eval;
+pub mod external_detections;
 
 pub use robotd_vision::{
     camera, components, detector, external, footprint, labels, markers, pipeline, plane, rect,

@@ -54,7 +54,12 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
         )),
     )
     .unwrap();
-    let perception = Perception::start(&bus, pipeline).unwrap();
+    let perception = Perception::start(
+        &bus,
+        pipeline,
+        robotd_perception::labels::LabelTable::builtin(),
+    )
+    .unwrap();
     let frames = bus.frame_publisher(&CAMERA_FRAMES).unwrap();
     let arm = bus.publisher(&ARM_STATE).unwrap();
     let mut detections = bus.subscriber(&PERCEPTION_DETECTIONS).unwrap();

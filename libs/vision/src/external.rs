@@ -16,9 +16,29 @@ use crate::detector::FrameView;
 use crate::footprint::{measure, Footprint, Sighting};
 use crate::labels::{HeightRule, LabelTable};
 use crate::pipeline::{Pipeline, SheetStatus};
+use crate::plane::TablePlane;
 use crate::rect::normalise_half_turn;
 use robotd_protocol::geometry::{Point2, Pose};
 use robotd_protocol::objects::{Detections, RelBox, RelPoint};
+use robotd_protocol::workspace::WorkspaceInfo;
+
+/// The workspace sheet perception found in one frame: what pixels of that frame — or of any
+/// frame taken from the same camera pose — map onto.
+#[derive(Debug, Clone)]
+pub struct KnownSheet {
+    /// The frame it was found in.
+    pub frame_id: u64,
+    /// That frame's capture time, ns since the Unix epoch.
+    pub timestamp_unix_ns: u64,
+    /// That frame's header camera pose: x, y, z (m), roll, pitch, yaw (rad).
+    pub camera_pose: [f64; 6],
+    /// Whether the arm stood still at an observation pose.
+    pub steady: bool,
+    /// The workspace of the sheet.
+    pub workspace: WorkspaceInfo,
+    /// Its table plane.
+    pub plane: TablePlane,
+}
 
 /// An object's centre may lie this far outside its workspace and still count, metres.
 const OUTSIDE_TOLERANCE_M: f64 = 0.01;
@@ -64,20 +84,60 @@ impl Pipeline {
         objects: &[PixelObject],
         heights: &LabelTable,
     ) -> (Detections, SheetStatus, Vec<Skipped>) {
-        let mut detections = Detections {
-            frame_id: frame.frame_id,
-            workspace_id: String::new(),
-            timestamp_unix_ns: frame.timestamp_unix_ns,
-            source: source.to_owned(),
-            steady,
-            objects: Vec::new(),
-        };
         let workspace = self.workspace_for(tool_pose).clone();
         let plane = match self.locate_sheet(frame, &workspace) {
             Ok(plane) => plane,
-            Err(status) => return (detections, status, Vec::new()),
+            Err(status) => {
+                let detections = Detections {
+                    frame_id: frame.frame_id,
+                    workspace_id: String::new(),
+                    timestamp_unix_ns: frame.timestamp_unix_ns,
+                    source: source.to_owned(),
+                    steady,
+                    objects: Vec::new(),
+                };
+                return (detections, status, Vec::new());
+            }
         };
-        let (w, h) = (frame.width, frame.height);
+        let sheet = KnownSheet {
+            frame_id: frame.frame_id,
+            timestamp_unix_ns: frame.timestamp_unix_ns,
+            camera_pose: [0.0; 6],
+            steady,
+            workspace,
+            plane,
+        };
+        let (detections, skipped) = self.place_pixel_objects(
+            &sheet,
+            (frame.width, frame.height),
+            source,
+            objects,
+            heights,
+        );
+        (detections, SheetStatus::Found, skipped)
+    }
+
+    /// Places `objects` (pixels of a `size` = width × height frame) on the table of `sheet`:
+    /// the detections carry the sheet's frame id, time and steadiness.
+    pub fn place_pixel_objects(
+        &self,
+        sheet: &KnownSheet,
+        size: (usize, usize),
+        source: &str,
+        objects: &[PixelObject],
+        heights: &LabelTable,
+    ) -> (Detections, Vec<Skipped>) {
+        let mut detections = Detections {
+            frame_id: sheet.frame_id,
+            workspace_id: sheet.workspace.id.clone(),
+            timestamp_unix_ns: sheet.timestamp_unix_ns,
+            source: source.to_owned(),
+            steady: sheet.steady,
+            objects: Vec::new(),
+        };
+        let workspace = &sheet.workspace;
+        let plane = &sheet.plane;
+        let (w, h) = size;
         let mut skipped = Vec::new();
         for object in objects {
             let [x0, y0, x1, y1] = object.bbox_px;
@@ -102,7 +162,7 @@ impl Pipeline {
             let mut height_m = 0.0;
             let mut footprint: Option<Footprint> = None;
             for _ in 0..3 {
-                let Some(fp) = measure(pixels, w, camera, &plane, height_m) else {
+                let Some(fp) = measure(pixels, w, camera, plane, height_m) else {
                     break;
                 };
                 footprint = Some(fp);
@@ -135,7 +195,7 @@ impl Pipeline {
                 class_id: object.class_id,
                 confidence: object.confidence.clamp(0.0, 1.0),
                 workspace_id: workspace.id.clone(),
-                timestamp_unix_s: frame.timestamp_unix_ns as f64 / 1e9,
+                timestamp_unix_s: sheet.timestamp_unix_ns as f64 / 1e9,
                 bbox: RelBox {
                     u_min: f64::from(x0) / wf,
                     v_min: f64::from(y0) / hf,
@@ -149,7 +209,6 @@ impl Pipeline {
                 gripper_rotation_rad: normalise_half_turn(fp.rect.angle),
             }));
         }
-        detections.workspace_id = workspace.id.clone();
-        (detections, SheetStatus::Found, skipped)
+        (detections, skipped)
     }
 }

@@ -70,6 +70,8 @@ pub struct Pipeline {
     workspaces: Vec<WorkspaceInfo>,
     markers: MarkerFinder,
     detector: Box<dyn Detector>,
+    /// The sheet found in the last frame [`Pipeline::process`] ran (`None`: not found).
+    last_sheet: Option<(TablePlane, WorkspaceInfo)>,
 }
 
 impl std::fmt::Debug for Pipeline {
@@ -111,7 +113,14 @@ impl Pipeline {
             workspaces,
             markers: MarkerFinder::new(),
             detector,
+            last_sheet: None,
         })
+    }
+
+    /// The table plane and workspace of the sheet found in the last frame
+    /// [`Pipeline::process`] ran, if one was found there.
+    pub fn last_sheet(&self) -> Option<&(TablePlane, WorkspaceInfo)> {
+        self.last_sheet.as_ref()
     }
 
     /// The camera model (intrinsics and lens).
@@ -258,10 +267,12 @@ impl Pipeline {
             });
         }
         let workspace = self.workspace_for(tool_pose).clone();
+        self.last_sheet = None;
         let plane = match self.locate_sheet(frame, &workspace) {
             Ok(plane) => plane,
             Err(status) => return Ok((detections, status)),
         };
+        self.last_sheet = Some((plane.clone(), workspace.clone()));
         let sheet = SheetView {
             workspace: &workspace,
             plane,

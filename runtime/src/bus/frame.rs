@@ -107,6 +107,25 @@ impl FrameHeader {
     }
 }
 
+/// Type name of [`FrameSlot`] (the `type_name` attribute below; a test keeps them equal).
+pub(crate) const FRAME_SLOT_TYPE: &str = "robotd.FrameSlot.v1";
+
+/// Port and node limits of every frame topic.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FrameLimits {
+    pub(crate) max_borrowed_samples: usize,
+    pub(crate) max_publishers: usize,
+    pub(crate) max_subscribers: usize,
+    pub(crate) max_nodes: usize,
+}
+
+pub(crate) const FRAME_LIMITS: FrameLimits = FrameLimits {
+    max_borrowed_samples: 2,
+    max_publishers: 2,
+    max_subscribers: 8,
+    max_nodes: 16,
+};
+
 /// One frame in shared memory: header and pixels.
 #[derive(ZeroCopySend)]
 #[repr(C)]
@@ -143,6 +162,11 @@ impl FrameTopic {
     pub const fn name(&self) -> &'static str {
         self.name
     }
+
+    /// The topic's overflow policy.
+    pub const fn overflow(&self) -> Overflow {
+        self.overflow
+    }
 }
 
 type FrameFactory =
@@ -154,11 +178,11 @@ fn open_frames(bus: &Bus, topic: &FrameTopic) -> Result<FrameFactory, BusError> 
         .publish_subscribe::<FrameSlot>()
         .enable_safe_overflow(topic.overflow.is_latest_wins())
         .subscriber_max_buffer_size(topic.overflow.depth())
-        .subscriber_max_borrowed_samples(2)
+        .subscriber_max_borrowed_samples(FRAME_LIMITS.max_borrowed_samples)
         .history_size(0)
-        .max_publishers(2)
-        .max_subscribers(8)
-        .max_nodes(16)
+        .max_publishers(FRAME_LIMITS.max_publishers)
+        .max_subscribers(FRAME_LIMITS.max_subscribers)
+        .max_nodes(FRAME_LIMITS.max_nodes)
         .open_or_create()
         .map_err(|e| BusError::Setup {
             what: format!("frame topic '{}'", topic.name),

@@ -47,6 +47,7 @@
 //! # Ok(()) }
 //! ```
 
+mod describe;
 mod error;
 mod frame;
 mod pubsub;
@@ -54,6 +55,10 @@ mod rpc;
 mod thread;
 mod wake;
 
+pub use describe::{
+    describe, Description, Entry, EventNames, EventSettings, FramesDescription, ServiceDescription,
+    TopicDescription, DESCRIPTION_VERSION,
+};
 pub use error::BusError;
 pub use frame::{
     FrameHeader, FrameLoan, FramePublisher, FrameSample, FrameSlot, FrameSubscriber, FrameTopic,

@@ -138,6 +138,12 @@ impl<T: Message> From<&Topic<T>> for TopicSpec {
     }
 }
 
+/// Type name of [`MessageHeader`] (the `type_name` attribute below; a test keeps them equal).
+pub(crate) const MESSAGE_HEADER_TYPE: &str = "robotd.MessageHeader.v1";
+
+/// Nodes a message topic admits.
+pub(crate) const TOPIC_MAX_NODES: usize = 64;
+
 /// Per-message header in shared memory: the publisher's sequence number, so subscribers can
 /// tell when latest-wins replaced messages they never saw.
 #[derive(Debug, Default, Clone, Copy, ZeroCopySend)]
@@ -162,7 +168,7 @@ fn open_service(bus: &Bus, spec: &TopicSpec) -> Result<PubSubFactory, BusError> 
         .history_size(0)
         .max_publishers(spec.max_publishers)
         .max_subscribers(spec.max_subscribers)
-        .max_nodes(64)
+        .max_nodes(TOPIC_MAX_NODES)
         .open_or_create()
         .map_err(|e| BusError::Setup {
             what: format!("topic '{name}'"),

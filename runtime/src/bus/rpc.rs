@@ -55,7 +55,7 @@ impl<Req: Message, Resp: Message> Service<Req, Resp> {
         self.name
     }
 
-    fn requests(&self) -> TopicSpec {
+    pub(crate) fn requests(&self) -> TopicSpec {
         TopicSpec {
             name: format!("{}/requests", self.name),
             label: format!("{}/requests", self.name),
@@ -70,7 +70,7 @@ impl<Req: Message, Resp: Message> Service<Req, Resp> {
         }
     }
 
-    fn replies(&self, client_id: u64) -> TopicSpec {
+    pub(crate) fn replies(&self, client_id: u64) -> TopicSpec {
         TopicSpec {
             name: format!("{}/replies/{client_id:016x}", self.name),
             label: format!("{}/replies", self.name),

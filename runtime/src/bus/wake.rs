@@ -54,6 +54,23 @@ pub(crate) fn joined_event(topic: &str) -> String {
     format!("{topic}/joined")
 }
 
+/// Limits of every event service robotd opens.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct EventLimits {
+    pub(crate) max_notifiers: usize,
+    pub(crate) max_listeners: usize,
+    pub(crate) max_nodes: usize,
+    pub(crate) event_id_max_value: usize,
+}
+
+pub(crate) const EVENT_LIMITS: EventLimits = EventLimits {
+    max_notifiers: 256,
+    max_listeners: 64,
+    max_nodes: 256,
+    // robotd only ever raises event id 0; a small id space keeps each drain cheap.
+    event_id_max_value: 1,
+};
+
 fn event_service(
     bus: &Bus,
     name: &str,
@@ -61,11 +78,10 @@ fn event_service(
     bus.node()
         .service_builder(&bus.service_name(name)?)
         .event()
-        .max_notifiers(256)
-        .max_listeners(64)
-        .max_nodes(256)
-        // robotd only ever raises event id 0; a small id space keeps each drain cheap.
-        .event_id_max_value(1)
+        .max_notifiers(EVENT_LIMITS.max_notifiers)
+        .max_listeners(EVENT_LIMITS.max_listeners)
+        .max_nodes(EVENT_LIMITS.max_nodes)
+        .event_id_max_value(EVENT_LIMITS.event_id_max_value)
         .disable_notifier_created_event()
         .disable_notifier_dropped_event()
         .disable_notifier_dead_event()
