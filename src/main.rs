@@ -203,6 +203,9 @@ enum BenchCommand {
     Redis(BenchRedisArgs),
     /// What the motion policy adds to a motion command, beside planning the same command.
     Safety(BenchSafetyArgs),
+    /// Round trips of a Rust client to a running robotd's system/ping (the Rust side of
+    /// scripts/bench/python_bus.py).
+    Ping(BenchPingArgs),
     /// JPEG encoding of a 640×480 camera frame: robotd's encoder beside the `image` crate's,
     /// and a copy of the frame as the floor.
     Jpeg(BenchJpegArgs),
@@ -274,6 +277,19 @@ struct BenchJpegArgs {
     /// Frames encoded per variant.
     #[arg(long, default_value_t = 300)]
     frames: usize,
+}
+
+#[derive(Debug, Args)]
+struct BenchPingArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// The running robotd's bus namespace.
+    #[arg(long, default_value = "robotd")]
+    namespace: String,
+    /// Round trips measured.
+    #[arg(long, default_value_t = 5_000)]
+    round_trips: usize,
 }
 
 #[derive(Debug, Args)]
@@ -584,6 +600,12 @@ fn run() -> Result<std::process::ExitCode> {
             what: BenchCommand::Jpeg(args),
         } => {
             let figures = bench::jpeg::run(args.frames.max(10))?;
+            print_figures(args.json, &figures, figures.table())
+        }
+        Command::Bench {
+            what: BenchCommand::Ping(args),
+        } => {
+            let figures = bench::ping::run(&args.namespace, args.round_trips.max(1))?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {

@@ -9,6 +9,7 @@ pub mod jpeg;
 pub mod mcp;
 pub mod niryo;
 pub mod perception;
+pub mod ping;
 pub mod redis;
 pub mod safety;
 pub mod sim;

@@ -122,3 +122,100 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
     assert!(stats.frames.load(std::sync::atomic::Ordering::Relaxed) >= 4);
     perception.shutdown();
 }
+
+/// Waits for detections from `source`.
+async fn detections_from(sub: &mut Subscriber<Detections>, source: &str) -> Detections {
+    loop {
+        let msg = tokio::time::timeout(Duration::from_secs(5), sub.recv())
+            .await
+            .expect("detections within 5 s")
+            .unwrap();
+        if msg.body.source == source {
+            return msg.body;
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pixel_detections_from_the_bus_are_placed_like_robotds_own_or_refused_with_a_reason() {
+    use robotd_protocol::pixels::{PixelDetection, PixelDetections};
+    use robotd_runtime::catalog::PERCEPTION_PIXEL_DETECTIONS;
+    use std::sync::atomic::Ordering;
+
+    let mut lab = Lab::new(2.0, false).unwrap();
+    let workspace = lab.workspace().clone();
+    let table = LabelTable::builtin();
+    let objects = random_objects(&mut rng(5), &table, &workspace, 1);
+    lab.set_objects(&objects).unwrap();
+    lab.capture().unwrap();
+    let namespace = format!("test-perc-px-{}", std::process::id());
+    let bus = Bus::open(BusOptions::new(&namespace, "perception-test")).unwrap();
+    let pipeline = Pipeline::new(
+        &lab.intrinsics(),
+        vec![workspace.clone()],
+        Box::new(ColourDetector::new(
+            table.clone(),
+            ColourDetectorSettings::default(),
+        )),
+    )
+    .unwrap();
+    let perception = Perception::start(&bus, pipeline, table).unwrap();
+    let frames = bus.frame_publisher(&CAMERA_FRAMES).unwrap();
+    let pixels = bus.publisher(&PERCEPTION_PIXEL_DETECTIONS).unwrap();
+    let mut detections = bus.subscriber(&PERCEPTION_DETECTIONS).unwrap();
+
+    publish(&frames, lab.frame(), 1);
+    let ours = detections_of(&mut detections, 1).await;
+    let object = &ours.objects[0];
+    let b = &object.image_coordinates.bounding_box_rel;
+    let (w, h) = (640.0, 480.0);
+    let bbox_px = [
+        (b.u_min * w) as u32,
+        (b.v_min * h) as u32,
+        (b.u_max * w).ceil() as u32,
+        (b.v_max * h).ceil() as u32,
+    ];
+    let message = |frame_id, camera_pose| PixelDetections {
+        frame_id,
+        camera_pose,
+        source: "test-detector".into(),
+        objects: vec![PixelDetection {
+            label: "Thing".into(),
+            confidence: 0.8,
+            class_id: 3,
+            bbox_px,
+            mask_pixels: None,
+        }],
+    };
+    // The frame perception just processed (its header pose is all zeros).
+    pixels.publish(&message(1, [0.0; 6])).unwrap();
+    let theirs = detections_from(&mut detections, "test-detector").await;
+    assert_eq!(theirs.frame_id, 1);
+    assert_eq!(theirs.workspace_id, "niryo_ws");
+    let placed = &theirs.objects[0];
+    assert_eq!(placed.label, "thing");
+    assert_eq!(placed.class_id, 3);
+    let (a, c) = (placed.xy(), object.xy());
+    let apart = ((a.x_m - c.x_m).powi(2) + (a.y_m - c.y_m).powi(2)).sqrt();
+    assert!(apart < 0.01, "placed {apart:.4} m from robotd's own detection");
+    assert_eq!(perception.stats().external.placed.load(Ordering::SeqCst), 1);
+
+    // A frame from another camera pose: refused, with the reason.
+    pixels.publish(&message(7, [0.3, 0.0, 0.2, 0.0, 1.5, 0.0])).unwrap();
+    // An invalid message: refused too.
+    let mut bad = message(1, [0.0; 6]);
+    bad.source = "robotd".into();
+    pixels.publish(&bad).unwrap();
+    let stats = perception.stats();
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    while stats.external.refused.load(Ordering::SeqCst) < 2 {
+        assert!(std::time::Instant::now() < deadline, "two refusals");
+        // Perception reads pixel detections between frames: give it frames.
+        publish(&frames, lab.frame(), 2);
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let reason = stats.external.last_refusal.lock().unwrap().clone().unwrap();
+    assert!(reason.contains("source"), "{reason}");
+    assert_eq!(stats.external.placed.load(Ordering::SeqCst), 1);
+    perception.shutdown();
+}
