@@ -31,10 +31,7 @@ impl PingFigures {
         format!(
             "robotd bench ping: {} round trips to system/ping of the robotd in '{}'\n\
              Rust client round trip p50 / p99  {:>8.1} / {:>8.1} µs\n",
-            self.round_trips,
-            self.namespace,
-            self.round_trip_us_p50,
-            self.round_trip_us_p99
+            self.round_trips, self.namespace, self.round_trip_us_p50, self.round_trip_us_p99
         )
     }
 }

@@ -197,11 +197,16 @@ async fn pixel_detections_from_the_bus_are_placed_like_robotds_own_or_refused_wi
     assert_eq!(placed.class_id, 3);
     let (a, c) = (placed.xy(), object.xy());
     let apart = ((a.x_m - c.x_m).powi(2) + (a.y_m - c.y_m).powi(2)).sqrt();
-    assert!(apart < 0.01, "placed {apart:.4} m from robotd's own detection");
+    assert!(
+        apart < 0.01,
+        "placed {apart:.4} m from robotd's own detection"
+    );
     assert_eq!(perception.stats().external.placed.load(Ordering::SeqCst), 1);
 
     // A frame from another camera pose: refused, with the reason.
-    pixels.publish(&message(7, [0.3, 0.0, 0.2, 0.0, 1.5, 0.0])).unwrap();
+    pixels
+        .publish(&message(7, [0.3, 0.0, 0.2, 0.0, 1.5, 0.0]))
+        .unwrap();
     // An invalid message: refused too.
     let mut bad = message(1, [0.0; 6]);
     bad.source = "robotd".into();
