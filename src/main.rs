@@ -206,6 +206,10 @@ enum BenchCommand {
     /// Round trips of a Rust client to a running robotd's system/ping (the Rust side of
     /// scripts/bench/python_bus.py).
     Ping(BenchPingArgs),
+    /// The service for N minutes under a realistic mix (MCP clients coming and going, motions,
+    /// the agent, Redis down and up, actor faults and kills), sampled every 5 s; exit 1 when
+    /// memory, descriptors or threads grow, a fault is not recovered or a call is lost.
+    Soak(BenchSoakArgs),
     /// JPEG encoding of a 640×480 camera frame: robotd's encoder beside the `image` crate's,
     /// and a copy of the frame as the floor.
     Jpeg(BenchJpegArgs),
@@ -277,6 +281,16 @@ struct BenchJpegArgs {
     /// Frames encoded per variant.
     #[arg(long, default_value_t = 300)]
     frames: usize,
+}
+
+#[derive(Debug, Args)]
+struct BenchSoakArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// How long to run, minutes (0.5 … 10080).
+    #[arg(long, default_value_t = 3.0)]
+    minutes: f64,
 }
 
 #[derive(Debug, Args)]
@@ -601,6 +615,18 @@ fn run() -> Result<std::process::ExitCode> {
         } => {
             let figures = bench::jpeg::run(args.frames.max(10))?;
             print_figures(args.json, &figures, figures.table())
+        }
+        Command::Bench {
+            what: BenchCommand::Soak(args),
+        } => {
+            let exe = std::env::current_exe().context("the robotd binary's path")?;
+            let report = bench::soak::run(&exe, args.minutes)?;
+            print_figures(args.json, &report, report.table())?;
+            Ok(if report.passed {
+                std::process::ExitCode::SUCCESS
+            } else {
+                std::process::ExitCode::from(1)
+            })
         }
         Command::Bench {
             what: BenchCommand::Ping(args),

@@ -110,5 +110,27 @@ fn serve_runs_the_agent_on_the_bus() {
         let recorded = mock.requests();
         assert_eq!(recorded.len(), 2);
         assert!(recorded[1].body.to_string().contains("✓ Found"), "{:?}", recorded[1].body);
+
+        // The dashboard's chat API streams one request's events and ends the response with
+        // the terminal one (it used to stay open until the client left).
+        mock.push(MockReply::text("Nothing moved."));
+        robotd_runtime::telemetry::install_tls_provider();
+        let response = tokio::time::timeout(Duration::from_secs(30), async {
+            reqwest::Client::new()
+                .post(format!("http://127.0.0.1:{port}/api/chat"))
+                .header("content-type", "application/json")
+                .body(r#"{"text": "Did anything move?"}"#)
+                .send()
+                .await
+                .unwrap()
+                .text()
+                .await
+                .unwrap()
+        })
+        .await
+        .expect("the chat response ended within 30 s of being sent");
+        assert!(response.contains("event: request"), "{response}");
+        assert!(response.contains("Nothing moved."), "{response}");
+        assert!(response.trim_end().ends_with('}'), "ends with the answer: {response}");
     });
 }

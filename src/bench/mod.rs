@@ -13,6 +13,7 @@ pub mod ping;
 pub mod redis;
 pub mod safety;
 pub mod sim;
+pub mod soak;
 pub mod widowx;
 
 pub use robotd_bench::bus;

@@ -295,19 +295,20 @@ fn request_events(
     let first = Event::default()
         .event("request")
         .data(json!({"request_id": id}).to_string());
-    let agent = live_events(events)
-        .filter_map(move |event| {
-            let mine = matches!(&event, LiveEvent::Agent(e) if e.request_id == id);
-            futures::future::ready(mine.then_some(event))
-        })
-        .scan(false, |ended, event| {
-            // Stop after the request's last event.
-            if *ended {
-                return futures::future::ready(None);
-            }
-            *ended = matches!(&event, LiveEvent::Agent(e) if e.event.is_terminal());
-            futures::future::ready(Some(Ok::<_, Infallible>(sse_event(&event))))
-        });
+    let mine = Box::pin(live_events(events).filter_map(move |event| {
+        let mine = matches!(&event, LiveEvent::Agent(e) if e.request_id == id);
+        futures::future::ready(mine.then_some(event))
+    }));
+    // Up to and including the request's terminal event; the stream (and the response) ends
+    // right after it, without waiting for anything else.
+    let agent = futures::stream::unfold((mine, false), |(mut mine, ended)| async move {
+        if ended {
+            return None;
+        }
+        let event = mine.next().await?;
+        let terminal = matches!(&event, LiveEvent::Agent(e) if e.event.is_terminal());
+        Some((Ok::<_, Infallible>(sse_event(&event)), (mine, terminal)))
+    });
     let stream = futures::stream::once(async move { Ok(first) }).chain(agent);
     Sse::new(stream).keep_alive(KeepAlive::default())
 }

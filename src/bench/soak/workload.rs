@@ -1,0 +1,386 @@
+//! What the soak does to the service: MCP clients coming and going on both transports, a
+//! long-lived session, detection and motion tools, agent requests to the mock LLM; and the
+//! faults from outside: Redis stopped and started again, the external actor killed.
+
+use super::sampler::{CallLog, Outcome};
+use super::service::{self, Owned, EXTERNAL_ACTOR};
+use anyhow::Result;
+use rmcp::model::CallToolRequestParams;
+use robotd_agent::mock::{MockLlm, MockReply};
+use robotd_mcp::client::{connect, McpClient};
+use robotd_protocol::agent::AgentRequest;
+use robotd_runtime::bus::{Bus, BusOptions};
+use robotd_runtime::catalog::{AGENT_EVENTS, AGENT_REQUEST};
+use serde_json::{json, Map, Value};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// Pause between two visiting clients.
+const VISITOR_INTERVAL: Duration = Duration::from_secs(1);
+
+/// Longest a tool call may take before it counts as lost.
+const CALL_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Shared by the workload's tasks.
+pub struct Workload {
+    pub start: Instant,
+    pub end: Instant,
+    pub port: u16,
+    pub calls: CallLog,
+    pub sessions: AtomicU64,
+}
+
+fn arguments(v: Value) -> Map<String, Value> {
+    v.as_object().cloned().unwrap_or_default()
+}
+
+impl Workload {
+    fn running(&self) -> bool {
+        Instant::now() < self.end
+    }
+
+    /// One tool call, timed and classified; the reply's text and structured content, or None
+    /// when no answer came.
+    async fn call_full(
+        &self,
+        client: &McpClient,
+        tool: &str,
+        args: Value,
+    ) -> Option<(String, Value)> {
+        let started = Instant::now();
+        let since = started - self.start;
+        let params = CallToolRequestParams::new(tool.to_owned()).with_arguments(arguments(args));
+        match tokio::time::timeout(CALL_TIMEOUT, client.call_tool(params)).await {
+            Ok(Ok(result)) => {
+                let text = result
+                    .content
+                    .first()
+                    .and_then(|c| c.as_text())
+                    .map(|t| t.text.clone())
+                    .unwrap_or_default();
+                let outcome = Outcome::of_reply(&text);
+                self.calls.example(outcome, tool, &text);
+                self.calls.record(since, started.elapsed(), outcome);
+                Some((text, result.structured_content.unwrap_or(Value::Null)))
+            }
+            Ok(Err(error)) => {
+                self.calls.example(Outcome::Lost, tool, &error.to_string());
+                self.calls.record(since, started.elapsed(), Outcome::Lost);
+                None
+            }
+            Err(_) => {
+                let text = format!("no answer within {} s", CALL_TIMEOUT.as_secs());
+                self.calls.example(Outcome::Lost, tool, &text);
+                self.calls.record(since, started.elapsed(), Outcome::Lost);
+                None
+            }
+        }
+    }
+
+    /// [`Self::call_full`] for its text only.
+    async fn call(&self, client: &McpClient, tool: &str, args: Value) -> Option<String> {
+        self.call_full(client, tool, args)
+            .await
+            .map(|(text, _)| text)
+    }
+
+    /// What a user does when a motion left the arm stuck: clears the collision flag, and puts
+    /// down an object the gripper still holds where the pencil was last seen.
+    async fn recover_like_a_user(&self, client: &McpClient, reply: Option<&str>, at: (f64, f64)) {
+        let Some(reply) = reply else {
+            return;
+        };
+        if reply.contains("clear_collision_detected") {
+            self.call(client, "clear_collision_detected", json!({}))
+                .await;
+        }
+        if reply.contains("still held") {
+            self.call(
+                client,
+                "place_object",
+                json!({"place_coordinate": [at.0, at.1]}),
+            )
+            .await;
+        }
+    }
+
+    /// Clients that come and go: each connects (SSE and streamable HTTP in turn), looks at the
+    /// workspace, moves the pencil 1 cm and back toward where it started, asks cheap questions,
+    /// and leaves.
+    pub async fn visiting_clients(self: Arc<Self>) {
+        let mut n = 0u64;
+        let mut home_y: Option<f64> = None;
+        let mut last_seen = (0.22, -0.05);
+        while self.running() {
+            n += 1;
+            let url = if n % 2 == 0 {
+                format!("http://127.0.0.1:{}/sse", self.port)
+            } else {
+                format!("http://127.0.0.1:{}/mcp", self.port)
+            };
+            let client = match connect(&url, None).await {
+                Ok(client) => client,
+                Err(error) => {
+                    self.calls
+                        .example(Outcome::Lost, "connect", &error.to_string());
+                    self.calls
+                        .record(self.start.elapsed(), Duration::ZERO, Outcome::Lost);
+                    tokio::time::sleep(Duration::from_millis(200)).await;
+                    continue;
+                }
+            };
+            self.sessions.fetch_add(1, Ordering::Relaxed);
+            let found = self
+                .call_full(&client, "get_detected_objects", json!({"label": "pencil"}))
+                .await;
+            let pencil = found.as_ref().and_then(|(_, v)| {
+                let at = &v["data"][0]["position"]["center_of_mass"];
+                Some((at["x"].as_f64()?, at["y"].as_f64()?))
+            });
+            if let Some((x, y)) = pencil {
+                let home = *home_y.get_or_insert(y);
+                let direction = if y > home - 0.005 { "right" } else { "left" };
+                last_seen = (x, y);
+                let moved = self
+                    .call(
+                        &client,
+                        "move2by",
+                        json!({"object_name": "pencil", "pick_coordinate": [x, y],
+                               "direction": direction, "distance": 0.01}),
+                    )
+                    .await;
+                self.recover_like_a_user(&client, moved.as_deref(), (x, y))
+                    .await;
+            } else {
+                let text = found.map(|(text, _)| text);
+                self.recover_like_a_user(&client, text.as_deref(), last_seen)
+                    .await;
+            }
+            for _ in 0..5 {
+                self.call(
+                    &client,
+                    "get_workspace_coordinate_from_point",
+                    json!({"workspace_id": "niryo_ws", "point": "center point"}),
+                )
+                .await;
+            }
+            self.call(&client, "get_system_status", json!({})).await;
+            // One client in ten leaves without saying goodbye (its session expires).
+            if n % 10 != 0 {
+                let _ = client.cancel().await;
+            }
+            tokio::time::sleep(VISITOR_INTERVAL).await;
+        }
+    }
+
+    /// One session for the whole soak, asking a cheap question ten times a second.
+    pub async fn resident_client(self: Arc<Self>) {
+        let url = format!("http://127.0.0.1:{}/mcp", self.port);
+        let Ok(client) = connect(&url, None).await else {
+            self.calls
+                .record(self.start.elapsed(), Duration::ZERO, Outcome::Lost);
+            return;
+        };
+        while self.running() {
+            self.call(
+                &client,
+                "get_workspace_coordinate_from_point",
+                json!({"workspace_id": "niryo_ws", "point": "upper left corner"}),
+            )
+            .await;
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        let _ = client.cancel().await;
+    }
+}
+
+/// Agent requests answered / failed.
+#[derive(Debug, Default)]
+pub struct AgentTally {
+    pub sent: AtomicU64,
+    pub answered: AtomicU64,
+    pub failed: AtomicU64,
+}
+
+/// Every 15 s, a request to the agent (the mock LLM plans, calls `get_detected_objects`,
+/// answers); waits for its terminal event.
+pub async fn agent_requests(
+    work: Arc<Workload>,
+    namespace: String,
+    mock: Arc<MockLlm>,
+    tally: Arc<AgentTally>,
+) -> Result<()> {
+    let bus = Bus::open(BusOptions::new(&namespace, "soak-agent-client"))?;
+    let requests = bus.publisher(&AGENT_REQUEST)?;
+    let mut events = bus.subscriber(&AGENT_EVENTS)?;
+    let mut n = 0u64;
+    while work.running() {
+        n += 1;
+        mock.push(MockReply::plan_and_call(
+            "I look at the table first.",
+            "get_detected_objects",
+            json!({}),
+        ));
+        mock.push(MockReply::text("I see the objects on the table."));
+        let request_id = format!("soak-{n}");
+        tally.sent.fetch_add(1, Ordering::Relaxed);
+        if requests
+            .publish(&AgentRequest {
+                request_id: request_id.clone(),
+                text: "What is on the table?".into(),
+            })
+            .is_err()
+        {
+            tally.failed.fetch_add(1, Ordering::Relaxed);
+            continue;
+        }
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let answered = loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match tokio::time::timeout(left, events.recv()).await {
+                Ok(Ok(event)) if event.body.request_id == request_id => {
+                    if event.body.event.is_terminal() {
+                        break matches!(
+                            event.body.event,
+                            robotd_protocol::agent::AgentEventKind::Answer { .. }
+                        );
+                    }
+                }
+                Ok(Ok(_)) => {}
+                _ => break false,
+            }
+        };
+        let counter = if answered {
+            &tally.answered
+        } else {
+            &tally.failed
+        };
+        counter.fetch_add(1, Ordering::Relaxed);
+        tokio::time::sleep(Duration::from_secs(15)).await;
+    }
+    Ok(())
+}
+
+/// One injected fault and whether (and how fast) the service recovered.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct InjectedFault {
+    /// Seconds into the soak.
+    pub at_s: f64,
+    /// What was done.
+    pub what: String,
+    /// Seconds until the service was whole again; None = it never was.
+    pub recovered_after_s: Option<f64>,
+}
+
+/// Kills the external actor every 40 s and stops Redis for 5 s every 60 s; records whether
+/// the service recovered from each.
+pub async fn inject_faults(
+    work: Arc<Workload>,
+    robotd_pid: u32,
+    redis_port: u16,
+    redis: Arc<Mutex<Option<Owned>>>,
+    faults: Arc<Mutex<Vec<InjectedFault>>>,
+) {
+    let mut next_kill = work.start + Duration::from_secs(40);
+    let mut next_redis = work.start + Duration::from_secs(60);
+    while work.running() {
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        let now = Instant::now();
+        if now >= next_kill {
+            next_kill = now + Duration::from_secs(40);
+            let Some(pid) = service::child_with(robotd_pid, "bench-peer") else {
+                continue;
+            };
+            let _ = std::process::Command::new("kill")
+                .args(["-KILL", &pid.to_string()])
+                .status();
+            let killed = Instant::now();
+            let mut recovered = None;
+            while killed.elapsed() < Duration::from_secs(10) {
+                if service::child_with(robotd_pid, "bench-peer").is_some_and(|p| p != pid)
+                    && actor_running(work.port, EXTERNAL_ACTOR).await
+                {
+                    recovered = Some(killed.elapsed().as_secs_f64());
+                    break;
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+            push(
+                &faults,
+                &work,
+                killed,
+                "external actor killed (SIGKILL)",
+                recovered,
+            );
+        }
+        if now >= next_redis {
+            next_redis = now + Duration::from_secs(60);
+            let stopped = Instant::now();
+            redis.lock().unwrap_or_else(|e| e.into_inner()).take();
+            tokio::time::sleep(Duration::from_secs(5)).await;
+            let restarted = service::start_redis(redis_port).ok();
+            let ok = restarted.is_some();
+            *redis.lock().unwrap_or_else(|e| e.into_inner()) = restarted;
+            let mut recovered = None;
+            while ok && stopped.elapsed() < Duration::from_secs(30) {
+                if redis_connected(work.port).await {
+                    recovered = Some(stopped.elapsed().as_secs_f64());
+                    break;
+                }
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            push(
+                &faults,
+                &work,
+                stopped,
+                "redis-server stopped for 5 s",
+                recovered,
+            );
+        }
+    }
+}
+
+fn push(
+    faults: &Mutex<Vec<InjectedFault>>,
+    work: &Workload,
+    at: Instant,
+    what: &str,
+    recovered_after_s: Option<f64>,
+) {
+    faults
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(InjectedFault {
+            at_s: (at - work.start).as_secs_f64(),
+            what: what.into(),
+            recovered_after_s,
+        });
+}
+
+/// robotd's `/health`, if it answers within 5 s.
+pub async fn health(port: u16) -> Option<Value> {
+    let response = reqwest::Client::new()
+        .get(format!("http://127.0.0.1:{port}/health"))
+        .timeout(Duration::from_secs(5))
+        .send()
+        .await
+        .ok()?;
+    response.json().await.ok()
+}
+
+async fn actor_running(port: u16, name: &str) -> bool {
+    health(port).await.is_some_and(|h| {
+        h["actors"].as_array().is_some_and(|actors| {
+            actors
+                .iter()
+                .any(|a| a["actor"] == name && a["state"] == "running")
+        })
+    })
+}
+
+async fn redis_connected(port: u16) -> bool {
+    health(port)
+        .await
+        .is_some_and(|h| h["redis"]["state"] == "connected")
+}
