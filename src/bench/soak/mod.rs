@@ -312,21 +312,21 @@ fn verdict(
     let summary = work.calls.summary();
     let per_minute = summary
         .iter()
-        .map(|(minute, n, outcomes, p50, p99)| {
+        .map(|m| {
             let at = samples
                 .iter()
-                .rfind(|(s, _)| (s.at_s / 60.0) < (*minute + 1) as f64)
+                .rfind(|(s, _)| (s.at_s / 60.0) < (m.minute + 1) as f64)
                 .or(samples.last());
             MinuteRow {
-                minute: *minute,
+                minute: m.minute,
                 rss_mb: at.map_or(f64::NAN, |(s, _)| s.rss_mb),
                 fds: at.map_or(0, |(s, _)| s.fds),
                 threads: at.map_or(0, |(s, _)| s.threads),
                 restarts: at.map_or(0, |(_, r)| *r),
-                calls: *n,
-                outcomes: outcomes.clone(),
-                p50_ms: *p50,
-                p99_ms: *p99,
+                calls: m.calls,
+                outcomes: m.outcomes.clone(),
+                p50_ms: m.p50_ms,
+                p99_ms: m.p99_ms,
             }
         })
         .collect();
@@ -346,7 +346,7 @@ fn verdict(
         None => actors_down.push("robotd did not answer /health at the end".into()),
     }
     let mut failures = Vec::new();
-    if !(rss_slope <= RSS_SLOPE_LIMIT_MB_PER_MIN) {
+    if rss_slope.is_nan() || rss_slope > RSS_SLOPE_LIMIT_MB_PER_MIN {
         failures.push(format!(
             "RSS grew {rss_slope:+.2} MB/min after warm-up (limit {RSS_SLOPE_LIMIT_MB_PER_MIN})"
         ));

@@ -103,6 +103,21 @@ impl Outcome {
     }
 }
 
+/// One minute's calls.
+#[derive(Debug, Clone)]
+pub struct MinuteSummary {
+    /// Minute (0-based).
+    pub minute: u64,
+    /// Calls that started in it.
+    pub calls: u64,
+    /// By outcome.
+    pub outcomes: BTreeMap<Outcome, u64>,
+    /// Latency p50 / p99 of the answered ones, ms.
+    pub p50_ms: f64,
+    /// See `p50_ms`.
+    pub p99_ms: f64,
+}
+
 /// Calls, by minute.
 #[derive(Debug, Default)]
 pub struct CallLog {
@@ -151,8 +166,8 @@ impl CallLog {
         *row.outcomes.entry(outcome).or_default() += 1;
     }
 
-    /// (minute, calls, outcomes, p50 ms, p99 ms) per minute.
-    pub fn summary(&self) -> Vec<(u64, u64, BTreeMap<Outcome, u64>, f64, f64)> {
+    /// Each minute's calls.
+    pub fn summary(&self) -> Vec<MinuteSummary> {
         let minutes = self.minutes.lock().unwrap_or_else(|e| e.into_inner());
         minutes
             .iter()
@@ -166,8 +181,13 @@ impl CallLog {
                         l[((p / 100.0) * (l.len() - 1) as f64).round() as usize]
                     }
                 };
-                let calls = row.outcomes.values().sum();
-                (*minute, calls, row.outcomes.clone(), pick(50.0), pick(99.0))
+                MinuteSummary {
+                    minute: *minute,
+                    calls: row.outcomes.values().sum(),
+                    outcomes: row.outcomes.clone(),
+                    p50_ms: pick(50.0),
+                    p99_ms: pick(99.0),
+                }
             })
             .collect()
     }
@@ -175,8 +195,8 @@ impl CallLog {
     /// Calls by outcome over the whole soak.
     pub fn totals(&self) -> BTreeMap<Outcome, u64> {
         let mut totals = BTreeMap::new();
-        for (_, _, outcomes, _, _) in self.summary() {
-            for (outcome, n) in outcomes {
+        for minute in self.summary() {
+            for (outcome, n) in minute.outcomes {
                 *totals.entry(outcome).or_default() += n;
             }
         }

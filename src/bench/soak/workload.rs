@@ -114,7 +114,7 @@ impl Workload {
         let mut last_seen = (0.22, -0.05);
         while self.running() {
             n += 1;
-            let url = if n % 2 == 0 {
+            let url = if n.is_multiple_of(2) {
                 format!("http://127.0.0.1:{}/sse", self.port)
             } else {
                 format!("http://127.0.0.1:{}/mcp", self.port)
@@ -167,7 +167,7 @@ impl Workload {
             }
             self.call(&client, "get_system_status", json!({})).await;
             // One client in ten leaves without saying goodbye (its session expires).
-            if n % 10 != 0 {
+            if !n.is_multiple_of(10) {
                 let _ = client.cancel().await;
             }
             tokio::time::sleep(VISITOR_INTERVAL).await;
