@@ -173,7 +173,24 @@ async fn sse_transport(
                 }
             }
         }
-        while let Some(Ok(event)) = events.next().await {
+        // Until the stream ends or the client is gone: a client that closed (or was dropped)
+        // closes the event stream within half a second, so the server ends the session at once (waiting for
+        // the next message to find out kept the connection open for as long as the server
+        // had nothing to say).
+        let mut check = tokio::time::interval(Duration::from_millis(500));
+        loop {
+            let event = tokio::select! {
+                _ = check.tick() => {
+                    if inbound.is_closed() {
+                        return;
+                    }
+                    continue;
+                }
+                event = events.next() => event,
+            };
+            let Some(Ok(event)) = event else {
+                return;
+            };
             if let Some(m) = deliver(event) {
                 if inbound.send(m).await.is_err() {
                     return;

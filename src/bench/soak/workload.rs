@@ -22,6 +22,13 @@ const VISITOR_INTERVAL: Duration = Duration::from_secs(1);
 /// Longest a tool call may take before it counts as lost.
 const CALL_TIMEOUT: Duration = Duration::from_secs(60);
 
+/// Where the pencil started and was last seen (visits move it 1 cm back and forth).
+#[derive(Debug, Clone)]
+struct PencilTrack {
+    home_y: Option<f64>,
+    last_seen: (f64, f64),
+}
+
 /// Shared by the workload's tasks.
 pub struct Workload {
     pub start: Instant,
@@ -110,8 +117,10 @@ impl Workload {
     /// and leaves.
     pub async fn visiting_clients(self: Arc<Self>) {
         let mut n = 0u64;
-        let mut home_y: Option<f64> = None;
-        let mut last_seen = (0.22, -0.05);
+        let mut pencil = PencilTrack {
+            home_y: None,
+            last_seen: (0.22, -0.05),
+        };
         while self.running() {
             n += 1;
             let url = if n.is_multiple_of(2) {
@@ -119,59 +128,90 @@ impl Workload {
             } else {
                 format!("http://127.0.0.1:{}/mcp", self.port)
             };
-            let client = match connect(&url, None).await {
-                Ok(client) => client,
-                Err(error) => {
-                    self.calls
-                        .example(Outcome::Lost, "connect", &error.to_string());
-                    self.calls
-                        .record(self.start.elapsed(), Duration::ZERO, Outcome::Lost);
-                    tokio::time::sleep(Duration::from_millis(200)).await;
-                    continue;
+            if n.is_multiple_of(10) {
+                // One client in ten vanishes without a goodbye, like a client process that
+                // crashed: it runs on a runtime of its own that is then dropped, closing its
+                // connections; robotd must notice and forget its session.
+                let work = self.clone();
+                let mut track = pencil.clone();
+                let joined = tokio::task::spawn_blocking(move || {
+                    let runtime = tokio::runtime::Builder::new_current_thread()
+                        .enable_all()
+                        .build()
+                        .ok()?;
+                    runtime.block_on(async {
+                        let client = work.connect(&url).await?;
+                        work.visit(&client, &mut track).await;
+                        Some(())
+                    })?;
+                    drop(runtime);
+                    Some(track)
+                })
+                .await;
+                if let Ok(Some(track)) = joined {
+                    pencil = track;
                 }
-            };
-            self.sessions.fetch_add(1, Ordering::Relaxed);
-            let found = self
-                .call_full(&client, "get_detected_objects", json!({"label": "pencil"}))
-                .await;
-            let pencil = found.as_ref().and_then(|(_, v)| {
-                let at = &v["data"][0]["position"]["center_of_mass"];
-                Some((at["x"].as_f64()?, at["y"].as_f64()?))
-            });
-            if let Some((x, y)) = pencil {
-                let home = *home_y.get_or_insert(y);
-                let direction = if y > home - 0.005 { "right" } else { "left" };
-                last_seen = (x, y);
-                let moved = self
-                    .call(
-                        &client,
-                        "move2by",
-                        json!({"object_name": "pencil", "pick_coordinate": [x, y],
-                               "direction": direction, "distance": 0.01}),
-                    )
-                    .await;
-                self.recover_like_a_user(&client, moved.as_deref(), (x, y))
-                    .await;
-            } else {
-                let text = found.map(|(text, _)| text);
-                self.recover_like_a_user(&client, text.as_deref(), last_seen)
-                    .await;
-            }
-            for _ in 0..5 {
-                self.call(
-                    &client,
-                    "get_workspace_coordinate_from_point",
-                    json!({"workspace_id": "niryo_ws", "point": "center point"}),
-                )
-                .await;
-            }
-            self.call(&client, "get_system_status", json!({})).await;
-            // One client in ten leaves without saying goodbye (its session expires).
-            if !n.is_multiple_of(10) {
+            } else if let Some(client) = self.connect(&url).await {
+                self.visit(&client, &mut pencil).await;
                 let _ = client.cancel().await;
             }
             tokio::time::sleep(VISITOR_INTERVAL).await;
         }
+    }
+
+    async fn connect(&self, url: &str) -> Option<McpClient> {
+        match connect(url, None).await {
+            Ok(client) => {
+                self.sessions.fetch_add(1, Ordering::Relaxed);
+                Some(client)
+            }
+            Err(error) => {
+                self.calls
+                    .example(Outcome::Lost, "connect", &error.to_string());
+                self.calls
+                    .record(self.start.elapsed(), Duration::ZERO, Outcome::Lost);
+                None
+            }
+        }
+    }
+
+    /// One visit: find the pencil, move it 1 cm toward where it started, ask cheap questions.
+    async fn visit(&self, client: &McpClient, pencil: &mut PencilTrack) {
+        let found = self
+            .call_full(client, "get_detected_objects", json!({"label": "pencil"}))
+            .await;
+        let at = found.as_ref().and_then(|(_, v)| {
+            let at = &v["data"][0]["position"]["center_of_mass"];
+            Some((at["x"].as_f64()?, at["y"].as_f64()?))
+        });
+        if let Some((x, y)) = at {
+            let home = *pencil.home_y.get_or_insert(y);
+            let direction = if y > home - 0.005 { "right" } else { "left" };
+            pencil.last_seen = (x, y);
+            let moved = self
+                .call(
+                    client,
+                    "move2by",
+                    json!({"object_name": "pencil", "pick_coordinate": [x, y],
+                           "direction": direction, "distance": 0.01}),
+                )
+                .await;
+            self.recover_like_a_user(client, moved.as_deref(), (x, y))
+                .await;
+        } else {
+            let text = found.map(|(text, _)| text);
+            self.recover_like_a_user(client, text.as_deref(), pencil.last_seen)
+                .await;
+        }
+        for _ in 0..5 {
+            self.call(
+                client,
+                "get_workspace_coordinate_from_point",
+                json!({"workspace_id": "niryo_ws", "point": "center point"}),
+            )
+            .await;
+        }
+        self.call(client, "get_system_status", json!({})).await;
     }
 
     /// One session for the whole soak, asking a cheap question ten times a second.
@@ -360,7 +400,9 @@ fn push(
 
 /// robotd's `/health`, if it answers within 5 s.
 pub async fn health(port: u16) -> Option<Value> {
-    let response = reqwest::Client::new()
+    static CLIENT: std::sync::OnceLock<reqwest::Client> = std::sync::OnceLock::new();
+    let response = CLIENT
+        .get_or_init(reqwest::Client::new)
         .get(format!("http://127.0.0.1:{port}/health"))
         .timeout(Duration::from_secs(5))
         .send()
