@@ -19,7 +19,7 @@ import numpy as np
 from .bus import deadline_of
 from .catalog import FramesSpec
 from .errors import RobotdError
-from .ports import _duration
+from .ports import close_ports, wait_for_data
 from .shm import FrameSlot, PIXELS_OFFSET
 
 
@@ -124,19 +124,11 @@ class FrameSubscriber:
                 if self._consumed is not None:
                     self._consumed.notify()
                 return Frame(sample)
-            if deadline is None:
-                self._data.timed_wait(_duration(1.0))
-                continue
-            left = deadline - time.monotonic()
-            if left <= 0:
+            if not wait_for_data(self._data, deadline):
                 return None
-            self._data.timed_wait(_duration(left))
 
     def close(self) -> None:
-        for part in ("_port", "_data", "_consumed"):
-            port = self.__dict__.pop(part, None)
-            if port is not None:
-                port.delete()
+        close_ports(self, "_port", "_data", "_consumed")
 
     def __enter__(self):
         return self
@@ -197,7 +189,4 @@ class FramePublisher:
         return delivered
 
     def close(self) -> None:
-        for part in ("_port", "_data"):
-            port = self.__dict__.pop(part, None)
-            if port is not None:
-                port.delete()
+        close_ports(self, "_port", "_data")

@@ -25,6 +25,27 @@ def _duration(seconds: float):
     return iox2.Duration.from_micros(max(0, int(seconds * 1e6)))
 
 
+def wait_for_data(listener, deadline: Optional[float]) -> bool:
+    """Sleeps on ``listener`` (a data event) until notified or ``deadline`` (monotonic time;
+    None: a second at a time, forever). False once the deadline has passed."""
+    if deadline is None:
+        listener.timed_wait(_duration(1.0))
+        return True
+    left = deadline - time.monotonic()
+    if left <= 0:
+        return False
+    listener.timed_wait(_duration(left))
+    return True
+
+
+def close_ports(owner, *names: str) -> None:
+    """Deletes the iceoryx2 ports ``owner`` keeps under ``names`` (each once)."""
+    for name in names:
+        port = owner.__dict__.pop(name, None)
+        if port is not None:
+            port.delete()
+
+
 class Subscriber:
     """Receives the messages of one topic; see :meth:`receive`."""
 
@@ -58,13 +79,8 @@ class Subscriber:
                 if self._consumed is not None:
                     self._consumed.notify()
                 return data
-            if deadline is None:
-                self._data.timed_wait(_duration(1.0))
-                continue
-            left = deadline - time.monotonic()
-            if left <= 0:
+            if not wait_for_data(self._data, deadline):
                 return None
-            self._data.timed_wait(_duration(left))
 
     def receive(self, timeout: Optional[float] = None) -> Optional[Envelope]:
         """The next message as an :class:`~robotd.envelope.Envelope` (its ``body`` a dict), or
@@ -79,10 +95,7 @@ class Subscriber:
         return envelope.decode(data, self.spec.msg_type, self.spec.schema_version)
 
     def close(self) -> None:
-        for part in ("_port", "_data", "_consumed"):
-            port = self.__dict__.pop(part, None)
-            if port is not None:
-                port.delete()
+        close_ports(self, "_port", "_data", "_consumed")
 
     def __enter__(self):
         return self
@@ -145,10 +158,7 @@ class Publisher:
         )
 
     def close(self) -> None:
-        for part in ("_port", "_data"):
-            port = self.__dict__.pop(part, None)
-            if port is not None:
-                port.delete()
+        close_ports(self, "_port", "_data")
 
     def __enter__(self):
         return self
