@@ -11,7 +11,7 @@
 //! 3. calls per second with 8 and 64 concurrent streamable-HTTP clients;
 //! 4. the service's resident memory (VmRSS) after the load.
 
-use super::Latency;
+use super::{Latency, Served};
 use anyhow::{bail, Context, Result};
 use rmcp::model::CallToolRequestParams;
 use robotd_mcp::client::{connect, McpClient};
@@ -20,9 +20,8 @@ use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_tools::{CallHooks, Registry, ToolSettings};
 use serde::Serialize;
 use serde_json::{json, Map, Value};
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -92,26 +91,6 @@ impl McpFigures {
     }
 }
 
-/// The served robotd, stopped when dropped.
-struct Served(Child);
-
-impl Drop for Served {
-    fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .args(["-TERM", &self.0.id().to_string()])
-            .status();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.0.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 fn free_port() -> Result<u16> {
     Ok(std::net::TcpListener::bind("127.0.0.1:0")?
         .local_addr()?
@@ -120,7 +99,7 @@ fn free_port() -> Result<u16> {
 
 fn start_service(exe: &Path, namespace: &str, port: u16) -> Result<Served> {
     let log_dir = std::env::temp_dir().join(format!("robotd-bench-mcp-{}", std::process::id()));
-    let mut child = Command::new(exe)
+    let child = Command::new(exe)
         .args(["serve", "--namespace", namespace, "--http"])
         .arg(format!("127.0.0.1:{port}"))
         .args(["--set", "robot.time_scale=0.05"])
@@ -131,21 +110,8 @@ fn start_service(exe: &Path, namespace: &str, port: u16) -> Result<Served> {
         .stderr(Stdio::piped())
         .spawn()
         .context("starting robotd serve")?;
-    let stderr = child.stderr.take().context("robotd's stderr")?;
-    let served = Served(child);
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let mut ready = Some(tx);
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if line.contains("robotd: serving on") {
-                if let Some(tx) = ready.take() {
-                    let _ = tx.send(());
-                }
-            }
-        }
-    });
-    rx.recv_timeout(Duration::from_secs(60))
-        .context("robotd serve did not start within 60 s")?;
+    let mut served = Served(child);
+    super::wait_until_serving(&mut served)?;
     Ok(served)
 }
 

@@ -18,3 +18,45 @@ pub mod widowx;
 
 pub use robotd_bench::bus;
 pub use robotd_bench::stats::Latency;
+
+/// A child process of a benchmark (a `robotd serve`, a redis-server): stopped with SIGTERM
+/// when dropped, and killed if it has not ended 5 s later.
+pub struct Served(pub std::process::Child);
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("kill")
+            .args(["-TERM", &self.0.id().to_string()])
+            .status();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+        while std::time::Instant::now() < deadline {
+            if let Ok(Some(_)) = self.0.try_wait() {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Waits until the `robotd serve` in `served` (started with its stderr piped) says it serves;
+/// its stderr is read to the end on a thread of its own so the service never blocks on it.
+pub fn wait_until_serving(served: &mut Served) -> anyhow::Result<()> {
+    use anyhow::Context;
+    use std::io::{BufRead, BufReader};
+    let stderr = served.0.stderr.take().context("robotd's stderr")?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut ready = Some(tx);
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if line.contains("robotd: serving on") {
+                if let Some(tx) = ready.take() {
+                    let _ = tx.send(());
+                }
+            }
+        }
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(60))
+        .context("robotd serve did not start within 60 s")
+}

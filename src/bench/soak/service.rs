@@ -3,9 +3,8 @@
 //! injects from outside (Redis going away and back, the external actor killed).
 
 use anyhow::{bail, Context, Result};
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Every how many gripper commands the simulated gripper fails (panics), so supervision
@@ -15,25 +14,7 @@ pub const GRIPPER_FAIL_EVERY_N: u32 = 15;
 /// The name of the supervised external actor in the soak's configuration.
 pub const EXTERNAL_ACTOR: &str = "soak_peer";
 
-/// A child process stopped (SIGTERM, then SIGKILL) when dropped.
-pub struct Owned(pub Child);
-
-impl Drop for Owned {
-    fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .args(["-TERM", &self.0.id().to_string()])
-            .status();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.0.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
+pub use crate::bench::Served;
 
 /// A free loopback port.
 pub fn free_port() -> Result<u16> {
@@ -43,7 +24,7 @@ pub fn free_port() -> Result<u16> {
 }
 
 /// A redis-server on `port` (no persistence), once it listens.
-pub fn start_redis(port: u16) -> Result<Owned> {
+pub fn start_redis(port: u16) -> Result<Served> {
     let child = Command::new("redis-server")
         .args(["--port", &port.to_string(), "--bind", "127.0.0.1"])
         .args(["--save", "", "--appendonly", "no"])
@@ -51,7 +32,7 @@ pub fn start_redis(port: u16) -> Result<Owned> {
         .stderr(Stdio::null())
         .spawn()
         .context("starting redis-server (the soak needs it: apt install redis-server)")?;
-    let owned = Owned(child);
+    let served = Served(child);
     let deadline = Instant::now() + Duration::from_secs(10);
     while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
         if Instant::now() > deadline {
@@ -59,7 +40,7 @@ pub fn start_redis(port: u16) -> Result<Owned> {
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-    Ok(owned)
+    Ok(served)
 }
 
 /// What the soak's robotd needs to know.
@@ -79,7 +60,7 @@ pub struct ServiceSetup<'a> {
 }
 
 /// Starts robotd serve for the soak; returns once it serves.
-pub fn start_robotd(setup: &ServiceSetup<'_>) -> Result<Owned> {
+pub fn start_robotd(setup: &ServiceSetup<'_>) -> Result<Served> {
     let config = write_config(setup)?;
     let mut command = Command::new(setup.exe);
     command
@@ -103,23 +84,9 @@ pub fn start_robotd(setup: &ServiceSetup<'_>) -> Result<Owned> {
     ] {
         command.env_remove(v);
     }
-    let mut child = command.spawn().context("starting robotd serve")?;
-    let stderr = child.stderr.take().context("robotd's stderr")?;
-    let owned = Owned(child);
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let mut ready = Some(tx);
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if line.contains("robotd: serving on") {
-                if let Some(tx) = ready.take() {
-                    let _ = tx.send(());
-                }
-            }
-        }
-    });
-    rx.recv_timeout(Duration::from_secs(60))
-        .context("robotd serve did not start within 60 s")?;
-    Ok(owned)
+    let mut served = Served(command.spawn().context("starting robotd serve")?);
+    crate::bench::wait_until_serving(&mut served)?;
+    Ok(served)
 }
 
 fn write_config(setup: &ServiceSetup<'_>) -> Result<PathBuf> {

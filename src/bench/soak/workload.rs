@@ -3,7 +3,7 @@
 //! faults from outside: Redis stopped and started again, the external actor killed.
 
 use super::sampler::{CallLog, Outcome};
-use super::service::{self, Owned, EXTERNAL_ACTOR};
+use super::service::{self, Served, EXTERNAL_ACTOR};
 use anyhow::Result;
 use rmcp::model::CallToolRequestParams;
 use robotd_agent::mock::{MockLlm, MockReply};
@@ -319,7 +319,7 @@ pub async fn inject_faults(
     work: Arc<Workload>,
     robotd_pid: u32,
     redis_port: u16,
-    redis: Arc<Mutex<Option<Owned>>>,
+    redis: Arc<Mutex<Option<Served>>>,
     faults: Arc<Mutex<Vec<InjectedFault>>>,
 ) {
     let mut next_kill = work.start + Duration::from_secs(40);
