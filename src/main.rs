@@ -288,7 +288,7 @@ struct BenchSoakArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
-    /// How long to run, minutes (0.5 … 10080).
+    /// How long to run, minutes (2 … 10080).
     #[arg(long, default_value_t = 3.0)]
     minutes: f64,
 }

@@ -191,8 +191,8 @@ impl SoakReport {
 /// Runs the soak for `minutes` with the robotd binary `exe`.
 pub fn run(exe: &Path, minutes: f64) -> Result<SoakReport> {
     anyhow::ensure!(
-        minutes.is_finite() && (0.5..=60.0 * 24.0 * 7.0).contains(&minutes),
-        "--minutes must be 0.5 … 10080, got {minutes}"
+        minutes.is_finite() && (2.0..=60.0 * 24.0 * 7.0).contains(&minutes),
+        "--minutes must be 2 … 10080 (a shorter run is all start-up), got {minutes}"
     );
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
