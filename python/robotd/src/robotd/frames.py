@@ -19,7 +19,7 @@ import numpy as np
 from .bus import deadline_of
 from .catalog import FramesSpec
 from .errors import RobotdError
-from .ports import close_ports, wait_for_data
+from .ports import PortOwner, wait_for_data
 from .shm import FrameSlot, PIXELS_OFFSET
 
 
@@ -90,8 +90,10 @@ class Frame:
         self.release()
 
 
-class FrameSubscriber:
+class FrameSubscriber(PortOwner):
     """Receives a frame topic's frames; see :meth:`receive`."""
+
+    _ports = ("_port", "_data", "_consumed")
 
     def __init__(self, bus, spec: FramesSpec):
         self.spec = spec
@@ -127,18 +129,11 @@ class FrameSubscriber:
             if not wait_for_data(self._data, deadline):
                 return None
 
-    def close(self) -> None:
-        close_ports(self, "_port", "_data", "_consumed")
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-
-class FramePublisher:
+class FramePublisher(PortOwner):
     """Publishes frames on a frame topic (a camera written in Python); see :meth:`publish`."""
+
+    _ports = ("_port", "_data")
 
     def __init__(self, bus, spec: FramesSpec):
         self.spec = spec
@@ -187,6 +182,3 @@ class FramePublisher:
         delivered = sample.assume_init().send()
         self._data.notify()
         return delivered
-
-    def close(self) -> None:
-        close_ports(self, "_port", "_data")

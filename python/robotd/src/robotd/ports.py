@@ -38,16 +38,29 @@ def wait_for_data(listener, deadline: Optional[float]) -> bool:
     return True
 
 
-def close_ports(owner, *names: str) -> None:
-    """Deletes the iceoryx2 ports ``owner`` keeps under ``names`` (each once)."""
-    for name in names:
-        port = owner.__dict__.pop(name, None)
-        if port is not None:
-            port.delete()
+class PortOwner:
+    """Holds iceoryx2 ports under the attribute names in ``_ports``; :meth:`close` (or leaving a
+    ``with`` block) deletes each once."""
+
+    _ports: tuple = ()
+
+    def close(self) -> None:
+        for name in self._ports:
+            port = self.__dict__.pop(name, None)
+            if port is not None:
+                port.delete()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
 
-class Subscriber:
+class Subscriber(PortOwner):
     """Receives the messages of one topic; see :meth:`receive`."""
+
+    _ports = ("_port", "_data", "_consumed")
 
     def __init__(self, bus, spec: TopicSpec, create: bool = False):
         self.spec = spec
@@ -94,18 +107,11 @@ class Subscriber:
             return None
         return envelope.decode(data, self.spec.msg_type, self.spec.schema_version)
 
-    def close(self) -> None:
-        close_ports(self, "_port", "_data", "_consumed")
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-
-class Publisher:
+class Publisher(PortOwner):
     """Publishes messages on one topic; see :meth:`publish`."""
+
+    _ports = ("_port", "_data")
 
     def __init__(self, bus, spec: TopicSpec, create: bool = False):
         self.spec = spec
@@ -156,12 +162,3 @@ class Publisher:
         return self.publish_bytes(
             envelope.encode(self.spec.msg_type, self.spec.schema_version, body, trace)
         )
-
-    def close(self) -> None:
-        close_ports(self, "_port", "_data")
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
