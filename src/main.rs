@@ -551,6 +551,14 @@ fn run() -> Result<std::process::ExitCode> {
                         config.robot.widowx.baud_rate,
                     )
                 }),
+                camera: (config.robot.driver == robotd_config::RobotDriver::Widowx)
+                    .then(|| config.robot.widowx.camera_url.clone())
+                    .flatten()
+                    .map(|source| {
+                        let intrinsics =
+                            robotd_driver_widowx::camera_intrinsics(&config.robot.widowx);
+                        (source, (intrinsics.width, intrinsics.height))
+                    }),
             })?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report.to_json())?);

@@ -45,6 +45,7 @@
 //! | [`audio`] | `audio` | a sound card or sound server to play speech on |
 //! | [`llm_keys`] | `llm-keys` | an LLM provider the agent can use |
 //! | [`niryo`] | `niryo` | with the niryo driver: the Ned2 answers (connect, handshake, hardware status) |
+//! | [`camera`] | `camera` | with a V4L2 camera configured: the device opens and gives the intrinsics' size in MJPG or YUYV |
 //! | [`widowx`] | `widowx` | with the widowx driver: the serial port opens, the nine servos answer with the right models, no latched hardware error |
 //! | [`secrets`] | — | `secrets.env`, shared by `redis` and `llm-keys` |
 //! | [`report`] | — | rows, the table and the JSON |
@@ -59,6 +60,7 @@
 //!     http_bind: None,
 //!     niryo: None,
 //!     widowx: None,
+//!     camera: None,
 //! };
 //! let report = run(&opts)?;
 //! print!("{}", report.render_table());
@@ -68,6 +70,7 @@
 
 mod audio;
 mod bus;
+mod camera;
 mod espeak;
 mod health;
 mod llm_keys;
@@ -115,6 +118,9 @@ pub struct DoctorOptions {
     pub niryo: Option<robotd_driver_niryo::LinkSettings>,
     /// The servo bus (device, baud rate) when `robot.driver = "widowx"` (`None` otherwise).
     pub widowx: Option<(PathBuf, u32)>,
+    /// The camera source (`robot.widowx.camera_url`) and the frame size of its intrinsics,
+    /// when the widowx driver has one (`None` otherwise).
+    pub camera: Option<(String, (u32, u32))>,
 }
 
 /// Runs every check and returns the report. Takes a few seconds at most, whatever the network
@@ -132,6 +138,7 @@ pub fn run(opts: &DoctorOptions) -> Result<DoctorReport> {
         llm_keys::check_llm_keys(&env, &secrets, &llm_keys::ollama_reachable),
         niryo::check_niryo(opts.niryo.clone()),
         widowx::check_widowx(opts.widowx.clone()),
+        camera::check_camera(opts.camera.clone()),
     ];
     Ok(DoctorReport { checks })
 }
@@ -160,6 +167,7 @@ mod tests {
             clean: false,
             niryo: None,
             widowx: None,
+            camera: None,
         };
         let start = Instant::now();
         let report = run(&opts).expect("doctor runs");
@@ -176,7 +184,8 @@ mod tests {
                 "audio",
                 "llm-keys",
                 "niryo",
-                "widowx"
+                "widowx",
+                "camera"
             ]
         );
         assert!(report.has_problems());

@@ -18,6 +18,7 @@
 //! from the driver, so a real robot starts with the same ones as the simulator. Adding a driver = a crate in `drivers/`
 //! implementing these traits, plus one line where `robotd-robot` chooses the driver.
 
+pub mod camera_feed;
 pub mod config;
 pub mod niryo_config;
 pub mod widowx_config;

@@ -2,7 +2,8 @@
 //! (`robot.driver = "widowx"`), and where its camera comes from.
 //!
 //! The arm has no camera protocol of its own; labs put a USB camera or an IP camera on it.
-//! robotd reads an MJPEG-over-HTTP stream (`camera_url`: IP cameras, mjpg-streamer,
+//! robotd reads either a V4L2 capture device (`camera_url = "/dev/video0"`: a USB camera)
+//! or an MJPEG-over-HTTP stream (`camera_url = "http://…"`: IP cameras, mjpg-streamer,
 //! `robotd fake-widowx`), with the intrinsics given here.
 
 use robotd_protocol::camera::CameraIntrinsics;
@@ -57,8 +58,9 @@ pub struct WidowxConfig {
     /// (1 to 1000).
     #[serde(default = "defaults::gripper_holding_load")]
     pub gripper_holding_load: u16,
-    /// MJPEG-over-HTTP camera stream (`http://host:port/path`); none = no camera (perception
-    /// and the tools that look are then unavailable).
+    /// The camera: a V4L2 device path (`/dev/video0`, a udev name under `/dev/`) or an
+    /// MJPEG-over-HTTP stream (`http://host:port/path`); none = no camera (perception and the
+    /// tools that look are then unavailable).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera_url: Option<String>,
     /// How old a frame is when it arrives, ms (0 to 2000): capture, encoding and transfer. A
@@ -176,21 +178,16 @@ impl WidowxConfig {
             "",
         );
         if let Some(url) = &self.camera_url {
-            if url.starts_with("/dev/video") {
+            let device = url.starts_with("/dev/") && !url.contains("/../");
+            let http = (url.starts_with("http://") || url.starts_with("https://"))
+                && !url.contains(char::is_whitespace);
+            if !device && !http {
                 checks.problem(
                     "widowx.camera_url",
                     format!(
-                        "'{url}' is a V4L2 device, which robotd does not read directly: serve it \
-                         as MJPEG (mjpg-streamer -i \"input_uvc.so -d {url}\" -o \
-                         output_http.so) and give its http:// URL"
+                        "'{url}' is neither a V4L2 device under /dev/ (e.g. /dev/video0) nor an \
+                         http:// or https:// URL of an MJPEG stream"
                     ),
-                );
-            } else if !(url.starts_with("http://") || url.starts_with("https://"))
-                || url.contains(' ')
-            {
-                checks.problem(
-                    "widowx.camera_url",
-                    format!("'{url}' is not an http:// or https:// URL of an MJPEG stream"),
                 );
             }
         }

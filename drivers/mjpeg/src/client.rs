@@ -3,28 +3,12 @@
 use bytes::Bytes;
 use futures::StreamExt;
 use nalgebra::Isometry3;
+use robotd_driver::camera_feed::{CameraFeed, PoseSource};
 use robotd_driver::{CameraDriver, CaptureInfo, DriverError, DriverFuture};
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::envelope::unix_now_ns;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
-
-/// Where the camera is when a frame arrives (e.g. from the arm's joints); `None` when unknown.
-pub type PoseSource = Arc<dyn Fn() -> Option<Isometry3<f64>> + Send + Sync>;
-
-/// The newest frame, or why there is none.
-struct Latest {
-    frame: Result<Frame, String>,
-    /// Counts frames, so `frame_ready` can wait for a new one.
-    sequence: u64,
-    /// The sequence `capture_into` last handed out.
-    taken: u64,
-}
-
-struct Frame {
-    rgb: Vec<u8>,
-    info: CaptureInfo,
-}
 
 /// An MJPEG-over-HTTP camera.
 pub struct MjpegCamera {
@@ -32,8 +16,7 @@ pub struct MjpegCamera {
     latency: Duration,
     intrinsics: CameraIntrinsics,
     pose: PoseSource,
-    latest: Mutex<Latest>,
-    arrived: tokio::sync::Notify,
+    feed: CameraFeed,
 }
 
 impl std::fmt::Debug for MjpegCamera {
@@ -58,27 +41,12 @@ impl MjpegCamera {
             latency,
             intrinsics,
             pose,
-            latest: Mutex::new(Latest {
-                frame: Err(format!("connecting to the camera stream {url}")),
-                sequence: 0,
-                taken: 0,
-            }),
-            arrived: tokio::sync::Notify::new(),
+            feed: CameraFeed::new(url, format!("connecting to the camera stream {url}")),
         })
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, Latest> {
-        self.latest.lock().unwrap_or_else(|p| p.into_inner())
-    }
-
     fn set_problem(&self, reason: String) {
-        let mut latest = self.lock();
-        if latest.frame.as_ref().err() != Some(&reason) {
-            tracing::warn!(url = %self.url, %reason, "camera stream");
-        }
-        latest.frame = Err(reason);
-        drop(latest);
-        self.arrived.notify_waiters();
+        self.feed.set_problem(reason);
     }
 
     /// Reads the stream for as long as robotd runs (spawn it on the runtime).
@@ -173,11 +141,7 @@ impl MjpegCamera {
             camera_pose: (self.pose)().unwrap_or_else(Isometry3::identity),
             timestamp_unix_ns: unix_now_ns().saturating_sub(self.latency.as_nanos() as u64),
         };
-        let mut latest = self.lock();
-        latest.frame = Ok(Frame { rgb, info });
-        latest.sequence += 1;
-        drop(latest);
-        self.arrived.notify_waiters();
+        self.feed.publish(rgb, info);
     }
 }
 
@@ -209,50 +173,11 @@ impl CameraDriver for MjpegCamera {
     }
 
     fn frame_ready(&self) -> DriverFuture<'_, ()> {
-        Box::pin(async move {
-            let mut waited_on_problem = false;
-            loop {
-                let arrived = self.arrived.notified();
-                let problem = {
-                    let latest = self.lock();
-                    let fresh = latest.sequence != latest.taken;
-                    match &latest.frame {
-                        Ok(_) if fresh => return Ok(()),
-                        Err(reason) => Some(reason.clone()),
-                        Ok(_) => None,
-                    }
-                };
-                match problem {
-                    Some(reason) if waited_on_problem => return Err(DriverError::Hardware(reason)),
-                    Some(_) => {
-                        // Do not spin on a dead stream: wait a while for news first.
-                        waited_on_problem = true;
-                        let _ = tokio::time::timeout(Duration::from_secs(1), arrived).await;
-                    }
-                    None => arrived.await,
-                }
-            }
-        })
+        self.feed.frame_ready()
     }
 
     fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
-        let mut latest = self.lock();
-        let sequence = latest.sequence;
-        let frame = match &latest.frame {
-            Ok(frame) => frame,
-            Err(reason) => return Err(DriverError::Hardware(reason.clone())),
-        };
-        if out.len() != frame.rgb.len() {
-            return Err(DriverError::Hardware(format!(
-                "frame buffer of {} bytes for a {}-byte frame",
-                out.len(),
-                frame.rgb.len()
-            )));
-        }
-        out.copy_from_slice(&frame.rgb);
-        let info = frame.info;
-        latest.taken = sequence;
-        Ok(info)
+        self.feed.capture_into(out)
     }
 }
 

@@ -14,7 +14,8 @@
 mod client;
 mod server;
 
-pub use client::{MjpegCamera, PoseSource};
+pub use client::MjpegCamera;
+pub use robotd_driver::camera_feed::PoseSource;
 pub use server::{serve, MjpegServer};
 
 /// Largest JPEG accepted in one part.

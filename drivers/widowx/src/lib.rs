@@ -105,23 +105,40 @@ pub fn open(config: &RobotConfig) -> WidowxDrivers {
     let intrinsics = camera_intrinsics(widowx);
     let mut tasks = Vec::new();
     let camera: Arc<dyn CameraDriver> = match &widowx.camera_url {
-        Some(url) => {
+        Some(source) => {
             let pose_arm = arm.clone();
-            let pose: robotd_driver_mjpeg::PoseSource = Arc::new(move || {
+            let pose: robotd_driver::camera_feed::PoseSource = Arc::new(move || {
                 use robotd_driver::ArmDriver;
                 let q = pose_arm.joints().ok()?;
                 kinematics.camera_pose(&q)
             });
-            let camera = robotd_driver_mjpeg::MjpegCamera::new(
-                url,
-                intrinsics,
-                std::time::Duration::from_millis(widowx.camera_latency_ms),
-                pose,
-            );
-            tasks.push(tokio::spawn(camera.clone().run_receiver()));
-            camera
+            let latency = std::time::Duration::from_millis(widowx.camera_latency_ms);
+            if source.starts_with("/dev/") {
+                match robotd_driver_v4l2::V4l2Camera::start(
+                    std::path::Path::new(source),
+                    intrinsics.clone(),
+                    latency,
+                    pose,
+                ) {
+                    Ok(camera) => camera,
+                    Err(e) => Arc::new(NoCamera {
+                        intrinsics,
+                        reason: format!("cannot start the capture thread of {source}: {e}"),
+                    }),
+                }
+            } else {
+                let camera =
+                    robotd_driver_mjpeg::MjpegCamera::new(source, intrinsics, latency, pose);
+                tasks.push(tokio::spawn(camera.clone().run_receiver()));
+                camera
+            }
         }
-        None => Arc::new(NoCamera { intrinsics }),
+        None => Arc::new(NoCamera {
+            intrinsics,
+            reason: "no camera configured: set robot.widowx.camera_url to the camera's V4L2 \
+                     device (/dev/video0) or MJPEG stream (http://…)"
+                .into(),
+        }),
     };
     WidowxDrivers {
         drivers: RobotDrivers {
@@ -135,9 +152,10 @@ pub fn open(config: &RobotConfig) -> WidowxDrivers {
     }
 }
 
-/// A WidowX without a configured camera: every capture says how to add one.
+/// A WidowX without a usable camera: every capture says why and how to add one.
 struct NoCamera {
     intrinsics: CameraIntrinsics,
+    reason: String,
 }
 
 impl CameraDriver for NoCamera {
@@ -150,17 +168,10 @@ impl CameraDriver for NoCamera {
     fn frame_ready(&self) -> robotd_driver::DriverFuture<'_, ()> {
         Box::pin(async {
             tokio::time::sleep(std::time::Duration::from_secs(1)).await;
-            Err(no_camera())
+            Err(DriverError::Hardware(self.reason.clone()))
         })
     }
     fn capture_into(&self, _out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
-        Err(no_camera())
+        Err(DriverError::Hardware(self.reason.clone()))
     }
-}
-
-fn no_camera() -> DriverError {
-    DriverError::Hardware(
-        "no camera configured: set robot.widowx.camera_url to the MJPEG stream of the camera"
-            .into(),
-    )
 }
