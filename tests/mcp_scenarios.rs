@@ -6,7 +6,7 @@ mod common;
 #[path = "common/lab.rs"]
 mod lab;
 
-use lab::{assert_near, lab_on, runtime, scene, Driver, Lab};
+use lab::{assert_near, lab_on, lab_with, runtime, scene, Driver, Lab};
 
 /// Runs the scenario `$name(lab)` three times: as `$name::sim` on the built-in simulator, as
 /// `$name::niryo` through the niryo driver against `robotd fake-niryo` (the same simulator
@@ -472,4 +472,40 @@ async fn a_placement_that_would_cover_a_marker_is_refused_before_anything_moves(
     assert!(!truth.held);
     assert_near(&truth, [0.30, -0.06], 0.001);
     assert_eq!(lab.seen().await.len(), 4);
+}
+
+// The soak's finding: the gripper failed while the arm was down at the release pose, the
+// next move to the observation pose swept the held pencil into its neighbours, and every
+// later motion hit the same collision. A skill that fails down there now lifts the tool
+// straight up first. (Simulator only: injected faults are the simulated driver's.)
+#[test]
+fn a_gripper_failure_at_the_release_pose_leaves_the_arm_clear_and_working() {
+    runtime().block_on(async {
+        let extra = ["robot.faults.gripper.fail_every_n=3".to_owned()];
+        let lab = lab_with(0.05, &extra).await;
+        let pencil = lab.truth_of("pencil").await;
+        // Gripper commands: open (1) and close (2) of the pick, then the release's open (3)
+        // fails with the pencil held just above the table.
+        let (text, _) = lab
+            .call(
+                "pick_place_object",
+                json!({"object_name": "pencil", "pick_coordinate": [pencil.x_m, pencil.y_m],
+                       "place_coordinate": [0.22, -0.06]}),
+            )
+            .await;
+        assert!(
+            text.starts_with("❌")
+                && text.contains("injected fault")
+                && text.contains("'pencil' is still held"),
+            "{text}"
+        );
+        assert!(held(&lab, "pencil").await);
+        // The arm is clear of the table: looking works, and the pencil can be put down.
+        let seen = lab.seen().await;
+        assert_eq!(seen.len(), 3, "the held pencil is off the table: {seen:?}");
+        lab.ok("place_object", json!({"place_coordinate": [0.22, -0.06]}))
+            .await;
+        assert_near(&lab.truth_of("pencil").await, [0.22, -0.06], 0.006);
+        assert_eq!(lab.seen().await.len(), 4);
+    });
 }

@@ -73,6 +73,10 @@ pub(crate) struct Runner {
     pub(crate) progress: Publisher<SkillProgress>,
     pub(crate) cancel: Arc<CancelFlag>,
     held: Option<Held>,
+    /// Set while the tool is down near the table (between going down to grasp, release or
+    /// push and lifting again): the height it must first rise to, straight up, before any
+    /// joint-space move. A skill that fails down there leaves it set (see [`Self::rise_clear`]).
+    clear_z: Option<f64>,
     /// The objects of the last look (to suggest where a held object can be put down).
     last_seen: Vec<DetectedObject>,
 }
@@ -107,6 +111,7 @@ impl Runner {
             progress,
             cancel,
             held: None,
+            clear_z: None,
             last_seen: Vec::new(),
         }
     }
@@ -140,6 +145,14 @@ impl Runner {
                 reply
             }
             Err(error) => {
+                if !matches!(error, SkillError::Cancelled) {
+                    // Get the tool up from the table now, with or without what it holds,
+                    // so the next skill starts clear. A stopped or colliding arm refuses;
+                    // the next skill's first move then rises first.
+                    if let Err(rise) = self.rise_clear().await {
+                        tracing::warn!(skill = name, run_id, %rise, "could not lift the tool clear after the failure");
+                    }
+                }
                 let still_held = self.held.as_ref().map(|h| h.object.label.clone());
                 let put_down_at = self.held.as_ref().and_then(|held| {
                     let others: Vec<DetectedObject> = self
@@ -255,6 +268,7 @@ impl Runner {
                     run,
                     format!("moving to the observation pose of '{workspace_id}'"),
                 )?;
+                self.rise_clear().await?;
                 self.arm_command(ArmCommand::GoToObservationPose { workspace_id })
                     .await?;
                 Ok(done(None, None, None))
@@ -328,6 +342,34 @@ impl Runner {
         }
     }
 
+    /// Rises straight up to [`Self::clear_z`] when a failed skill left the tool low over the
+    /// table: a joint-space move from down there (to the observation pose, to the next
+    /// object) could sweep the tool, or the object it holds, through its neighbours. Rises
+    /// from wherever the tool is now, keeping its x, y and orientation.
+    async fn rise_clear(&mut self) -> Result<(), SkillError> {
+        let Some(clear_z) = self.clear_z else {
+            return Ok(());
+        };
+        let pose = self.arm_command(ArmCommand::GetPose).await?;
+        if pose.z_m < clear_z {
+            tracing::info!(
+                from_z = pose.z_m,
+                to_z = clear_z,
+                "lifting the tool clear of the table first"
+            );
+            self.move_to(
+                Pose {
+                    z_m: clear_z,
+                    ..pose
+                },
+                PathKind::Linear,
+            )
+            .await?;
+        }
+        self.clear_z = None;
+        Ok(())
+    }
+
     async fn move_to(&self, pose: Pose, path: PathKind) -> Result<(), SkillError> {
         self.arm_command(ArmCommand::MoveToPose { target: pose, path })
             .await
@@ -374,6 +416,7 @@ impl Runner {
         ws: &WorkspaceInfo,
     ) -> Result<Vec<DetectedObject>, SkillError> {
         self.step(run, format!("looking at workspace '{}'", ws.id))?;
+        self.rise_clear().await?;
         self.arm_command(ArmCommand::GoToObservationPose {
             workspace_id: ws.id.clone(),
         })
@@ -490,6 +533,7 @@ impl Runner {
         self.step(run, format!("moving above '{}'", object.label))?;
         self.move_to(above, PathKind::Joint).await?;
         self.step(run, "lowering to the grasp".into())?;
+        self.clear_z = Some(above.z_m);
         self.move_to(grasp, PathKind::Linear).await?;
         self.step(run, "closing the gripper".into())?;
         let holding = self.grip(GripperCommand::Close).await?;
@@ -502,6 +546,7 @@ impl Runner {
         }
         self.step(run, "lifting".into())?;
         self.move_to(above, PathKind::Linear).await?;
+        self.clear_z = None;
         // Still holding after the lift?
         if !holding || !self.grip(GripperCommand::GetState).await? {
             self.held = None;
@@ -562,6 +607,7 @@ impl Runner {
         )?;
         self.move_to(above, PathKind::Joint).await?;
         self.step(run, "lowering".into())?;
+        self.clear_z = Some(above.z_m);
         self.move_to(release, PathKind::Linear).await?;
         self.step(run, "opening the gripper".into())?;
         let still_holding = self.grip(GripperCommand::Open).await?;
@@ -573,6 +619,7 @@ impl Runner {
         self.held = None;
         self.step(run, "lifting".into())?;
         self.move_to(above, PathKind::Linear).await?;
+        self.clear_z = None;
         if let Err(error) = self
             .ask(
                 WorkspaceRequest::ObjectPlaced {
@@ -653,6 +700,7 @@ impl Runner {
         self.step(run, format!("moving behind '{}'", object.label))?;
         self.move_to(plan[0].1, PathKind::Joint).await?;
         self.step(run, "lowering".into())?;
+        self.clear_z = Some(travel_z);
         self.move_to(plan[1].1, PathKind::Linear).await?;
         self.step(
             run,
@@ -661,6 +709,7 @@ impl Runner {
         self.move_to(plan[2].1, PathKind::Linear).await?;
         self.step(run, "lifting".into())?;
         self.move_to(plan[3].1, PathKind::Linear).await?;
+        self.clear_z = None;
         self.step(run, "opening the gripper".into())?;
         self.grip(GripperCommand::Open).await?;
         // Memory moves the object where the push should have put it, so the next view keeps

@@ -19,7 +19,9 @@
 //!   they were after warm-up;
 //! - every injected fault was recovered from (the actor back, Redis reconnected, no actor left
 //!   down or out of restart budget);
-//! - no call was lost (every call got exactly one answer, `✓` or `❌`).
+//! - no call was lost (every call got exactly one answer, `✓` or `❌`);
+//! - the robot never stayed stuck: no stretch of [`MOTION_GAP_LIMIT_S`] without one of the
+//!   pencil's moves succeeding (an injected fault may fail a move, never all later ones).
 
 mod sampler;
 mod service;
@@ -52,6 +54,9 @@ pub fn rss_slope_limit(minutes: f64) -> f64 {
         SHORT_RUN_RSS_SLOPE_LIMIT_MB_PER_MIN
     }
 }
+/// Longest stretch without a successful move of the pencil that passes, seconds (a visitor
+/// tries one a second; a quarter of them fail on the injected gripper faults).
+pub const MOTION_GAP_LIMIT_S: f64 = 60.0;
 /// Largest growth of threads after warm-up that passes.
 pub const THREAD_DRIFT_LIMIT: i64 = 4;
 
@@ -101,6 +106,14 @@ pub struct SoakReport {
     pub threads_at_end: usize,
     /// Calls by outcome over the run.
     pub calls: BTreeMap<Outcome, u64>,
+    /// Moves of the pencil that succeeded / failed.
+    pub motions_ok: u64,
+    /// See `motions_ok`.
+    pub motions_failed: u64,
+    /// The longest stretch without a successful move, and when it began, s.
+    pub longest_motion_gap_s: f64,
+    /// See `longest_motion_gap_s`.
+    pub longest_motion_gap_from_s: f64,
     /// The first replies (or errors) of each kind but `ok`.
     pub examples: BTreeMap<Outcome, Vec<String>>,
     /// MCP sessions opened by visiting clients.
@@ -168,6 +181,14 @@ impl SoakReport {
             .filter(|f| f.recovered_after_s.is_some())
             .count();
         out.push_str(&format!(
+            "moves of the pencil: {} ok, {} failed; longest stretch without one {:.0} s (from \
+             {:.0} s; limit {MOTION_GAP_LIMIT_S:.0})\n",
+            self.motions_ok,
+            self.motions_failed,
+            self.longest_motion_gap_s,
+            self.longest_motion_gap_from_s
+        ));
+        out.push_str(&format!(
             "RSS slope after warm-up {:+.2} MB/min (limit {}); fds {} -> {}; \
              threads {} -> {}; injected faults recovered {}/{}\n{}\n",
             self.rss_slope_mb_per_min,
@@ -226,6 +247,7 @@ async fn soak(exe: &Path, minutes: f64) -> Result<SoakReport> {
         port,
         calls: CallLog::default(),
         sessions: Default::default(),
+        motions: Default::default(),
     });
     let tally = Arc::new(AgentTally::default());
     let faults = Arc::new(Mutex::new(Vec::new()));
@@ -405,6 +427,15 @@ fn verdict(
     if sent > 0 && answered == 0 {
         failures.push("the agent answered no request".into());
     }
+    let (motions_ok, motions_failed) = work.motions.counts();
+    let run_s = work.start.elapsed().as_secs_f64().min(minutes * 60.0);
+    let (gap_s, gap_from_s) = work.motions.longest_gap_s(run_s);
+    if gap_s > MOTION_GAP_LIMIT_S {
+        failures.push(format!(
+            "no move of the pencil succeeded for {gap_s:.0} s from {gap_from_s:.0} s into the \
+             run: the robot was stuck (limit {MOTION_GAP_LIMIT_S:.0} s)"
+        ));
+    }
     let restarts = samples.last().map_or(0, |(_, r)| *r);
     SoakReport {
         minutes,
@@ -417,6 +448,10 @@ fn verdict(
         threads_after_warm_up: thr_w,
         threads_at_end: thr_e,
         calls,
+        motions_ok,
+        motions_failed,
+        longest_motion_gap_s: gap_s,
+        longest_motion_gap_from_s: gap_from_s,
         examples: work.calls.examples(),
         sessions: work.sessions.load(Ordering::Relaxed),
         agent_sent: sent,

@@ -204,6 +204,56 @@ impl CallLog {
     }
 }
 
+/// When the pencil's moves succeeded: a robot stuck after a fault shows as a long gap.
+#[derive(Debug, Default)]
+pub struct MotionLog {
+    ok_at_s: Mutex<Vec<f64>>,
+    failed: std::sync::atomic::AtomicU64,
+}
+
+impl MotionLog {
+    /// One motion that started `at_s` seconds into the soak, and whether it succeeded.
+    pub fn record(&self, at_s: f64, ok: bool) {
+        if ok {
+            self.ok_at_s
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(at_s);
+        } else {
+            self.failed
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+
+    /// Motions that succeeded and failed.
+    pub fn counts(&self) -> (u64, u64) {
+        let ok = self.ok_at_s.lock().unwrap_or_else(|e| e.into_inner()).len();
+        (
+            ok as u64,
+            self.failed.load(std::sync::atomic::Ordering::Relaxed),
+        )
+    }
+
+    /// The longest stretch of `[0, end_s]` without a successful motion: (length, start), s.
+    pub fn longest_gap_s(&self, end_s: f64) -> (f64, f64) {
+        let mut times = self
+            .ok_at_s
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        times.sort_by(f64::total_cmp);
+        let mut longest = (0.0, 0.0);
+        let mut from = 0.0;
+        for t in times.into_iter().chain([end_s]) {
+            if t - from > longest.0 {
+                longest = (t - from, from);
+            }
+            from = from.max(t);
+        }
+        longest
+    }
+}
+
 /// Least-squares slope of `y` over `x` (per unit of x); NaN with fewer than two points.
 pub fn slope(points: &[(f64, f64)]) -> f64 {
     let n = points.len() as f64;
@@ -240,5 +290,17 @@ mod tests {
             Outcome::InjectedFault
         );
         assert_eq!(Outcome::of_reply("❌ no pencil near"), Outcome::ToolError);
+    }
+
+    #[test]
+    fn the_longest_stretch_without_a_motion_counts_the_start_and_the_end() {
+        let log = MotionLog::default();
+        assert_eq!(log.longest_gap_s(100.0), (100.0, 0.0));
+        for (t, ok) in [(10.0, true), (20.0, false), (15.0, true), (70.0, true)] {
+            log.record(t, ok);
+        }
+        assert_eq!(log.counts(), (3, 1));
+        assert_eq!(log.longest_gap_s(100.0), (55.0, 15.0));
+        assert_eq!(log.longest_gap_s(200.0), (130.0, 70.0));
     }
 }

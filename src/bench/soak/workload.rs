@@ -2,7 +2,7 @@
 //! long-lived session, detection and motion tools, agent requests to the mock LLM; and the
 //! faults from outside: Redis stopped and started again, the external actor killed.
 
-use super::sampler::{CallLog, Outcome};
+use super::sampler::{CallLog, MotionLog, Outcome};
 use super::service::{self, Served, EXTERNAL_ACTOR};
 use anyhow::Result;
 use rmcp::model::CallToolRequestParams;
@@ -36,6 +36,7 @@ pub struct Workload {
     pub port: u16,
     pub calls: CallLog,
     pub sessions: AtomicU64,
+    pub motions: MotionLog,
 }
 
 fn arguments(v: Value) -> Map<String, Value> {
@@ -188,6 +189,7 @@ impl Workload {
             let home = *pencil.home_y.get_or_insert(y);
             let direction = if y > home - 0.005 { "right" } else { "left" };
             pencil.last_seen = (x, y);
+            let started_s = self.start.elapsed().as_secs_f64();
             let moved = self
                 .call(
                     client,
@@ -196,6 +198,8 @@ impl Workload {
                            "direction": direction, "distance": 0.01}),
                 )
                 .await;
+            let ok = moved.as_deref().map(Outcome::of_reply) == Some(Outcome::Ok);
+            self.motions.record(started_s, ok);
             self.recover_like_a_user(client, moved.as_deref(), (x, y))
                 .await;
         } else {
