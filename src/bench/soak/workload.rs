@@ -187,7 +187,9 @@ impl Workload {
         });
         if let Some((x, y)) = at {
             let home = *pencil.home_y.get_or_insert(y);
-            let direction = if y > home - 0.005 { "right" } else { "left" };
+            // Toward home: the pencil stays within 1 cm of where it started, whatever a failed
+            // move left it at (a place refused next to the marker otherwise follows).
+            let direction = if y > home { "right" } else { "left" };
             pencil.last_seen = (x, y);
             let started_s = self.start.elapsed().as_secs_f64();
             let moved = self
