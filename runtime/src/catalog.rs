@@ -28,7 +28,7 @@ pub const TEST_PATTERN_FRAMES: FrameTopic =
 /// Latest wins: a stuck dashboard must never slow down a restart; every event is also a
 /// metric and a log line.
 pub const HEALTH_RESTARTS: crate::bus::Topic<robotd_protocol::health::RestartEvent> =
-    crate::bus::Topic::new("health/restarts", Overflow::latest_wins(64));
+    crate::bus::Topic::new("health/restarts", Overflow::latest_wins(16));
 
 /// Commands to the arm actor (motion, queries, stop). Requests are never dropped: a caller
 /// gets the reply or an error. `Stop` and the queries are answered at once, even while a
@@ -92,11 +92,11 @@ pub const WORKSPACE_LABELS: crate::bus::Topic<robotd_protocol::workspace::Detect
 /// actor's own queue decides what to drop, and says so on `speech/events`); sending returns at
 /// once.
 pub const SPEECH_SPEAK: crate::bus::Topic<robotd_protocol::speech::SpeakRequest> =
-    crate::bus::Topic::new("speech/speak", Overflow::back_pressure(64));
+    crate::bus::Topic::new("speech/speak", Overflow::back_pressure(16));
 
 /// What happened to each text: started, finished, dropped (and why).
 pub const SPEECH_EVENTS: crate::bus::Topic<robotd_protocol::speech::SpeechEvent> =
-    crate::bus::Topic::new("speech/events", Overflow::latest_wins(64));
+    crate::bus::Topic::new("speech/events", Overflow::latest_wins(16));
 
 /// Texts to show over the video (robot speech, the user's task, system messages).
 pub const OVERLAY_TEXT: crate::bus::Topic<robotd_protocol::speech::TextOverlay> =
@@ -125,7 +125,7 @@ pub const AGENT_REQUEST: crate::bus::Topic<robotd_protocol::agent::AgentRequest>
 /// The agent's plan, tool calls, results and answer per request. Back-pressure: a reader
 /// never misses a tool call or the answer.
 pub const AGENT_EVENTS: crate::bus::Topic<robotd_protocol::agent::AgentEvent> =
-    crate::bus::Topic::new("agent/events", Overflow::back_pressure(64));
+    crate::bus::Topic::new("agent/events", Overflow::back_pressure(16));
 
 /// Cancel an agent request (the running motion stops safely). Back-pressure: a cancel is never
 /// dropped.

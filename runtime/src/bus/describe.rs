@@ -107,6 +107,8 @@ pub struct TopicDescription {
     pub max_publishers: usize,
     /// Subscriber ports the service admits.
     pub max_subscribers: usize,
+    /// Messages one subscriber may hold at once.
+    pub max_borrowed_samples: usize,
     /// Nodes the service admits.
     pub max_nodes: usize,
 }
@@ -170,6 +172,7 @@ fn topic_description(
         max_bytes: spec.max_bytes,
         max_publishers: spec.max_publishers,
         max_subscribers: spec.max_subscribers,
+        max_borrowed_samples: super::pubsub::TOPIC_MAX_BORROWED_SAMPLES,
         max_nodes: super::pubsub::TOPIC_MAX_NODES,
     }
 }

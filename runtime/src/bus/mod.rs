@@ -128,6 +128,25 @@ impl std::fmt::Debug for Bus {
     }
 }
 
+/// Connections to departed publishers a subscriber keeps while it still has their messages
+/// to read (iceoryx2's default is 128). Every subscriber reserves room for this many plus one
+/// per possible publisher, a few KB each, whether used or not: at 128 that was most of an
+/// idle robotd's memory. robotd's subscribers hold one message at a time and read promptly,
+/// so a few suffice; beyond them, unread messages of the oldest departed publisher are
+/// dropped (iceoryx2 logs a warning), never one still being read.
+const EXPIRED_CONNECTIONS_KEPT: usize = 8;
+
+/// iceoryx2's defaults with robotd's per-node settings (they do not change what a service
+/// is, so processes with other settings, like the Python package, still connect).
+fn node_config() -> iceoryx2::config::Config {
+    let mut config = iceoryx2::config::Config::global_config().clone();
+    config
+        .defaults
+        .publish_subscribe
+        .subscriber_expired_connection_buffer = EXPIRED_CONNECTIONS_KEPT;
+    config
+}
+
 impl Bus {
     /// Joins the bus: creates this process's node and, if asked, removes stale resources left
     /// behind by processes that died.
@@ -139,6 +158,7 @@ impl Bus {
         })?;
         let node = NodeBuilder::new()
             .name(&node_name)
+            .config(&node_config())
             // robotd handles SIGINT/SIGTERM itself (graceful shutdown through tokio).
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Ipc>()

@@ -131,7 +131,7 @@ impl<T: Message> From<&Topic<T>> for TopicSpec {
             label: topic.name.to_owned(),
             overflow: topic.overflow,
             max_bytes: topic.max_bytes,
-            max_subscribers: 32,
+            max_subscribers: TOPIC_MAX_SUBSCRIBERS,
             max_publishers: 16,
             handshake: true,
         }
@@ -140,6 +140,20 @@ impl<T: Message> From<&Topic<T>> for TopicSpec {
 
 /// Type name of [`MessageHeader`] (the `type_name` attribute below; a test keeps them equal).
 pub(crate) const MESSAGE_HEADER_TYPE: &str = "robotd.MessageHeader.v1";
+
+/// Subscriber ports a message topic admits (all processes together). robotd's own actors and
+/// edges open at most six on one topic; the rest is room for external actors and tools.
+///
+/// Memory: every publisher allocates, at creation, an 8-byte counter per sample for each of
+/// the 255 data segments a dynamic (growing) publisher may use, and its samples are
+/// `subscribers × (depth + borrowed) + loaned`. With 32 subscribers and depth 64 that was
+/// 4.3 MB per publisher, most of an idle robotd's heap; 16 subscribers and shallower queues
+/// keep it under 0.6 MB.
+pub(crate) const TOPIC_MAX_SUBSCRIBERS: usize = 16;
+
+/// Samples a topic subscriber holds at once: robotd (Rust and Python) copies each message out
+/// and releases it before taking the next.
+pub(crate) const TOPIC_MAX_BORROWED_SAMPLES: usize = 1;
 
 /// Nodes a message topic admits.
 pub(crate) const TOPIC_MAX_NODES: usize = 64;
@@ -165,6 +179,7 @@ fn open_service(bus: &Bus, spec: &TopicSpec) -> Result<PubSubFactory, BusError> 
         .user_header::<MessageHeader>()
         .enable_safe_overflow(overflow.is_latest_wins())
         .subscriber_max_buffer_size(overflow.depth())
+        .subscriber_max_borrowed_samples(TOPIC_MAX_BORROWED_SAMPLES)
         .history_size(0)
         .max_publishers(spec.max_publishers)
         .max_subscribers(spec.max_subscribers)

@@ -6,6 +6,11 @@ use crate::config::TelemetryConfig;
 use std::path::PathBuf;
 use tracing_appender::non_blocking::WorkerGuard;
 
+/// Log lines queued for the writer thread before new ones are dropped (and counted as lost by
+/// tracing-appender). tracing-appender's default of 128,000 reserves 4 MB at start; a disk
+/// that takes more than 8,192 lines behind is a problem the dropped lines will not fix.
+const QUEUED_LOG_LINES: usize = 8_192;
+
 /// The daily rolling file, behind a non-blocking writer thread.
 pub(super) fn log_file_writer(
     config: &TelemetryConfig,
@@ -26,6 +31,7 @@ pub(super) fn log_file_writer(
     Ok(
         tracing_appender::non_blocking::NonBlockingBuilder::default()
             .thread_name("robotd-log-writer")
+            .buffered_lines_limit(QUEUED_LOG_LINES)
             .finish(appender),
     )
 }
@@ -59,6 +65,7 @@ pub(super) fn session_file_writer(
         .map_err(|e| fail(Box::new(e)))?;
     let (writer, guard) = tracing_appender::non_blocking::NonBlockingBuilder::default()
         .thread_name("robotd-log-writer")
+        .buffered_lines_limit(QUEUED_LOG_LINES)
         .finish(file);
     Ok((writer, guard, path))
 }

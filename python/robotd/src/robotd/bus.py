@@ -140,6 +140,7 @@ class Bus:
             .user_header(MessageHeader)
             .enable_safe_overflow(spec.latest_wins)
             .subscriber_max_buffer_size(spec.depth)
+            .subscriber_max_borrowed_samples(spec.max_borrowed_samples)
             .history_size(0)
             .max_publishers(spec.max_publishers)
             .max_subscribers(spec.max_subscribers)

@@ -32,6 +32,7 @@ class TopicSpec:
     max_bytes: int
     max_publishers: int
     max_subscribers: int
+    max_borrowed_samples: int
     max_nodes: int
 
     @property
