@@ -2,18 +2,47 @@
 //! the reason there is none: the part every such camera driver shares.
 //!
 //! A receiver (a task or thread of the driver) decodes each frame as it arrives and calls
-//! [`CameraFeed::publish`], or [`CameraFeed::set_problem`] when the source fails. The camera
+//! [`CameraFeed::publish`], or [`CameraFeed::set_problem`] when the source fails. A stream does
+//! not say when a frame was taken, so the feed dates each one `latency` before its arrival and
+//! places the camera where the [`PoseSource`] says it is then. The camera
 //! actor calls [`CameraFeed::frame_ready`] and [`CameraFeed::capture_into`] through the
 //! driver's [`CameraDriver`](crate::CameraDriver) methods. Only the newest frame is kept: a
 //! camera never queues old frames, and a frame is handed out once.
 
-use crate::{CaptureInfo, DriverError, DriverFuture};
+use crate::{CameraDriver, CaptureInfo, DriverError, DriverFuture};
 use nalgebra::Isometry3;
+use robotd_protocol::camera::CameraIntrinsics;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 /// Where the camera is when a frame arrives (e.g. from the arm's joints); `None` when unknown.
 pub type PoseSource = Arc<dyn Fn() -> Option<Isometry3<f64>> + Send + Sync>;
+
+/// A camera whose frames arrive through a [`CameraFeed`]: giving the feed gives it every
+/// [`CameraDriver`] method.
+pub trait FedCamera: Send + Sync + 'static {
+    /// The feed its receiver publishes into.
+    fn feed(&self) -> &CameraFeed;
+}
+
+impl<T: FedCamera> CameraDriver for T {
+    fn size(&self) -> (u32, u32) {
+        let intrinsics = &self.feed().intrinsics;
+        (intrinsics.width, intrinsics.height)
+    }
+
+    fn intrinsics(&self) -> CameraIntrinsics {
+        self.feed().intrinsics.clone()
+    }
+
+    fn frame_ready(&self) -> DriverFuture<'_, ()> {
+        self.feed().frame_ready()
+    }
+
+    fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
+        self.feed().capture_into(out)
+    }
+}
 
 /// How long [`CameraFeed::frame_ready`] waits for news before it reports a standing problem.
 const PROBLEM_GRACE: Duration = Duration::from_secs(1);
@@ -35,6 +64,9 @@ struct Frame {
 pub struct CameraFeed {
     /// Names the camera in logs (a URL, a device path).
     source: String,
+    intrinsics: CameraIntrinsics,
+    latency: Duration,
+    pose: PoseSource,
     latest: Mutex<Latest>,
     arrived: tokio::sync::Notify,
 }
@@ -48,11 +80,21 @@ impl std::fmt::Debug for CameraFeed {
 }
 
 impl CameraFeed {
-    /// A feed for the camera at `source` that has no frame yet, for the reason `waiting`
-    /// (e.g. "connecting to …").
-    pub fn new(source: &str, waiting: String) -> Self {
+    /// A feed for the camera at `source`, whose frames are `intrinsics.width × height`, are
+    /// `latency` old when they arrive and are seen from where `pose` says. It has no frame
+    /// yet, for the reason `waiting` (e.g. "connecting to …").
+    pub fn new(
+        source: &str,
+        intrinsics: CameraIntrinsics,
+        latency: Duration,
+        pose: PoseSource,
+        waiting: String,
+    ) -> Self {
         Self {
             source: source.to_owned(),
+            intrinsics,
+            latency,
+            pose,
             latest: Mutex::new(Latest {
                 frame: Err(waiting),
                 sequence: 0,
@@ -77,8 +119,18 @@ impl CameraFeed {
         self.arrived.notify_waiters();
     }
 
-    /// A new frame: `rgb` (RGB8, the camera's size) taken as `info` says.
-    pub fn publish(&self, rgb: Vec<u8>, info: CaptureInfo) {
+    /// The intrinsics the frames must fit.
+    pub fn intrinsics(&self) -> &CameraIntrinsics {
+        &self.intrinsics
+    }
+
+    /// A new frame that has just arrived: `rgb` (RGB8, the camera's size).
+    pub fn publish(&self, rgb: Vec<u8>) {
+        let info = CaptureInfo {
+            camera_pose: (self.pose)().unwrap_or_else(Isometry3::identity),
+            timestamp_unix_ns: robotd_protocol::envelope::unix_now_ns()
+                .saturating_sub(self.latency.as_nanos() as u64),
+        };
         let mut latest = self.lock();
         latest.frame = Ok(Frame { rgb, info });
         latest.sequence += 1;
@@ -146,23 +198,43 @@ impl CameraFeed {
 mod tests {
     use super::*;
 
-    fn info() -> CaptureInfo {
-        CaptureInfo {
-            camera_pose: Isometry3::identity(),
-            timestamp_unix_ns: 7,
+    fn intrinsics() -> CameraIntrinsics {
+        CameraIntrinsics {
+            width: 1,
+            height: 1,
+            fx: 1.0,
+            fy: 1.0,
+            cx: 0.5,
+            cy: 0.5,
+            distortion: [0.0; 5],
         }
     }
 
     #[tokio::test(start_paused = true)]
     async fn a_frame_is_handed_out_once_and_a_lasting_problem_is_reported() {
-        let feed = CameraFeed::new("test", "connecting".into());
+        let at = Isometry3::translation(0.1, 0.2, 0.3);
+        let latency = Duration::from_millis(250);
+        let feed = CameraFeed::new(
+            "test",
+            intrinsics(),
+            latency,
+            Arc::new(move || Some(at)),
+            "connecting".into(),
+        );
         let mut out = vec![0u8; 3];
         assert!(feed.capture_into(&mut out).is_err());
 
-        feed.publish(vec![1, 2, 3], info());
+        let before = robotd_protocol::envelope::unix_now_ns();
+        feed.publish(vec![1, 2, 3]);
         feed.frame_ready().await.unwrap();
-        assert_eq!(feed.capture_into(&mut out).unwrap().timestamp_unix_ns, 7);
+        let info = feed.capture_into(&mut out).unwrap();
         assert_eq!(out, [1, 2, 3]);
+        assert_eq!(info.camera_pose, at);
+        // Dated `latency` before it arrived.
+        assert!(
+            info.timestamp_unix_ns <= before.saturating_sub(latency.as_nanos() as u64) + 50_000_000
+        );
+        assert!(info.timestamp_unix_ns + latency.as_nanos() as u64 >= before);
         // Already handed out: frame_ready waits for the next one.
         let waiting = tokio::time::timeout(Duration::from_secs(5), feed.frame_ready()).await;
         assert!(waiting.is_err(), "an old frame must not count as ready");
@@ -173,7 +245,7 @@ mod tests {
         assert_eq!(feed.problem().as_deref(), Some("unplugged"));
 
         let mut wrong = vec![0u8; 2];
-        feed.publish(vec![4, 5, 6], info());
+        feed.publish(vec![4, 5, 6]);
         assert!(feed.capture_into(&mut wrong).is_err());
     }
 }

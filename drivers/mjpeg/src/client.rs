@@ -2,20 +2,14 @@
 
 use bytes::Bytes;
 use futures::StreamExt;
-use nalgebra::Isometry3;
-use robotd_driver::camera_feed::{CameraFeed, PoseSource};
-use robotd_driver::{CameraDriver, CaptureInfo, DriverError, DriverFuture};
+use robotd_driver::camera_feed::{CameraFeed, FedCamera, PoseSource};
 use robotd_protocol::camera::CameraIntrinsics;
-use robotd_protocol::envelope::unix_now_ns;
 use std::sync::Arc;
 use std::time::Duration;
 
 /// An MJPEG-over-HTTP camera.
 pub struct MjpegCamera {
     url: String,
-    latency: Duration,
-    intrinsics: CameraIntrinsics,
-    pose: PoseSource,
     feed: CameraFeed,
 }
 
@@ -38,10 +32,13 @@ impl MjpegCamera {
     ) -> Arc<Self> {
         Arc::new(Self {
             url: url.to_owned(),
-            latency,
-            intrinsics,
-            pose,
-            feed: CameraFeed::new(url, format!("connecting to the camera stream {url}")),
+            feed: CameraFeed::new(
+                url,
+                intrinsics,
+                latency,
+                pose,
+                format!("connecting to the camera stream {url}"),
+            ),
         })
     }
 
@@ -126,22 +123,19 @@ impl MjpegCamera {
     fn decode(&self, jpeg: &[u8]) -> Result<Vec<u8>, String> {
         let (rgb, w, h) = robotd_render::decode_jpeg(jpeg)
             .map_err(|e| format!("a frame of {} is not usable: {e}", self.url))?;
-        if (w, h) != (self.intrinsics.width, self.intrinsics.height) {
+        if (w, h) != (self.feed.intrinsics().width, self.feed.intrinsics().height) {
             return Err(format!(
                 "the camera sends {w}×{h} frames but its intrinsics are for {}×{}; set \
                  robot.widowx.camera_intrinsics for this camera",
-                self.intrinsics.width, self.intrinsics.height
+                self.feed.intrinsics().width,
+                self.feed.intrinsics().height
             ));
         }
         Ok(rgb)
     }
 
     fn publish(&self, rgb: Vec<u8>) {
-        let info = CaptureInfo {
-            camera_pose: (self.pose)().unwrap_or_else(Isometry3::identity),
-            timestamp_unix_ns: unix_now_ns().saturating_sub(self.latency.as_nanos() as u64),
-        };
-        self.feed.publish(rgb, info);
+        self.feed.publish(rgb);
     }
 }
 
@@ -163,21 +157,9 @@ fn boundary_of(content_type: &str) -> Option<String> {
     })
 }
 
-impl CameraDriver for MjpegCamera {
-    fn size(&self) -> (u32, u32) {
-        (self.intrinsics.width, self.intrinsics.height)
-    }
-
-    fn intrinsics(&self) -> CameraIntrinsics {
-        self.intrinsics.clone()
-    }
-
-    fn frame_ready(&self) -> DriverFuture<'_, ()> {
-        self.feed.frame_ready()
-    }
-
-    fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
-        self.feed.capture_into(out)
+impl FedCamera for MjpegCamera {
+    fn feed(&self) -> &CameraFeed {
+        &self.feed
     }
 }
 

@@ -20,11 +20,8 @@ mod convert;
 pub use capture::{probe, STALL_TIMEOUT};
 pub use convert::{yuyv_to_rgb, Decoder};
 
-use nalgebra::Isometry3;
-use robotd_driver::camera_feed::{CameraFeed, PoseSource};
-use robotd_driver::{CameraDriver, CaptureInfo, DriverError, DriverFuture};
+use robotd_driver::camera_feed::{CameraFeed, FedCamera, PoseSource};
 use robotd_protocol::camera::CameraIntrinsics;
-use robotd_protocol::envelope::unix_now_ns;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Weak};
 use std::time::Duration;
@@ -32,9 +29,6 @@ use std::time::Duration;
 /// A V4L2 capture device as a robotd camera.
 pub struct V4l2Camera {
     device: PathBuf,
-    latency: Duration,
-    intrinsics: CameraIntrinsics,
-    pose: PoseSource,
     feed: CameraFeed,
 }
 
@@ -57,11 +51,11 @@ impl V4l2Camera {
     ) -> std::io::Result<Arc<Self>> {
         let camera = Arc::new(Self {
             device: device.to_owned(),
-            latency,
-            intrinsics,
-            pose,
             feed: CameraFeed::new(
                 &device.display().to_string(),
+                intrinsics,
+                latency,
+                pose,
                 format!("opening camera {}", device.display()),
             ),
         });
@@ -112,9 +106,10 @@ struct Sink {
 
 impl capture::FrameSink for Sink {
     fn size(&self) -> (u32, u32) {
-        self.camera
-            .upgrade()
-            .map_or((0, 0), |c| (c.intrinsics.width, c.intrinsics.height))
+        self.camera.upgrade().map_or((0, 0), |c| {
+            let intrinsics = c.feed.intrinsics();
+            (intrinsics.width, intrinsics.height)
+        })
     }
 
     fn wanted(&self) -> bool {
@@ -127,11 +122,7 @@ impl capture::FrameSink for Sink {
         };
         self.frames
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let info = CaptureInfo {
-            camera_pose: (camera.pose)().unwrap_or_else(Isometry3::identity),
-            timestamp_unix_ns: unix_now_ns().saturating_sub(camera.latency.as_nanos() as u64),
-        };
-        camera.feed.publish(rgb, info);
+        camera.feed.publish(rgb);
     }
 
     fn bad_frame(&self, reason: String) {
@@ -141,27 +132,16 @@ impl capture::FrameSink for Sink {
     }
 }
 
-impl CameraDriver for V4l2Camera {
-    fn size(&self) -> (u32, u32) {
-        (self.intrinsics.width, self.intrinsics.height)
-    }
-
-    fn intrinsics(&self) -> CameraIntrinsics {
-        self.intrinsics.clone()
-    }
-
-    fn frame_ready(&self) -> DriverFuture<'_, ()> {
-        self.feed.frame_ready()
-    }
-
-    fn capture_into(&self, out: &mut [u8]) -> Result<CaptureInfo, DriverError> {
-        self.feed.capture_into(out)
+impl FedCamera for V4l2Camera {
+    fn feed(&self) -> &CameraFeed {
+        &self.feed
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use robotd_driver::CameraDriver;
 
     fn intrinsics() -> CameraIntrinsics {
         CameraIntrinsics {
