@@ -94,10 +94,21 @@ fn python_tools_read_frames_and_their_detections_reach_the_tools() {
     let _redis = start_redis(redis_port);
     let port = common::free_port();
     let url = format!("redis://127.0.0.1:{redis_port}/0");
+    // The Python detector answers one frame and then falls silent. The workspace model takes a
+    // detector silent for 5 s (capture time) as gone and lets the built-in detector's views age
+    // what only it saw: with the default 3 views the screwdriver could be forgotten before
+    // a loaded machine gets to ask. Expiry has its own tests (workspace-model's tracker).
     let _robotd = common::start_robotd(
         &common::fresh_namespace("redis-py"),
         port,
-        &["--redis", &url, "--set", "robot.time_scale=0.05"],
+        &[
+            "--redis",
+            &url,
+            "--set",
+            "robot.time_scale=0.05",
+            "--set",
+            "workspace.expire_after_frames=1000",
+        ],
     );
     // Look once, so the arm stands at the observation pose and robotd's detections flow.
     let (ok, _) = call(port, "get_detected_objects", &[]);

@@ -85,7 +85,19 @@ fn capture_thread(camera: Weak<V4l2Camera>) {
             camera: camera.clone(),
             frames: std::sync::atomic::AtomicU64::new(0),
         };
-        let reason = capture::run_session(&device, &sink);
+        // A bug in the capture path (the V4L2 library, a decoder) must not end the thread
+        // and leave the camera silent: it is one more reason to reopen the device.
+        let session = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            capture::run_session(&device, &sink)
+        }));
+        let reason = session.unwrap_or_else(|panic| {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            format!("the capture of camera {} failed: {what}", device.display())
+        });
         if sink.frames.load(std::sync::atomic::Ordering::Relaxed) > 0 {
             backoff = Duration::from_millis(100);
         }
