@@ -423,7 +423,14 @@ impl Runner {
             workspace_id: ws.id.clone(),
         })
         .await?;
-        let arrived = unix_now_ns();
+        let objects = self.objects_seen_after(unix_now_ns()).await?;
+        self.last_seen.clone_from(&objects);
+        Ok(objects)
+    }
+
+    /// Every object on the table, from a view taken after `unix_ns` (the workspace model
+    /// waits for one).
+    async fn objects_seen_after(&self, unix_ns: u64) -> Result<Vec<DetectedObject>, SkillError> {
         let reply = self
             .ask(
                 WorkspaceRequest::GetObjects {
@@ -431,17 +438,37 @@ impl Runner {
                     coordinate: None,
                     label: None,
                 },
-                Some(arrived),
+                Some(unix_ns),
             )
             .await?;
         match reply {
-            WorkspaceReply::Objects { objects } => {
-                self.last_seen.clone_from(&objects);
-                Ok(objects)
-            }
+            WorkspaceReply::Objects { objects } => Ok(objects),
             other => Err(SkillError::perception(format!(
                 "unexpected answer {other:?}"
             ))),
+        }
+    }
+
+    /// Looks at `ws` and finds `name` near `at`: the objects seen, and that one.
+    async fn look_for(
+        &mut self,
+        run: &mut Run,
+        ws: &WorkspaceInfo,
+        name: &str,
+        at: Point2,
+    ) -> Result<(Vec<DetectedObject>, DetectedObject), SkillError> {
+        let objects = self.look(run, ws).await?;
+        let object = find_object(&objects, name, at, self.settings.pick_radius_m)?;
+        Ok((objects, object))
+    }
+
+    /// Refuses to start while the gripper holds something; `reason` says why from its label.
+    fn refuse_while_holding(&self, reason: impl FnOnce(&str) -> String) -> Result<(), SkillError> {
+        match &self.held {
+            Some(held) => Err(SkillError::BadPlacement {
+                reason: reason(&held.object.label),
+            }),
+            None => Ok(()),
         }
     }
 
@@ -488,16 +515,10 @@ impl Runner {
         if let Some((place, _)) = then_place {
             self.workspace("place", place)?;
         }
-        if let Some(held) = &self.held {
-            return Err(SkillError::BadPlacement {
-                reason: format!(
-                    "the gripper already holds '{}'; place it first",
-                    held.object.label
-                ),
-            });
-        }
-        let objects = self.look(run, &ws).await?;
-        let object = find_object(&objects, name, at, self.settings.pick_radius_m)?;
+        self.refuse_while_holding(|label| {
+            format!("the gripper already holds '{label}'; place it first")
+        })?;
+        let (objects, object) = self.look_for(run, &ws, name, at).await?;
         let width = geometry::grasp_width(&object);
         let max = self.settings.gripper_max_width_m;
         if width > max - 0.002 {

@@ -2,7 +2,7 @@
 //! first), check every pose and the tool's path against the neighbours, push, lift, and
 //! then check with a fresh view that the object moved about as far as asked.
 
-use super::{down, find_object, object_xy, Run, Runner};
+use super::{down, object_xy, Run, Runner};
 use crate::geometry::{self, top_z};
 use crate::plan;
 use robotd_protocol::arm::PathKind;
@@ -10,8 +10,8 @@ use robotd_protocol::envelope::unix_now_ns;
 use robotd_protocol::gripper::GripperCommand;
 use robotd_protocol::objects::DetectedObject;
 use robotd_protocol::skills::SkillError;
-use robotd_protocol::workspace::{WorkspaceReply, WorkspaceRequest};
-use robotd_protocol::{Direction, Location, Point2};
+use robotd_protocol::workspace::WorkspaceRequest;
+use robotd_protocol::{Direction, Point2};
 use std::f64::consts::FRAC_PI_2;
 
 impl Runner {
@@ -24,16 +24,10 @@ impl Runner {
         distance_m: f64,
     ) -> Result<(DetectedObject, Point2), SkillError> {
         let ws = self.workspace("push", at)?;
-        if let Some(held) = &self.held {
-            return Err(SkillError::BadPlacement {
-                reason: format!(
-                    "the gripper holds '{}'; place it before pushing",
-                    held.object.label
-                ),
-            });
-        }
-        let objects = self.look(run, &ws).await?;
-        let object = find_object(&objects, name, at, self.settings.pick_radius_m)?;
+        self.refuse_while_holding(|label| {
+            format!("the gripper holds '{label}'; place it before pushing")
+        })?;
+        let (objects, object) = self.look_for(run, &ws, name, at).await?;
         let end_of_object = direction.offset(object_xy(&object), distance_m);
         self.workspace("push", end_of_object)?;
         if let Some(problem) = plan::push_problem(&self.settings, &object, &objects, end_of_object)
@@ -115,19 +109,7 @@ impl Runner {
         direction: Direction,
         distance_m: f64,
     ) -> Result<(), SkillError> {
-        let reply = self
-            .ask(
-                WorkspaceRequest::GetObjects {
-                    location: Location::None,
-                    coordinate: None,
-                    label: None,
-                },
-                Some(unix_now_ns()),
-            )
-            .await?;
-        let WorkspaceReply::Objects { objects } = reply else {
-            return Err(SkillError::perception("unexpected answer to a view query"));
-        };
+        let objects = self.objects_seen_after(unix_now_ns()).await?;
         // The tracker may give an object that moved far a new id (the old one lingers until it
         // expires): take the same-label object nearest to where the push should have put it.
         let expected = direction.offset(object.xy(), distance_m);
