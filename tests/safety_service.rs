@@ -276,16 +276,23 @@ fn a_bus_client_elsewhere_cannot_pass_the_limits_and_the_estop_latches_from_ever
                     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
                 }
             }
-            // Released: motions run again (the release reaches the arm through the bus).
+            // Released: motions run again (the release reaches the arm through the bus). The
+            // arm and the safety gate in front of it each latch the e-stop and each hear the
+            // release on their own, so either may still refuse for a moment.
             let deadline = Instant::now() + Duration::from_secs(5);
             loop {
                 let reply = arm
                     .request(&ArmCommand::move_to(down(0.25, 0.0, 0.12)), TIMEOUT)
                     .await
                     .unwrap();
+                let still_latched = match &reply {
+                    ArmReply::Error { error: ArmError::EStopped { .. } } => true,
+                    ArmReply::Error { error: ArmError::Refused { limit, .. } } => limit == "estop",
+                    _ => false,
+                };
                 match reply {
                     ArmReply::Ok { .. } => break,
-                    ArmReply::Error { error: ArmError::EStopped { .. } } if Instant::now() < deadline => {
+                    _ if still_latched && Instant::now() < deadline => {
                         tokio::time::sleep(Duration::from_millis(20)).await;
                     }
                     other => panic!("after the release: {other:?}"),

@@ -181,16 +181,9 @@ async fn run(
         let annotated_every = interval(settings.annotated_fps);
         let mut last_camera: Option<Instant> = None;
         let mut last_annotated: Option<Instant> = None;
-        let (mut tool_pose, mut moving, mut last_moving_ns, mut heard) = (None, false, 0u64, false);
+        let mut arm = ArmMotion::default();
         while !stop.load(Ordering::SeqCst) {
-            while let Ok(Some(state)) = arm_states.try_recv() {
-                heard = true;
-                tool_pose = Some(state.body.tool_pose);
-                moving = state.body.moving;
-                if moving {
-                    last_moving_ns = state.sent_at_unix_ns;
-                }
-            }
+            arm.take(&mut arm_states);
             // Annotate kept frames whose detections came in.
             while let Ok(Some(message)) = detections.try_recv() {
                 let Some(every) = annotated_every else {
@@ -225,6 +218,9 @@ async fn run(
             if last_camera.is_some_and(|t| t.elapsed() < every) {
                 continue;
             }
+            // States that came in while this frame was awaited: without them a frame taken just
+            // after the arm stopped would count as moving here and as steady in perception.
+            arm.take(&mut arm_states);
             let header = *sample.header();
             let (w, h) = (header.width as usize, header.height as usize);
             let bytes = w * h * 3;
@@ -247,8 +243,8 @@ async fn run(
                 timestamp_unix_ns: header.timestamp_unix_ns,
                 size: (w, h),
                 jpeg: Arc::new(jpeg),
-                tool_pose,
-                steady: !heard || (!moving && header.timestamp_unix_ns > last_moving_ns),
+                tool_pose: arm.tool_pose,
+                steady: arm.steady_at(header.timestamp_unix_ns),
             };
             let meta = frame_meta(&settings, &record);
             sender.offer(camera_entry(&settings.instance, &meta, &record.jpeg, None));
@@ -297,5 +293,42 @@ fn publish_annotated(
             tracing::warn!(%error, "redis edge: JPEG encoding of an annotated frame failed");
             status.count(crate::wire::ANNOTATED_CAMERA, "skipped_encoding_failed");
         }
+    }
+}
+
+/// What the arm's states say about motion, to mark frames taken at rest (the rule perception
+/// uses, so a detector answering a frame perception called steady gets a steady frame here).
+#[derive(Debug, Default)]
+struct ArmMotion {
+    heard: bool,
+    moving: bool,
+    rest_since_ns: Option<u64>,
+    tool_pose: Option<robotd_protocol::Pose>,
+}
+
+impl ArmMotion {
+    /// Takes in every state waiting on `states`.
+    fn take(
+        &mut self,
+        states: &mut robotd_runtime::bus::Subscriber<robotd_protocol::arm::ArmState>,
+    ) {
+        while let Ok(Some(message)) = states.try_recv() {
+            let state = &message.body;
+            self.heard = true;
+            self.tool_pose = Some(state.tool_pose);
+            if state.moving {
+                self.rest_since_ns = None;
+            } else if state.still_since_unix_ns > 0 {
+                self.rest_since_ns = Some(state.still_since_unix_ns);
+            } else if self.moving || self.rest_since_ns.is_none() {
+                self.rest_since_ns = Some(message.sent_at_unix_ns);
+            }
+            self.moving = state.moving;
+        }
+    }
+
+    /// Whether a frame captured at `capture_ns` shows the arm at rest.
+    fn steady_at(&self, capture_ns: u64) -> bool {
+        !self.heard || (!self.moving && self.rest_since_ns.is_some_and(|r| capture_ns > r))
     }
 }
