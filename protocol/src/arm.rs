@@ -358,3 +358,43 @@ mod tests {
         assert!(!ArmCommand::GetPose.moves_arm());
     }
 }
+
+/// What the arm's states say about motion, for telling which camera frames show the arm at
+/// rest. Perception and the Redis edge both use it, so a frame one calls steady the other does
+/// too.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ArmMotion {
+    /// Whether any arm state was received (without an arm, frames count as steady).
+    pub heard: bool,
+    /// Whether the latest state said the arm moves.
+    pub moving: bool,
+    /// Since when the arm rests (`None` while it moves, or before any state): the state's
+    /// `still_since_unix_ns`, or for senders without it the send time of the first state that
+    /// said the arm rests.
+    pub rest_since_ns: Option<u64>,
+    /// The latest tool pose.
+    pub tool_pose: Option<Pose>,
+}
+
+impl ArmMotion {
+    /// Takes in one arm state, sent at `sent_at_unix_ns`.
+    pub fn update(&mut self, state: &ArmState, sent_at_unix_ns: u64) {
+        self.heard = true;
+        self.tool_pose = Some(state.tool_pose);
+        if state.moving {
+            self.rest_since_ns = None;
+        } else if state.still_since_unix_ns > 0 {
+            self.rest_since_ns = Some(state.still_since_unix_ns);
+        } else if self.moving || self.rest_since_ns.is_none() {
+            self.rest_since_ns = Some(sent_at_unix_ns);
+        }
+        self.moving = state.moving;
+    }
+
+    /// Whether a frame captured at `capture_ns` shows the arm at rest: taken after the arm
+    /// came to rest, with no state since saying it moves. A frame taken during a motion, even
+    /// one too short for any state to say "moving", is older than the rest that followed.
+    pub fn steady_at(&self, capture_ns: u64) -> bool {
+        !self.heard || (!self.moving && self.rest_since_ns.is_some_and(|r| capture_ns > r))
+    }
+}

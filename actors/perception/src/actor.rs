@@ -20,8 +20,6 @@ use crate::external::KnownSheet;
 use crate::external_detections::{self, ExternalStats};
 use crate::labels::LabelTable;
 use crate::pipeline::{Pipeline, SheetStatus};
-use robotd_protocol::arm::ArmState;
-use robotd_protocol::geometry::Pose;
 use robotd_protocol::objects::Detections;
 use robotd_runtime::bus::{Bus, BusError};
 use robotd_runtime::catalog::{
@@ -159,18 +157,23 @@ impl Drop for Perception {
 /// What the actor knows about the arm.
 #[derive(Debug, Default)]
 struct ArmView {
-    /// The latest tool pose.
-    tool_pose: Option<Pose>,
-    /// Whether the latest state said the arm moves.
-    moving: bool,
-    /// Since when the arm rests (`None` while it moves, or before any state): the state's
-    /// `still_since_unix_ns`, or for senders without it the send time of the first state that
-    /// said the arm rests.
-    rest_since_ns: Option<u64>,
-    /// Whether any arm state was received (without an arm, frames count as steady).
-    heard: bool,
+    /// Motion and rest, from the arm's states.
+    motion: robotd_protocol::arm::ArmMotion,
     /// Whether the gripper holds something (it then hangs in the wrist camera's view).
     holding: bool,
+}
+
+impl std::ops::Deref for ArmView {
+    type Target = robotd_protocol::arm::ArmMotion;
+    fn deref(&self) -> &Self::Target {
+        &self.motion
+    }
+}
+
+impl std::ops::DerefMut for ArmView {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        &mut self.motion
+    }
 }
 
 /// How far around the tool a held object's image may reach on the table plane, metres.
@@ -187,29 +190,6 @@ impl ArmView {
         let c = object.xy();
         (tool.x_m - c.x_m).abs() <= object.dimensions.height_m / 2.0 + HELD_OBJECT_MARGIN_M
             && (tool.y_m - c.y_m).abs() <= object.dimensions.width_m / 2.0 + HELD_OBJECT_MARGIN_M
-    }
-}
-
-impl ArmView {
-    /// Takes in one arm state.
-    fn update(&mut self, state: &ArmState, sent_at_unix_ns: u64) {
-        self.heard = true;
-        self.tool_pose = Some(state.tool_pose);
-        if state.moving {
-            self.rest_since_ns = None;
-        } else if state.still_since_unix_ns > 0 {
-            self.rest_since_ns = Some(state.still_since_unix_ns);
-        } else if self.moving || self.rest_since_ns.is_none() {
-            self.rest_since_ns = Some(sent_at_unix_ns);
-        }
-        self.moving = state.moving;
-    }
-
-    /// Whether a frame captured at `capture_ns` shows the arm at rest: taken after the arm
-    /// came to rest, with no state since saying it moves. A frame taken during a motion, even
-    /// one too short for any state to say "moving", is older than the rest that followed.
-    fn steady_at(&self, capture_ns: u64) -> bool {
-        !self.heard || (!self.moving && self.rest_since_ns.is_some_and(|r| capture_ns > r))
     }
 }
 
@@ -404,6 +384,8 @@ fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use robotd_protocol::arm::ArmState;
+    use robotd_protocol::geometry::Pose;
 
     fn state(moving: bool, still_since_unix_ns: u64) -> ArmState {
         ArmState {

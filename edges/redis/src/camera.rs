@@ -181,9 +181,9 @@ async fn run(
         let annotated_every = interval(settings.annotated_fps);
         let mut last_camera: Option<Instant> = None;
         let mut last_annotated: Option<Instant> = None;
-        let mut arm = ArmMotion::default();
+        let mut arm = robotd_protocol::arm::ArmMotion::default();
         while !stop.load(Ordering::SeqCst) {
-            arm.take(&mut arm_states);
+            take_arm_states(&mut arm, &mut arm_states);
             // Annotate kept frames whose detections came in.
             while let Ok(Some(message)) = detections.try_recv() {
                 let Some(every) = annotated_every else {
@@ -220,7 +220,7 @@ async fn run(
             }
             // States that came in while this frame was awaited: without them a frame taken just
             // after the arm stopped would count as moving here and as steady in perception.
-            arm.take(&mut arm_states);
+            take_arm_states(&mut arm, &mut arm_states);
             let header = *sample.header();
             let (w, h) = (header.width as usize, header.height as usize);
             let bytes = w * h * 3;
@@ -296,39 +296,12 @@ fn publish_annotated(
     }
 }
 
-/// What the arm's states say about motion, to mark frames taken at rest (the rule perception
-/// uses, so a detector answering a frame perception called steady gets a steady frame here).
-#[derive(Debug, Default)]
-struct ArmMotion {
-    heard: bool,
-    moving: bool,
-    rest_since_ns: Option<u64>,
-    tool_pose: Option<robotd_protocol::Pose>,
-}
-
-impl ArmMotion {
-    /// Takes in every state waiting on `states`.
-    fn take(
-        &mut self,
-        states: &mut robotd_runtime::bus::Subscriber<robotd_protocol::arm::ArmState>,
-    ) {
-        while let Ok(Some(message)) = states.try_recv() {
-            let state = &message.body;
-            self.heard = true;
-            self.tool_pose = Some(state.tool_pose);
-            if state.moving {
-                self.rest_since_ns = None;
-            } else if state.still_since_unix_ns > 0 {
-                self.rest_since_ns = Some(state.still_since_unix_ns);
-            } else if self.moving || self.rest_since_ns.is_none() {
-                self.rest_since_ns = Some(message.sent_at_unix_ns);
-            }
-            self.moving = state.moving;
-        }
-    }
-
-    /// Whether a frame captured at `capture_ns` shows the arm at rest.
-    fn steady_at(&self, capture_ns: u64) -> bool {
-        !self.heard || (!self.moving && self.rest_since_ns.is_some_and(|r| capture_ns > r))
+/// Takes in every arm state waiting on `states`.
+fn take_arm_states(
+    motion: &mut robotd_protocol::arm::ArmMotion,
+    states: &mut robotd_runtime::bus::Subscriber<robotd_protocol::arm::ArmState>,
+) {
+    while let Ok(Some(message)) = states.try_recv() {
+        motion.update(&message.body, message.sent_at_unix_ns);
     }
 }
