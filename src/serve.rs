@@ -438,7 +438,7 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
         loopback: address.ip().is_loopback(),
     };
     robotd_http::guard::check_bind(address, &guard)?;
-    let mut edge = edge.with_guard(guard);
+    let mut edge = edge.with_guard(guard).with_limits(config.http.limits());
     let stop_sessions = CancellationToken::new();
     if config.mcp.enabled {
         let service = mcp_service(&config, runtime.tool_registry(&config)?);

@@ -116,6 +116,22 @@ fn off_loopback_every_route_needs_the_token_even_without_mcp() {
             common::http_request(port, "GET", path, &[("Authorization", &auth)], b"");
         assert_eq!(status, 200, "{path}: {body}");
     }
+    // The dashboard opened by the machine's name (a phone on the lab's network): its own
+    // requests carry its origin and are served; another site's are refused.
+    let auth = format!("Bearer {token}");
+    let host = format!("robot-pc.lab:{port}");
+    for (origin, expected) in [
+        (format!("http://robot-pc.lab:{port}"), 200),
+        (format!("http://evil.example:{port}"), 403),
+    ] {
+        let headers = [
+            ("Authorization", auth.as_str()),
+            ("Host", host.as_str()),
+            ("Origin", origin.as_str()),
+        ];
+        let (status, body) = common::http_request(port, "GET", "/api/status", &headers, b"");
+        assert_eq!(status, expected, "Origin {origin}: {body}");
+    }
 
     // Without a token such a bind does not start at all, MCP or not.
     let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
@@ -328,5 +344,112 @@ fn sessions_are_capped_and_idle_ones_expire() {
     for expired in [second, third] {
         let (status, body) = post_mcp(LOCAL, port, Some(&expired), INITIALIZED);
         assert_eq!(status, 404, "an expired session still answers: {body}");
+    }
+}
+
+/// Reads until the server closes the connection; returns what arrived.
+fn read_until_closed(stream: &mut TcpStream) -> String {
+    use std::io::Read;
+    let mut seen = Vec::new();
+    let mut buffer = [0u8; 4096];
+    loop {
+        match stream.read(&mut buffer) {
+            Ok(0) => break,
+            Ok(n) => seen.extend_from_slice(&buffer[..n]),
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => break,
+            Err(e) => panic!("the connection was not closed ({e}); got {seen:?}"),
+        }
+    }
+    String::from_utf8_lossy(&seen).into_owned()
+}
+
+#[test]
+fn idle_connections_are_closed_and_streams_are_not() {
+    let namespace = common::fresh_namespace("idle");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &["--set", "http.idle_timeout_s=2"]);
+
+    // A kept-alive connection after one request, and one that never sends anything.
+    let mut kept = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    kept.set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    write!(
+        kept,
+        "GET /health HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n"
+    )
+    .unwrap();
+    let opened = std::time::Instant::now();
+    let mut silent = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    silent
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    // An MCP SSE stream open across the timeout.
+    let mut sse = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    sse.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    write!(
+        sse,
+        "GET /sse HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nAccept: text/event-stream\r\n\r\n"
+    )
+    .unwrap();
+    let mut sse = BufReader::new(sse);
+    sse_session(&mut sse);
+
+    let answer = read_until_closed(&mut kept);
+    assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    let nothing = read_until_closed(&mut silent);
+    let waited = opened.elapsed();
+    assert!(nothing.is_empty(), "{nothing}");
+    assert!(
+        waited >= Duration::from_millis(1500),
+        "closed after {waited:?}, before the 2 s idle timeout"
+    );
+    // The stream still delivers (its keep-alive comments) after the idle timeout passed.
+    let mut line = String::new();
+    assert!(
+        sse.read_line(&mut line).unwrap() > 0,
+        "the SSE stream was cut"
+    );
+}
+
+#[test]
+fn connections_over_the_cap_get_a_503_that_names_the_setting() {
+    let namespace = common::fresh_namespace("cap");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &["--set", "http.max_connections=8"]);
+    let mut held: Vec<TcpStream> = (0..8)
+        .map(|_| TcpStream::connect(("127.0.0.1", port)).unwrap())
+        .collect();
+    // The server counts a connection once it has accepted it: the ninth is refused as soon as
+    // the eight are in, which a request on each of them proves.
+    for stream in &mut held {
+        stream
+            .set_read_timeout(Some(Duration::from_secs(10)))
+            .unwrap();
+        write!(
+            stream,
+            "GET /health HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n"
+        )
+        .unwrap();
+        let mut head = [0u8; 12];
+        std::io::Read::read_exact(stream, &mut head).unwrap();
+        assert_eq!(&head, b"HTTP/1.1 200");
+    }
+    let (status, body) = common::http_get(port, "/health");
+    assert_eq!(status, 503, "{body}");
+    assert!(body.contains("http.max_connections"), "{body}");
+
+    // A connection closed frees its place.
+    held.pop();
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    loop {
+        let (status, body) = common::http_get(port, "/health");
+        if status == 200 {
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "still refused after a connection closed: {status} {body}"
+        );
+        std::thread::yield_now();
     }
 }

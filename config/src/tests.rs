@@ -265,6 +265,10 @@ fn out_of_range_values_are_refused_by_validation() {
         mode = "process"
         [actors.arm]
         command = ["x"]
+        [http]
+        bind = "127.0.0.1:8000"
+        max_connections = 2
+        idle_timeout_s = 0
         "#,
     );
     let error = Config::load_with_env(with_file(&file), no_env()).unwrap_err();
@@ -281,6 +285,8 @@ fn out_of_range_values_are_refused_by_validation() {
         "telemetry.otlp_endpoint",
         "actors.camera.command",
         "actors.arm.command",
+        "http.max_connections",
+        "http.idle_timeout_s",
     ] {
         let problem = problems
             .iter()

@@ -1,4 +1,5 @@
-//! `[http]`: the address of robotd's one HTTP port and the host names it answers to.
+//! `[http]`: the address of robotd's one HTTP port, the host names it answers to, and how
+//! many connections it holds and for how long.
 
 use robotd_runtime::config::{Checks, Section};
 use serde::{Deserialize, Serialize};
@@ -15,6 +16,31 @@ pub struct HttpConfig {
     /// list restricts `Host` to these names.
     #[serde(default)]
     pub allowed_hosts: Vec<String>,
+    /// Connections the port holds open at once (8 … 65536); the next gets a 503 and is closed.
+    #[serde(default = "default_max_connections")]
+    pub max_connections: usize,
+    /// Seconds an open connection may go without sending a request before it is closed
+    /// (1 … 3600). Responses in progress (tool calls, SSE streams) are not cut.
+    #[serde(default = "default_idle_timeout_s")]
+    pub idle_timeout_s: u64,
+}
+
+fn default_max_connections() -> usize {
+    crate::ConnectionLimits::default().max_connections
+}
+
+fn default_idle_timeout_s() -> u64 {
+    crate::ConnectionLimits::default().idle_timeout.as_secs()
+}
+
+impl HttpConfig {
+    /// The connection cap and idle timeout of this section.
+    pub fn limits(&self) -> crate::ConnectionLimits {
+        crate::ConnectionLimits {
+            max_connections: self.max_connections,
+            idle_timeout: std::time::Duration::from_secs(self.idle_timeout_s),
+        }
+    }
 }
 
 /// Whether `name` is a plain host name or IP address (no scheme, port, path or spaces).
@@ -35,6 +61,13 @@ fn is_host_name(name: &str) -> bool {
 impl Section for HttpConfig {
     /// The address is checked while it is read (serde parses it).
     fn check(&self, checks: &mut Checks) {
+        checks.range_u64(
+            "max_connections",
+            self.max_connections as u64,
+            8..=65536,
+            "",
+        );
+        checks.range_u64("idle_timeout_s", self.idle_timeout_s, 1..=3600, " s");
         for name in &self.allowed_hosts {
             if !is_host_name(name) {
                 checks.problem(

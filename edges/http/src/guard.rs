@@ -132,9 +132,37 @@ impl HttpGuard {
         })
     }
 
-    fn origin_allowed(&self, origin: &str) -> bool {
-        origin_is_local(origin) || self.allowed_origins.iter().any(|o| o == origin)
+    /// Whether a request from `origin` may go on: a local origin, a configured one, or the
+    /// request's own origin (a page robotd served, e.g. the dashboard opened as
+    /// `http://robot-pc.lab:8000/`; the `Host` check and, off loopback, the token already
+    /// stand in front of it).
+    fn origin_allowed(&self, origin: &str, host: Option<&str>) -> bool {
+        origin_is_local(origin)
+            || self.allowed_origins.iter().any(|o| o == origin)
+            || host.is_some_and(|host| is_same_origin(origin, host))
     }
+}
+
+/// Whether `origin` (`scheme://authority`) names the server a request with `Host: host` reached.
+fn is_same_origin(origin: &str, host: &str) -> bool {
+    let Some((scheme, authority)) = origin.split_once("://") else {
+        return false;
+    };
+    let default_port = match scheme {
+        "http" => ":80",
+        "https" => ":443",
+        _ => return false,
+    };
+    let with_port = |a: &str| {
+        if a.ends_with(']') || !a.contains(':') || (a.starts_with('[') && !a.contains("]:")) {
+            format!("{a}{default_port}")
+        } else {
+            a.to_owned()
+        }
+    };
+    !authority.is_empty()
+        && !authority.contains('/')
+        && with_port(authority).eq_ignore_ascii_case(&with_port(host))
 }
 
 fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
@@ -155,12 +183,12 @@ async fn check(State(guard): State<Arc<HttpGuard>>, request: Request, next: Next
     }
     if let Some(origin) = headers.get(header::ORIGIN) {
         let origin = origin.to_str().unwrap_or("");
-        if !guard.origin_allowed(origin) {
+        if !guard.origin_allowed(origin, host) {
             tracing::warn!(origin, "HTTP request with a foreign Origin refused");
             return (
                 StatusCode::FORBIDDEN,
-                "Forbidden: Origin not allowed (robotd serves local clients; add the origin to \
-                 [mcp] allowed_origins to allow it)",
+                "Forbidden: Origin not allowed (robotd serves local clients and its own pages; \
+                 add the origin to [mcp] allowed_origins to allow it)",
             )
                 .into_response();
         }
@@ -227,6 +255,31 @@ mod tests {
         ] {
             assert!(!origin_is_local(bad), "{bad}");
         }
+    }
+
+    #[test]
+    fn a_page_robotd_served_may_call_it_from_any_address() {
+        let guard = HttpGuard {
+            loopback: false,
+            token: Some("s3cret".into()),
+            ..Default::default()
+        };
+        let host = Some("robot-pc.lab:8000");
+        assert!(guard.origin_allowed("http://robot-pc.lab:8000", host));
+        assert!(guard.origin_allowed("http://ROBOT-PC.lab:8000", host));
+        assert!(guard.origin_allowed("http://10.0.0.5", Some("10.0.0.5:80")));
+        assert!(guard.origin_allowed("https://[fe80::1]", Some("[fe80::1]:443")));
+        // The Host header carries no scheme: behind a TLS proxy the page's origin is https.
+        assert!(guard.origin_allowed("https://robot-pc.lab:8000", host));
+        for other in [
+            "http://robot-pc.lab:8001",
+            "http://evil.example:8000",
+            "http://robot-pc.lab:8000/x",
+            "null",
+        ] {
+            assert!(!guard.origin_allowed(other, host), "{other}");
+        }
+        assert!(!guard.origin_allowed("http://robot-pc.lab:8000", None));
     }
 
     #[test]

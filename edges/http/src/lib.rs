@@ -1,7 +1,8 @@
 //! robotd's HTTP edge: the service's one HTTP port, with `GET /health` (JSON) and
 //! `GET /metrics` (Prometheus text) for dashboards and monitoring; the MCP edge mounts its
 //! routes on the same port ([`HttpEdge::with_routes`]). Every route sits behind one
-//! [`guard`] (Host, Origin, bearer token, body size). It holds no robot logic.
+//! [`guard`] (Host, Origin, bearer token, body size), and the port holds a bounded number of
+//! connections, closing idle ones ([`connections`]). It holds no robot logic.
 //!
 //! ```no_run
 //! # async fn demo() -> std::io::Result<()> {
@@ -15,15 +16,16 @@
 //! ```
 
 pub mod config;
+pub mod connections;
 pub mod guard;
 pub mod safety;
 pub use config::HttpConfig;
+pub use connections::ConnectionLimits;
 
 use axum::extract::State;
 use axum::http::{header, StatusCode};
 use axum::response::IntoResponse;
 use axum::routing::get;
-use axum::serve::ListenerExt;
 use axum::Router;
 use robotd_runtime::metrics::{Metrics, CONTENT_TYPE};
 use std::future::Future;
@@ -38,6 +40,7 @@ pub struct HttpEdge {
     listener: tokio::net::TcpListener,
     router: Router,
     guard: guard::HttpGuard,
+    limits: ConnectionLimits,
 }
 
 impl HttpEdge {
@@ -57,6 +60,7 @@ impl HttpEdge {
                 loopback,
                 ..Default::default()
             },
+            limits: ConnectionLimits::default(),
         })
     }
 
@@ -75,6 +79,12 @@ impl HttpEdge {
         self
     }
 
+    /// Sets the connection cap and idle timeout (defaults: [`ConnectionLimits::default`]).
+    pub fn with_limits(mut self, limits: ConnectionLimits) -> Self {
+        self.limits = limits;
+        self
+    }
+
     /// The address actually bound.
     pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
         self.listener.local_addr()
@@ -87,19 +97,7 @@ impl HttpEdge {
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> std::io::Result<()> {
         let app = guard::guarded(self.router, self.guard);
-        // Without TCP_NODELAY a response written in two pieces (headers, then an SSE event)
-        // waits for the client's delayed ACK: a ~40 ms floor per streamable-HTTP call.
-        let listener = self.listener.tap_io(|stream| {
-            if let Err(error) = stream.set_nodelay(true) {
-                tracing::debug!(%error, "TCP_NODELAY not set");
-            }
-        });
-        axum::serve(
-            listener,
-            app.into_make_service_with_connect_info::<SocketAddr>(),
-        )
-        .with_graceful_shutdown(shutdown)
-        .await
+        connections::serve(self.listener, app, self.limits, shutdown).await
     }
 }
 

@@ -187,8 +187,20 @@ pub(super) async fn post_message(
                 .into_response()
         }
     };
-    match sender.send(message).await {
-        Ok(()) => (StatusCode::ACCEPTED, "Accepted").into_response(),
-        Err(_) => (StatusCode::NOT_FOUND, "Could not find session").into_response(),
+    match tokio::time::timeout(POST_QUEUE_WAIT, sender.send(message)).await {
+        Ok(Ok(())) => (StatusCode::ACCEPTED, "Accepted").into_response(),
+        Ok(Err(_)) => (StatusCode::NOT_FOUND, "Could not find session").into_response(),
+        Err(_) => {
+            tracing::warn!(session = %id, "SSE session's queue stayed full: POST refused");
+            (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "the session's queue is full: its client is not reading the SSE stream",
+            )
+                .into_response()
+        }
     }
 }
+
+/// Longest a POST waits for room in its session's queue (the client reads its answers from
+/// the SSE stream; one that stops reading fills the queue) before it is answered 503.
+const POST_QUEUE_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
