@@ -1,7 +1,8 @@
 //! robotd in Foxglove, against a served robotd on the simulator:
 //!
 //! - the live view: a WebSocket client speaking the Foxglove protocol subscribes to the
-//!   camera, transforms, objects, URDF and a bus topic, and decodes what arrives;
+//!   camera, transforms, objects, workspace, URDF, joint states and a bus topic, and decodes
+//!   what arrives;
 //! - a recording: `robotd record` writes an MCAP file that the reference Python reader opens,
 //!   with the channels, schemas and messages expected;
 //! - a replay: `robotd replay` publishes the recording on another bus namespace, and
@@ -54,7 +55,9 @@ fn the_live_view_serves_camera_transforms_objects_and_topics() {
             "/camera",
             "/tf",
             "/scene/objects",
+            "/scene/workspace",
             "/robot_description",
+            "/joint_states",
             "/bus/arm/state",
         ];
         // Channels are advertised (possibly over several messages); subscribe to ours.
@@ -119,6 +122,17 @@ fn the_live_view_serves_camera_transforms_objects_and_topics() {
         assert_eq!(image.format, "jpeg");
         let decoded = image::load_from_memory(&image.data).unwrap();
         assert_eq!((decoded.width(), decoded.height()), (640, 480));
+        let urdf: Value = serde_json::from_slice(&seen["/robot_description"]).unwrap();
+        let urdf = urdf["data"].as_str().unwrap();
+        assert!(urdf.contains("<robot"));
+        let model = robotd_foxglove::urdf::parse(urdf);
+        // The model is drawable (every link has a visual) ...
+        assert!(
+            model.links.iter().all(|l| l.visuals > 0),
+            "{:?}",
+            model.links
+        );
+        // ... and /tf is its tree: each transform is one of its joints, parent to child.
         let transforms = FrameTransforms::decode(seen["/tf"].as_slice()).unwrap();
         let children: Vec<&str> = transforms
             .transforms
@@ -126,6 +140,47 @@ fn the_live_view_serves_camera_transforms_objects_and_topics() {
             .map(|t| t.child_frame_id.as_str())
             .collect();
         assert!(children.contains(&"tcp_link"), "{children:?}");
+        for t in &transforms.transforms {
+            assert!(
+                model
+                    .joints
+                    .iter()
+                    .any(|j| j.parent == t.parent_frame_id && j.child == t.child_frame_id),
+                "{} -> {} is not a joint of the URDF",
+                t.parent_frame_id,
+                t.child_frame_id
+            );
+        }
+        // /joint_states names the URDF's movable joints, one per position.
+        let joints: Value = serde_json::from_slice(&seen["/joint_states"]).unwrap();
+        let movable: Vec<&str> = model
+            .joints
+            .iter()
+            .filter(|j| j.is_movable())
+            .map(|j| j.name.as_str())
+            .collect();
+        let names: Vec<&str> = joints["name"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n.as_str().unwrap())
+            .collect();
+        assert_eq!(names, movable, "{joints}");
+        assert_eq!(joints["position"].as_array().unwrap().len(), 6, "{joints}");
+        // /scene/workspace: the workspaces' sheets and the motion policy's geofence.
+        let workspace = SceneUpdate::decode(seen["/scene/workspace"].as_slice()).unwrap();
+        let ids: Vec<&str> = workspace.entities.iter().map(|e| e.id.as_str()).collect();
+        assert!(ids.contains(&"geofence"), "{ids:?}");
+        assert!(
+            ids.iter().any(|id| id.starts_with("workspaces/")),
+            "{ids:?}"
+        );
+        let fence = workspace
+            .entities
+            .iter()
+            .find(|e| e.id == "geofence")
+            .unwrap();
+        assert_eq!(fence.lines[0].points.len(), 24, "the fence's twelve edges");
         let scene = SceneUpdate::decode(seen["/scene/objects"].as_slice()).unwrap();
         let labels: Vec<&str> = scene
             .entities
@@ -133,8 +188,6 @@ fn the_live_view_serves_camera_transforms_objects_and_topics() {
             .flat_map(|e| e.texts.iter().map(|t| t.text.as_str()))
             .collect();
         assert!(labels.iter().any(|l| l.starts_with("pencil")), "{labels:?}");
-        let urdf: Value = serde_json::from_slice(&seen["/robot_description"]).unwrap();
-        assert!(urdf["data"].as_str().unwrap().contains("<robot"));
         let arm: Value = serde_json::from_slice(&seen["/bus/arm/state"]).unwrap();
         assert_eq!(
             arm["joints"]["positions_rad"].as_array().unwrap().len(),
@@ -176,6 +229,7 @@ fn a_recording_opens_in_the_mcap_reader_and_replays_into_perception() {
         "/camera",
         "/camera/meta",
         "/tf",
+        "/joint_states",
         "/scene/arm",
         "/scene/workspace",
         "/robot_description",

@@ -8,10 +8,10 @@
 //! |---|---|---|
 //! | `/camera` | `foxglove.CompressedImage` (JPEG) | `camera/frames`, at most `camera_fps` a second |
 //! | `/camera/meta` | JSON: `frame_id`, `timestamp_unix_ns`, `width`, `height`, `camera_pose` | the same frames' headers (what replay needs to rebuild them) |
-//! | `/tf` | `foxglove.FrameTransforms` | every link of the arm from `base_link`, by forward kinematics of `arm/state` |
-//! | `/joint_states` | JSON: `name`, `position` (rad) | `arm/state` |
-//! | `/robot_description` | JSON `std_msgs/String`: the URDF | once a second (late viewers get it too) |
-//! | `/scene/arm` | `foxglove.SceneUpdate` | the arm as a line through its links (the URDFs carry no meshes) |
+//! | `/tf` | `foxglove.FrameTransforms` | every link of the arm from its parent link (the URDF's tree, from `base_link`), by forward kinematics of `arm/state` |
+//! | `/joint_states` | JSON: `name` (the URDF's joint names), `position` (rad) | `arm/state` |
+//! | `/robot_description` | JSON `std_msgs/String`: the URDF, with simple visuals for the 3D panel | once a second (late viewers get it too) |
+//! | `/scene/arm` | `foxglove.SceneUpdate` | the arm as a line through its link origins (without the URDF layer) |
 //! | `/scene/objects` | `foxglove.SceneUpdate` | `workspace/objects`: a box and a label per object |
 //! | `/scene/workspace` | `foxglove.SceneUpdate` | the workspaces' sheets, the geofence's edges and the keep-out zones, once a second |
 //! | `/log` | `foxglove.Log` | overlays (speech, tasks, system messages), restarts, agent answers and errors |
@@ -21,8 +21,8 @@
 //! replays with the original timing. A channel nobody listens to costs nothing: the SDK drops
 //! messages without sinks before encoding them.
 
-use crate::scene;
 use crate::topics::{self, JsonSubscriber};
+use crate::{scene, urdf};
 use foxglove::messages::log::Level;
 use foxglove::messages::{CompressedImage, FrameTransforms, Log, SceneUpdate};
 use foxglove::{Channel, ChannelBuilder, Context, PartialMetadata, RawChannel, Schema};
@@ -153,6 +153,19 @@ impl Channels {
     }
 }
 
+/// The names of the arm's joints as its URDF has them (`joint_1` … on the Ned2, `waist`,
+/// `shoulder` … on the WidowX), in the order of `arm/state`'s positions: the movable joints
+/// along the kinematic chain from the base to the tool. `None` if the URDF and the kinematics
+/// disagree (a build defect the tests catch).
+pub fn joint_names(kinematics: &Kinematics) -> Option<Vec<String>> {
+    let links = kinematics.link_poses(&kinematics.home_joints()).ok()?;
+    let chain: Vec<&str> = links.iter().map(|(name, _)| name.as_str()).collect();
+    let model = urdf::parse(kinematics.urdf());
+    let names = model.movable_joints_along(&chain)?;
+    (names.len() == kinematics.joint_count())
+        .then(|| names.into_iter().map(str::to_owned).collect())
+}
+
 async fn follow(
     bus: &Bus,
     context: &Arc<Context>,
@@ -161,6 +174,10 @@ async fn follow(
 ) -> Result<(), BusError> {
     let channels = Channels::new(context);
     let kinematics = Kinematics::new(settings.model);
+    let joint_names = joint_names(&kinematics);
+    if joint_names.is_none() {
+        tracing::warn!(model = ?settings.model, "foxglove: the URDF's joints do not match the kinematics; no /joint_states");
+    }
     let mut frames = if settings.camera {
         Some(bus.frame_subscriber(&CAMERA_FRAMES)?)
     } else {
@@ -209,10 +226,11 @@ async fn follow(
         while let Some(message) = arm.try_recv()? {
             let ns = message.sent_at_unix_ns;
             let q = &message.body.joints.positions_rad;
-            if let Some(channel) = &channels.joints {
-                let names: Vec<String> = (1..=q.len()).map(|i| format!("joint_{i}")).collect();
-                let body = json!({"name": names, "position": q}).to_string();
-                channel.log_with_meta(body.as_bytes(), at(ns));
+            if let (Some(channel), Some(names)) = (&channels.joints, &joint_names) {
+                if names.len() == q.len() {
+                    let body = json!({"name": names, "position": q}).to_string();
+                    channel.log_with_meta(body.as_bytes(), at(ns));
+                }
             }
             match kinematics.link_poses(q) {
                 Ok(links) => {
@@ -318,6 +336,45 @@ async fn follow(
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    #[test]
+    fn joint_states_name_the_urdf_joints_of_the_configured_robot() {
+        let wx = joint_names(&Kinematics::new(RobotModel::WidowX250)).unwrap();
+        assert_eq!(
+            wx,
+            [
+                "waist",
+                "shoulder",
+                "elbow",
+                "forearm_roll",
+                "wrist_angle",
+                "wrist_rotate"
+            ]
+        );
+        let ned2 = joint_names(&Kinematics::new(RobotModel::Ned2)).unwrap();
+        assert_eq!(
+            ned2,
+            ["joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6"]
+        );
+        // Each is a movable joint of that robot's URDF, one per position of `arm/state`.
+        for model in [RobotModel::Ned2, RobotModel::WidowX250] {
+            let kinematics = Kinematics::new(model);
+            let names = joint_names(&kinematics).unwrap();
+            assert_eq!(names.len(), kinematics.joint_count());
+            let parsed = urdf::parse(kinematics.urdf());
+            for name in &names {
+                assert!(
+                    parsed
+                        .joints
+                        .iter()
+                        .any(|j| &j.name == name && j.is_movable()),
+                    "{model:?}: {name}"
+                );
+            }
+        }
+    }
+
     /// The channels the bridge creates (besides `/bus/<topic>`).
     const CHANNELS: [&str; 9] = [
         "/camera",

@@ -49,27 +49,35 @@ const fn colour(r: f64, g: f64, b: f64, a: f64) -> Color {
     Color { r, g, b, a }
 }
 
-/// The pose of every link (`(name, pose in the base frame)`) as transforms from the base.
+/// The pose of every link of a chain (`(name, pose in the base frame)`, base first, each link
+/// the parent of the next, as the kinematics list them) as transforms from each link's parent:
+/// the tree of the URDF, so the transforms agree with the joints Foxglove's URDF layer reads
+/// from `/robot_description` (a frame given two different parents would be re-parented back and
+/// forth). A first link other than the base frame is placed from the base frame.
 pub fn link_transforms(links: &[(String, Isometry3<f64>)], ns: u64) -> FrameTransforms {
-    let transforms = links
-        .iter()
-        .filter(|(name, _)| name != BASE_FRAME)
-        .map(|(name, iso)| FrameTransform {
-            timestamp: Some(timestamp(ns)),
-            parent_frame_id: BASE_FRAME.to_owned(),
-            child_frame_id: name.clone(),
-            translation: Some(vector(
-                iso.translation.x,
-                iso.translation.y,
-                iso.translation.z,
-            )),
-            rotation: Some(quaternion(iso)),
-        })
-        .collect();
+    let mut parent: (&str, Isometry3<f64>) = (BASE_FRAME, Isometry3::identity());
+    let mut transforms = Vec::with_capacity(links.len());
+    for (name, pose) in links {
+        if name != BASE_FRAME {
+            let relative = parent.1.inverse() * pose;
+            transforms.push(FrameTransform {
+                timestamp: Some(timestamp(ns)),
+                parent_frame_id: parent.0.to_owned(),
+                child_frame_id: name.clone(),
+                translation: Some(vector(
+                    relative.translation.x,
+                    relative.translation.y,
+                    relative.translation.z,
+                )),
+                rotation: Some(quaternion(&relative)),
+            });
+        }
+        parent = (name, *pose);
+    }
     FrameTransforms { transforms }
 }
 
-/// The arm drawn as a line through its link origins (the models carry no meshes).
+/// The arm drawn as a line through its link origins (for views without the URDF layer).
 pub fn arm_scene(links: &[(String, Isometry3<f64>)], ns: u64) -> SceneUpdate {
     let points = links
         .iter()
@@ -270,5 +278,58 @@ pub fn log(level: foxglove::messages::log::Level, name: &str, message: String, n
         message,
         name: name.to_owned(),
         ..Default::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+    use robotd_kinematics::{Kinematics, RobotModel};
+
+    fn isometry(t: &FrameTransform) -> Isometry3<f64> {
+        let (p, q) = (
+            t.translation.as_ref().unwrap(),
+            t.rotation.as_ref().unwrap(),
+        );
+        Isometry3::from_parts(
+            Translation3::new(p.x, p.y, p.z),
+            UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z)),
+        )
+    }
+
+    #[test]
+    fn transforms_follow_the_urdf_tree_and_compose_to_the_link_poses() {
+        for model in [RobotModel::Ned2, RobotModel::WidowX250] {
+            let kinematics = Kinematics::new(model);
+            let q = [0.3, -0.4, 0.5, 0.2, 0.6, -0.7];
+            let links = kinematics.link_poses(&q).unwrap();
+            let tf = link_transforms(&links, 7);
+            let joints = crate::urdf::parse(kinematics.urdf()).joints;
+            let mut in_base: std::collections::HashMap<&str, Isometry3<f64>> =
+                [(BASE_FRAME, Isometry3::identity())].into();
+            for t in &tf.transforms {
+                // Each transform is one joint of the URDF, from its parent link to its child.
+                assert!(
+                    joints
+                        .iter()
+                        .any(|j| j.parent == t.parent_frame_id && j.child == t.child_frame_id),
+                    "{model:?}: {} -> {} is no joint",
+                    t.parent_frame_id,
+                    t.child_frame_id
+                );
+                let parent = in_base[t.parent_frame_id.as_str()];
+                in_base.insert(&t.child_frame_id, parent * isometry(t));
+            }
+            assert_eq!(tf.transforms.len(), links.len() - 1, "{model:?}");
+            for (name, pose) in &links {
+                let composed = in_base[name.as_str()];
+                assert!(
+                    (composed.translation.vector - pose.translation.vector).norm() < 1e-9
+                        && composed.rotation.angle_to(&pose.rotation) < 1e-9,
+                    "{model:?}: {name}"
+                );
+            }
+        }
     }
 }

@@ -92,13 +92,14 @@ fn typed<T: Message>(topic: Topic<T>) -> Box<dyn JsonTopic> {
     Box::new(Typed(topic))
 }
 
-/// Every message topic of robotd's catalogue.
+/// Every message topic of robotd's catalogue (a test holds it to [`catalog::entries`]).
 pub fn all() -> Vec<Box<dyn JsonTopic>> {
     vec![
         typed(catalog::ARM_STATE),
         typed(catalog::GRIPPER_STATE),
         typed(catalog::SAFETY_ESTOP),
         typed(catalog::PERCEPTION_DETECTIONS),
+        typed(catalog::PERCEPTION_PIXEL_DETECTIONS),
         typed(catalog::WORKSPACE_OBJECTS),
         typed(catalog::WORKSPACE_LABELS),
         typed(catalog::SPEECH_SPEAK),
@@ -121,6 +122,92 @@ pub fn find(name: &str) -> Option<Box<dyn JsonTopic>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use robotd_runtime::bus::Entry;
+
+    /// Catalogue entries deliberately not under `/bus/…`, with the reason. Anything else in the
+    /// catalogue must be in [`all`]: a topic added there fails this test until the bridge
+    /// knows it (or it is listed here with a reason).
+    const NOT_BRIDGED: [(&str, &str); 9] = [
+        (
+            "camera/frames",
+            "frames in shared memory: their own channels, /camera (JPEG) and /camera/meta",
+        ),
+        (
+            "example/test_pattern/frames",
+            "frames of the example external actor: not robotd's state, and not JSON",
+        ),
+        // Services: a requests topic with one server and a replies topic per client (named
+        // after the client's id); a request without its caller's reply is half a conversation,
+        // and replaying requests would make the robot act. Their effects are on the topics.
+        ("system/ping", "service (liveness probe)"),
+        (
+            "sim/world",
+            "service (the simulator's ground truth, on request)",
+        ),
+        (
+            "example/test_pattern/command",
+            "service (the example actor's command)",
+        ),
+        ("arm/command", "service: the arm's effect is on arm/state"),
+        (
+            "gripper/command",
+            "service: the gripper's effect is on gripper/state",
+        ),
+        (
+            "workspace/query",
+            "service: the model's content is on workspace/objects",
+        ),
+        ("skills/run", "service: progress is on skills/progress"),
+    ];
+
+    #[test]
+    fn every_message_topic_of_the_catalogue_is_bridged_with_its_type() {
+        let entries = catalog::entries();
+        for entry in &entries {
+            let name = entry.name();
+            let bridged = find(name);
+            match entry {
+                Entry::Topic(topic) => match &bridged {
+                    Some(json) => assert_eq!(
+                        json.type_name(),
+                        topic.msg_type,
+                        "{name}: bridged with the wrong message type"
+                    ),
+                    None => assert!(
+                        NOT_BRIDGED.iter().any(|(n, _)| *n == name),
+                        "the catalogue's topic {name} is missing from topics::all(): the \
+                         live view and recordings would not carry it (add it, or list it in \
+                         NOT_BRIDGED with the reason)"
+                    ),
+                },
+                Entry::Frames(_) | Entry::Service(_) => {
+                    assert!(bridged.is_none(), "{name} is not a message topic");
+                    assert!(
+                        NOT_BRIDGED.iter().any(|(n, _)| *n == name),
+                        "{name}: a frame topic or service the bridge does not carry; list it \
+                         in NOT_BRIDGED with the reason"
+                    );
+                }
+            }
+        }
+        // The list stays true: each entry is in the catalogue and not bridged.
+        for (name, reason) in NOT_BRIDGED {
+            assert!(
+                entries.iter().any(|e| e.name() == name) && find(name).is_none(),
+                "NOT_BRIDGED names {name} ({reason}), which is not an unbridged catalogue entry"
+            );
+        }
+        // The other way round: everything bridged is a message topic of the catalogue.
+        for topic in all() {
+            assert!(
+                entries
+                    .iter()
+                    .any(|e| matches!(e, Entry::Topic(t) if t.name == topic.name())),
+                "{} is bridged but not a topic of the catalogue",
+                topic.name()
+            );
+        }
+    }
 
     #[test]
     fn names_are_unique_and_found() {
