@@ -14,6 +14,7 @@
 //! | `robotd_actor_restarts_total` | counter | `actor` |
 //! | `robotd_actor_up` | gauge (1 = running, 0 = down) | `actor` |
 //! | `robotd_actor_budget_exhausted_total` | counter | `actor` |
+//! | `robotd_tool_calls_total` | counter | `transport` (`sse`, `streamable_http`, `stdio`), `status` (`ok`, `failed`, `protocol_error`) |
 //!
 //! Recording is cheap enough for every bus message: after the first message on a topic, a
 //! call is a shared read lock, one hash lookup by `&str` (no allocation) and an atomic add
@@ -112,6 +113,7 @@ struct Inner {
     budget_exhausted: Family<ActorLabels, Counter>,
     redis_up: Gauge,
     redis_entries: Family<TopicReasonLabels, Counter>,
+    tool_calls: Family<TopicReasonLabels, Counter>,
     topics: RwLock<HashMap<Arc<str>, Arc<TopicHandles>>>,
 }
 
@@ -150,6 +152,7 @@ impl Metrics {
         let budget_exhausted = Family::<ActorLabels, Counter>::default();
         let redis_up = Gauge::default();
         let redis_entries = Family::<TopicReasonLabels, Counter>::default();
+        let tool_calls = Family::<TopicReasonLabels, Counter>::default();
         registry.register(
             "bus_messages",
             "Messages sent to or received from the bus, by topic and direction",
@@ -191,6 +194,11 @@ impl Metrics {
             "Redis stream entries by stream and outcome (published, dropped_*, consumed, skipped_*)",
             redis_entries.clone(),
         );
+        registry.register(
+            "tool_calls",
+            "Tool calls served to MCP clients, by transport and status (each call counted once, when answered)",
+            tool_calls.clone(),
+        );
         Self {
             inner: Arc::new(Inner {
                 registry,
@@ -202,6 +210,7 @@ impl Metrics {
                 budget_exhausted,
                 redis_up,
                 redis_entries,
+                tool_calls,
                 topics: RwLock::new(HashMap::new()),
             }),
         }
@@ -347,6 +356,17 @@ impl Metrics {
             .inc();
     }
 
+    /// Counts one tool call answered to an MCP client over `transport` with `status`.
+    pub fn tool_call(&self, transport: &str, status: &str) {
+        self.inner
+            .tool_calls
+            .get_or_create(&[
+                ("transport", Arc::from(transport)),
+                ("status", Arc::from(status)),
+            ])
+            .inc();
+    }
+
     /// Every series in the OpenMetrics text format (ends with `# EOF`), to be served with
     /// [`CONTENT_TYPE`].
     pub fn render(&self) -> String {
@@ -460,6 +480,19 @@ mod tests {
         let series = r#"robotd_bus_messages_total{topic="t",direction="sent"}"#;
         assert_eq!(value(&a.render(), series), Some(2.0));
         assert_eq!(value(&other.render(), series), None);
+    }
+
+    #[test]
+    fn tool_calls_are_counted_by_transport_and_status() {
+        let metrics = Metrics::new();
+        metrics.tool_call("sse", "ok");
+        metrics.tool_call("sse", "ok");
+        metrics.tool_call("streamable_http", "failed");
+        let text = metrics.render();
+        let sse = r#"robotd_tool_calls_total{transport="sse",status="ok"}"#;
+        let http = r#"robotd_tool_calls_total{transport="streamable_http",status="failed"}"#;
+        assert_eq!(value(&text, sse), Some(2.0), "{text}");
+        assert_eq!(value(&text, http), Some(1.0), "{text}");
     }
 
     #[test]

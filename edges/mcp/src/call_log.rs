@@ -139,6 +139,7 @@ impl CallLog {
             duration,
             trace_id,
         } = *call;
+        robotd_runtime::metrics::Metrics::global().tool_call(transport, status);
         tracing::info!(
             target: "robotd::mcp::calls",
             transport,

@@ -19,7 +19,9 @@
 //!   they were after warm-up;
 //! - every injected fault was recovered from (the actor back, Redis reconnected, no actor left
 //!   down or out of restart budget);
-//! - no call was lost (every call got exactly one answer, `✓` or `❌`);
+//! - no call was lost (every call got exactly one answer, `✓` or `❌`), and none ran twice:
+//!   the service's own count of the MCP tool calls it answered (`robotd_tool_calls_total`)
+//!   matches the calls the clients sent, and no agent request got a second final answer;
 //! - the robot never stayed stuck: no stretch of [`MOTION_GAP_LIMIT_S`] without one of the
 //!   pencil's moves succeeding (an injected fault may fail a move, never all later ones).
 
@@ -118,6 +120,13 @@ pub struct SoakReport {
     pub examples: BTreeMap<Outcome, Vec<String>>,
     /// MCP sessions opened by visiting clients.
     pub sessions: u64,
+    /// MCP tool calls the clients sent.
+    pub tool_calls_sent: u64,
+    /// MCP tool calls the service says it answered (`robotd_tool_calls_total`), when it could
+    /// be read.
+    pub tool_calls_served: Option<u64>,
+    /// Agent requests that got a final event after their first.
+    pub agent_answered_twice: u64,
     /// Agent requests sent / answered / failed.
     pub agent_sent: u64,
     /// See `agent_sent`.
@@ -180,6 +189,13 @@ impl SoakReport {
             .iter()
             .filter(|f| f.recovered_after_s.is_some())
             .count();
+        out.push_str(&format!(
+            "tool calls sent {}, answered by the service {}; agent requests answered twice {}\n",
+            self.tool_calls_sent,
+            self.tool_calls_served
+                .map_or("(unknown)".to_owned(), |n| n.to_string()),
+            self.agent_answered_twice
+        ));
         out.push_str(&format!(
             "moves of the pencil: {} ok, {} failed; longest stretch without one {:.0} s (from \
              {:.0} s; limit {MOTION_GAP_LIMIT_S:.0})\n",
@@ -246,6 +262,7 @@ async fn soak(exe: &Path, minutes: f64) -> Result<SoakReport> {
         end: start + Duration::from_secs_f64(minutes * 60.0),
         port,
         calls: CallLog::default(),
+        tool_calls_sent: Default::default(),
         sessions: Default::default(),
         motions: Default::default(),
     });
@@ -291,6 +308,7 @@ async fn soak(exe: &Path, minutes: f64) -> Result<SoakReport> {
     tokio::time::sleep(Duration::from_secs(2)).await;
     let end_sample = sampler::sample(pid, start.elapsed())?;
     let health = workload::health(port).await;
+    let served = workload::tool_calls_served(port).await;
     samples.push((end_sample, restarts(port).await.unwrap_or(0)));
     let kinds_at_end = sampler::fd_kinds(pid);
     let mut fd_kind_changes = BTreeMap::new();
@@ -306,9 +324,27 @@ async fn soak(exe: &Path, minutes: f64) -> Result<SoakReport> {
     drop(robotd);
     drop(redis);
     let injected = faults.lock().unwrap_or_else(|e| e.into_inner()).clone();
-    let mut report = verdict(minutes, &samples, &work, &tally, injected, health);
+    let mut report = verdict(minutes, &samples, &work, &tally, injected, health, served);
     report.fd_kind_changes = fd_kind_changes;
     Ok(report)
+}
+
+/// Why the service's count of answered tool calls (`served`) does not fit the `sent` calls of
+/// which `lost` got no answer: more answered than sent means a call ran twice; with nothing
+/// lost, every call sent must have been answered exactly once.
+fn served_count_problem(sent: u64, served: u64, lost: u64) -> Option<String> {
+    if served > sent {
+        Some(format!(
+            "the service answered {served} tool calls but only {sent} were sent: {} ran twice",
+            served - sent
+        ))
+    } else if lost == 0 && served != sent {
+        Some(format!(
+            "{sent} tool calls were sent and all answered, but the service counted {served}"
+        ))
+    } else {
+        None
+    }
 }
 
 /// Seconds of warm-up: the first third of the run, at least a minute, at most half of it.
@@ -334,6 +370,7 @@ fn verdict(
     tally: &AgentTally,
     faults: Vec<InjectedFault>,
     health: Option<serde_json::Value>,
+    served: Option<u64>,
 ) -> SoakReport {
     let warm_up_s = warm_up_s(minutes);
     let after: Vec<&(ProcessSample, u64)> = samples
@@ -419,6 +456,17 @@ fn verdict(
     if lost > 0 {
         failures.push(format!("{lost} calls got no answer"));
     }
+    let calls_sent = work.tool_calls_sent.load(Ordering::Relaxed);
+    match served {
+        Some(served) => failures.extend(served_count_problem(calls_sent, served, lost)),
+        None => failures.push("the service's count of tool calls could not be read".into()),
+    }
+    let answered_twice = tally.answered_twice.load(Ordering::Relaxed);
+    if answered_twice > 0 {
+        failures.push(format!(
+            "{answered_twice} agent requests got a second final answer"
+        ));
+    }
     let (sent, answered, agent_failed) = (
         tally.sent.load(Ordering::Relaxed),
         tally.answered.load(Ordering::Relaxed),
@@ -454,6 +502,9 @@ fn verdict(
         longest_motion_gap_from_s: gap_from_s,
         examples: work.calls.examples(),
         sessions: work.sessions.load(Ordering::Relaxed),
+        tool_calls_sent: calls_sent,
+        tool_calls_served: served,
+        agent_answered_twice: answered_twice,
         agent_sent: sent,
         agent_answered: answered,
         agent_failed,
@@ -463,5 +514,22 @@ fn verdict(
         fd_kind_changes: BTreeMap::new(),
         passed: failures.is_empty(),
         failures,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::served_count_problem;
+
+    #[test]
+    fn a_call_served_twice_or_never_fails_the_run() {
+        assert_eq!(served_count_problem(100, 100, 0), None);
+        // Lost calls may or may not have run on the service.
+        assert_eq!(served_count_problem(100, 98, 3), None);
+        let twice = served_count_problem(100, 101, 0).unwrap();
+        assert!(twice.contains("1 ran twice"), "{twice}");
+        assert!(served_count_problem(100, 101, 5).is_some());
+        let missing = served_count_problem(100, 99, 0).unwrap();
+        assert!(missing.contains("counted 99"), "{missing}");
     }
 }

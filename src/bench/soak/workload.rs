@@ -35,6 +35,8 @@ pub struct Workload {
     pub end: Instant,
     pub port: u16,
     pub calls: CallLog,
+    /// Tool calls sent by the MCP clients (each counted before it is sent).
+    pub tool_calls_sent: AtomicU64,
     pub sessions: AtomicU64,
     pub motions: MotionLog,
 }
@@ -59,6 +61,7 @@ impl Workload {
         let started = Instant::now();
         let since = started - self.start;
         let params = CallToolRequestParams::new(tool.to_owned()).with_arguments(arguments(args));
+        self.tool_calls_sent.fetch_add(1, Ordering::Relaxed);
         match tokio::time::timeout(CALL_TIMEOUT, client.call_tool(params)).await {
             Ok(Ok(result)) => {
                 let text = result
@@ -247,6 +250,8 @@ pub struct AgentTally {
     pub sent: AtomicU64,
     pub answered: AtomicU64,
     pub failed: AtomicU64,
+    /// Requests that got a final event after their first one.
+    pub answered_twice: AtomicU64,
 }
 
 /// Every 15 s, a request to the agent (the mock LLM plans, calls `get_detected_objects`,
@@ -261,6 +266,7 @@ pub async fn agent_requests(
     let requests = bus.publisher(&AGENT_REQUEST)?;
     let mut events = bus.subscriber(&AGENT_EVENTS)?;
     let mut n = 0u64;
+    let mut finished = std::collections::HashSet::new();
     while work.running() {
         n += 1;
         mock.push(MockReply::plan_and_call(
@@ -285,6 +291,11 @@ pub async fn agent_requests(
         let answered = loop {
             let left = deadline.saturating_duration_since(Instant::now());
             match tokio::time::timeout(left, events.recv()).await {
+                Ok(Ok(event)) if finished.contains(&event.body.request_id) => {
+                    if event.body.event.is_terminal() {
+                        tally.answered_twice.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
                 Ok(Ok(event)) if event.body.request_id == request_id => {
                     if event.body.event.is_terminal() {
                         break matches!(
@@ -297,6 +308,7 @@ pub async fn agent_requests(
                 _ => break false,
             }
         };
+        finished.insert(request_id);
         let counter = if answered {
             &tally.answered
         } else {
@@ -415,6 +427,31 @@ pub async fn health(port: u16) -> Option<Value> {
         .await
         .ok()?;
     response.json().await.ok()
+}
+
+/// The service's count of tool calls answered to MCP clients over SSE and streamable HTTP
+/// (`robotd_tool_calls_total` on `/metrics`), or None when it cannot be read.
+pub async fn tool_calls_served(port: u16) -> Option<u64> {
+    let text = reqwest::Client::new()
+        .get(format!("http://127.0.0.1:{port}/metrics"))
+        .timeout(Duration::from_secs(5))
+        .send()
+        .await
+        .ok()?
+        .text()
+        .await
+        .ok()?;
+    Some(
+        text.lines()
+            .filter(|line| line.starts_with("robotd_tool_calls_total{"))
+            .filter(|line| {
+                line.contains(r#"transport="sse""#)
+                    || line.contains(r#"transport="streamable_http""#)
+            })
+            .filter_map(|line| line.rsplit(' ').next()?.parse::<f64>().ok())
+            .map(|n| n as u64)
+            .sum(),
+    )
 }
 
 async fn actor_running(port: u16, name: &str) -> bool {
