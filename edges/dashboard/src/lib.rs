@@ -17,6 +17,7 @@
 pub mod api;
 pub mod config;
 pub mod live;
+pub mod overlay_ids;
 mod page;
 
 pub use api::{AgentLink, DashboardApi};

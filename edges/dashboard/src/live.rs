@@ -4,7 +4,7 @@
 //! them) and keeps:
 //!
 //! - the **camera**: at most `camera_fps` times a second the newest frame, with the newest
-//!   detections drawn on it, encoded as JPEG into a `watch` cell — each viewer takes the
+//!   detections drawn on it (with the workspace model's stable ids), encoded as JPEG into a `watch` cell — each viewer takes the
 //!   newest frame when it is ready for one, so a slow browser skips frames and the camera
 //!   never waits (drop, don't queue);
 //! - a **snapshot** (arm, objects, recent overlays and restarts, camera and detection rates),
@@ -211,6 +211,7 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
     let every = Duration::from_secs_f64(1.0 / camera_fps);
     let mut last_encoded: Option<Instant> = None;
     let mut drawn: Vec<DetectedObject> = Vec::new();
+    let mut tracked: Vec<DetectedObject> = Vec::new();
     let (mut bus_rate, mut page_rate, mut detection_rate) = (Rate::new(), Rate::new(), Rate::new());
     let mut encode_ms: VecDeque<f64> = VecDeque::new();
     while !live.stop.load(Ordering::SeqCst) {
@@ -226,6 +227,7 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
             drawn = message.body.objects;
         }
         while let Some(message) = objects.try_recv()? {
+            tracked = message.body.objects.clone();
             live.update(|s| s.objects = message.body.objects);
         }
         while let Some(message) = overlays.try_recv()? {
@@ -276,7 +278,8 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
                 last_encoded = Some(Instant::now());
                 let mut rgb = sample.pixels()[..bytes].to_vec();
                 drop(sample);
-                robotd_render::annotate::draw_objects(&mut rgb, w, h, &drawn);
+                let named = crate::overlay_ids::with_stable_ids(&drawn, &tracked);
+                robotd_render::annotate::draw_objects(&mut rgb, w, h, &named);
                 let started = Instant::now();
                 match robotd_render::encode_jpeg(&rgb, w as u32, h as u32, quality) {
                     Ok(jpeg) => {

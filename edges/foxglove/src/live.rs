@@ -4,11 +4,21 @@
 //! channels without sinks), so an idle live view costs the bridge's bus reading and nothing
 //! more. The protocol has no authentication: robotd serves it on loopback only (the config
 //! check refuses other addresses); watch from elsewhere through an SSH tunnel.
+//!
+//! Limits: each connected app gets a queue of [`CLIENT_BACKLOG`] messages; a client that reads
+//! slower than the bridge publishes loses its oldest messages instead of growing the queue
+//! (at most ~6 MB of camera frames per client). The SDK (0.26) has no cap on the number of
+//! clients and no Origin check: any local process, including a web page in a local browser,
+//! can connect — do not enable the live view on a shared machine whose camera must stay private.
 
 use crate::bridge::{self, Bridge, BridgeSettings};
 use foxglove::{Context, WebSocketServer, WebSocketServerHandle};
 use robotd_runtime::bus::Bus;
 use std::net::SocketAddr;
+
+/// Messages queued per connected app before the oldest are dropped (the SDK's default is
+/// 1,024: about 50 MB of camera frames for one stalled client).
+pub const CLIENT_BACKLOG: usize = 128;
 
 /// Why the live view did not start.
 #[derive(Debug, thiserror::Error)]
@@ -50,6 +60,7 @@ pub async fn start(
         .name("robotd")
         .bind(bind.ip().to_string(), bind.port())
         .context(&context)
+        .message_backlog_size(CLIENT_BACKLOG)
         .start()
         .await
         .map_err(|e| LiveError::Listen {

@@ -2,8 +2,9 @@
 //! dashboard's camera view.
 //!
 //! Each object gets its bounding box (2 px, one colour per label) and a filled tag above it
-//! with `label 0.87` in an 8×8 bitmap font (ASCII; other characters show as `?`). Drawing
-//! is clipped to the frame, so any box, even one partly outside, is safe.
+//! with `label 0.87` (`obj-3 label 0.87` when it carries a tracked id) in an 8×8 bitmap font
+//! (ASCII; other characters show as `?`). Drawing is clipped to the frame, so any box, even
+//! one partly outside, is safe.
 
 use robotd_protocol::objects::DetectedObject;
 
@@ -42,7 +43,11 @@ pub fn draw_objects(rgb: &mut [u8], width: usize, height: usize, objects: &[Dete
             canvas.vline(x0 + t, y0, y1, colour);
             canvas.vline(x1 - t, y0, y1, colour);
         }
-        let text = format!("{} {:.2}", object.label, object.confidence);
+        let text = if object.id.is_empty() {
+            format!("{} {:.2}", object.label, object.confidence)
+        } else {
+            format!("{} {} {:.2}", object.id, object.label, object.confidence)
+        };
         let tag_w = text.chars().count() as i64 * 8 + 4;
         let tag_y = if y0 >= 12 { y0 - 12 } else { y1 + 2 };
         canvas.fill(x0, tag_y, x0 + tag_w, tag_y + 11, colour);
