@@ -1,6 +1,7 @@
 //! The dashboard's HTTP/JSON API refuses what it cannot serve with a status and a JSON
 //! `{"error": …}` a script can act on: malformed chat requests, over-long ones, and any chat
-//! or cancel while no LLM is configured (the page shows the same reason).
+//! or cancel while no LLM is configured (the page shows the same reason). And the rate
+//! history a page plots when it opens.
 
 mod common;
 
@@ -48,7 +49,10 @@ fn chat_requests_it_cannot_serve_get_clear_errors() {
     assert_eq!(status, 503, "{body}");
     let reason = error_of(&body);
     assert!(reason.contains("no LLM agent is running"), "{reason}");
-    assert!(reason.contains("OPENAI_API_KEY"), "says how to configure one: {reason}");
+    assert!(
+        reason.contains("OPENAI_API_KEY"),
+        "says how to configure one: {reason}"
+    );
     let (status, body) = common::http_request(port, "POST", "/api/chat/x-1/cancel", &json, b"");
     assert_eq!(status, 503, "{body}");
 
@@ -63,4 +67,37 @@ fn chat_requests_it_cannot_serve_get_clear_errors() {
             .is_some_and(|r| r.contains("no LLM provider is configured")),
         "{body}"
     );
+}
+
+#[test]
+fn the_rates_of_the_last_minutes_are_kept_for_a_page_that_opens() {
+    let namespace = common::fresh_namespace("rates");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &[]);
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+    loop {
+        let (status, body) = common::http_get(port, "/api/rates");
+        assert_eq!(status, 200, "{body}");
+        let rates: Value = serde_json::from_str(&body).unwrap();
+        assert_eq!(rates["interval_s"], 1.0, "{body}");
+        let samples = rates["samples"].as_array().unwrap();
+        // Two seconds of a camera at work: the page's frame rate is in the history.
+        if samples.len() >= 2 && samples.iter().any(|s| s["page_fps"].as_f64() > Some(0.0)) {
+            let times: Vec<f64> = samples
+                .iter()
+                .map(|s| s["at_unix_s"].as_f64().unwrap())
+                .collect();
+            assert!(
+                times.windows(2).all(|w| w[0] < w[1]),
+                "oldest first: {times:?}"
+            );
+            assert!(samples.iter().all(|s| s["restarts"].is_u64()), "{body}");
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no camera rate in the history: {body}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    }
 }

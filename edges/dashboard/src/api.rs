@@ -4,6 +4,7 @@
 //! |---|---|
 //! | `GET /api/status` | health (actors, restarts, e-stop, Redis edge), the arm, camera figures, recent overlays and restarts, the tool calls of the last 5 minutes with their durations, whether the agent is available (and why not), the workspaces, the geofence, the largest free space |
 //! | `GET /api/objects` | `{"objects": [...]}`: the workspace model's tracked objects (id, label, position, size, …) |
+//! | `GET /api/rates` | `{"interval_s": 1, "samples": [...]}`: the last 5 minutes of page frame rate, detections per second and actor restarts, one sample a second (`at_unix_s`, `page_fps`, `detections_per_s`, `restarts`) |
 //! | `GET /api/camera.jpg` | the newest annotated camera frame; `X-Frame-Id`, `X-Frame-Timestamp-Ns` headers; 503 before the first frame |
 //! | `GET /api/camera.mjpg` | the same as an MJPEG stream (`multipart/x-mixed-replace`) an `<img>` shows; a slow viewer skips frames |
 //! | `GET /api/events` | Server-Sent Events: `status` (the snapshot, twice a second), `agent`, `overlay`, `restart` as they happen |
@@ -69,6 +70,7 @@ pub fn routes(api: DashboardApi) -> Router {
     Router::new()
         .route("/api/status", get(status))
         .route("/api/objects", get(objects))
+        .route("/api/rates", get(rates))
         .route("/api/camera.jpg", get(camera_jpeg))
         .route("/api/camera.mjpg", get(camera_mjpeg))
         .route("/api/events", get(events))
@@ -108,6 +110,10 @@ async fn status(State(api): State<DashboardApi>) -> Json<Value> {
 
 async fn objects(State(api): State<DashboardApi>) -> Json<Value> {
     Json(json!({"objects": api.live.snapshot().objects}))
+}
+
+async fn rates(State(api): State<DashboardApi>) -> Json<Value> {
+    Json(json!({"interval_s": 1.0, "samples": api.live.rates()}))
 }
 
 async fn camera_jpeg(State(api): State<DashboardApi>) -> Response {

@@ -8,6 +8,8 @@
 //!   newest frame when it is ready for one, so a slow browser skips frames and the camera
 //!   never waits (drop, don't queue);
 //! - a **snapshot** (arm, objects, recent overlays and restarts, camera and detection rates),
+//! - the **rates of the last five minutes**, one sample a second, so a page that opens or
+//!   reloads plots the recent past at once,
 //!   served as JSON by `/api/status` and `/api/objects`;
 //! - a **broadcast** of events (agent events as they happen, overlays, restarts) for
 //!   `/api/events` and `/api/chat`. A viewer that falls behind loses events, never blocks.
@@ -91,10 +93,27 @@ pub struct CameraFigures {
     pub timestamp_unix_ns: u64,
 }
 
+/// One second of the rates the page plots.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct RateSample {
+    /// End of the second, seconds since the Unix epoch.
+    pub at_unix_s: f64,
+    /// Frames per second encoded for the page.
+    pub page_fps: f64,
+    /// Detections per second from perception.
+    pub detections_per_s: f64,
+    /// Actor restarts heard in that second.
+    pub restarts: u32,
+}
+
+/// Seconds of rate history kept for a page that opens (or reloads).
+pub const RATE_HISTORY_S: usize = 300;
+
 /// The live state shared by the thread and the HTTP handlers.
 #[derive(Debug)]
 pub struct Live {
     snapshot: Mutex<Snapshot>,
+    rates: Mutex<VecDeque<RateSample>>,
     events: broadcast::Sender<LiveEvent>,
     camera: watch::Sender<Option<CameraJpeg>>,
     stop: AtomicBool,
@@ -107,6 +126,20 @@ impl Live {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .clone()
+    }
+
+    /// The rates of the last [`RATE_HISTORY_S`] seconds, one sample a second, oldest first.
+    pub fn rates(&self) -> Vec<RateSample> {
+        let rates = self.rates.lock().unwrap_or_else(|e| e.into_inner());
+        rates.iter().copied().collect()
+    }
+
+    fn push_rate(&self, sample: RateSample) {
+        let mut rates = self.rates.lock().unwrap_or_else(|e| e.into_inner());
+        if rates.len() == RATE_HISTORY_S {
+            rates.pop_front();
+        }
+        rates.push_back(sample);
     }
 
     /// Events from now on.
@@ -136,6 +169,7 @@ pub fn start(bus: Bus, camera_fps: f64, jpeg_quality: u8) -> std::io::Result<Arc
     let (camera, _) = watch::channel(None);
     let live = Arc::new(Live {
         snapshot: Mutex::default(),
+        rates: Mutex::default(),
         events,
         camera,
         stop: AtomicBool::new(false),
@@ -214,6 +248,8 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
     let mut tracked: Vec<DetectedObject> = Vec::new();
     let (mut bus_rate, mut page_rate, mut detection_rate) = (Rate::new(), Rate::new(), Rate::new());
     let mut encode_ms: VecDeque<f64> = VecDeque::new();
+    let mut last_rate_sample = Instant::now();
+    let mut restarts_this_second = 0u32;
     while !live.stop.load(Ordering::SeqCst) {
         if let Some(state) = arm.try_recv()?.map(|m| m.body) {
             let mut latest = state;
@@ -237,6 +273,7 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
             let _ = live.events.send(LiveEvent::Overlay(value));
         }
         while let Some(message) = restarts.try_recv()? {
+            restarts_this_second += 1;
             let mut value = to_json(&message.body);
             value["time_unix_s"] = json!(now_unix_s());
             live.update(|s| push_recent(&mut s.restarts, value.clone()));
@@ -311,6 +348,15 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
             s.camera.detections_per_s = per_s;
             s.camera.encode_ms_p50 = median;
         });
+        if last_rate_sample.elapsed() >= Duration::from_secs(1) {
+            last_rate_sample = Instant::now();
+            live.push_rate(RateSample {
+                at_unix_s: now_unix_s(),
+                page_fps,
+                detections_per_s: per_s,
+                restarts: std::mem::take(&mut restarts_this_second),
+            });
+        }
     }
     Ok(())
 }
