@@ -12,12 +12,15 @@
 //! back on and reports the fault ([`Fault`]) to the motion that was running. A serial port that
 //! fails (USB unplugged) or servos that stop answering make the robot unavailable with the
 //! reason; the thread reopens the port (100 ms, doubling to `reconnect_max`) and brings the bus
-//! up again. The bus library can in principle panic on a crafted packet; the thread catches that,
-//! drops the port and reopens it, so nothing from the wire can take robotd down.
+//! up again. The per-tick sync read frames the replies itself (dynamixel2 0.9.1's reader panics on
+//! a status packet with a length field below 4); the other transfers (bring-up, gripper reads,
+//! fault recovery) go through dynamixel2, and the thread catches a panic there, drops the port
+//! and reopens it, so nothing from the wire can take robotd down.
 
 use crate::control_table::{
     address, hardware_error_reasons, servo_name, ALL_IDS, GRIPPER_ID, JOINT_IDS,
 };
+use crate::fake::packet::{Deframer, Instruction, STATUS};
 use crate::startup::{self, StartupSettings};
 use crate::DxlBus;
 use robotd_driver::DriverError;
@@ -389,7 +392,14 @@ impl ServoBus {
                 let attempt = &mut recovery_attempts[usize::from(id - 1)];
                 if attempt.is_none_or(|at| at.elapsed() >= Duration::from_secs(1)) {
                     *attempt = Some(Instant::now());
-                    self.recover(bus, id);
+                    // The recovery's reads go through dynamixel2's reader, which can panic on a
+                    // malformed reply (see `sync_read_positions`): as in a tick, that drops the
+                    // port, where an uncaught panic would have ended this thread.
+                    if catch_unwind(AssertUnwindSafe(|| self.recover(bus, id))).is_err() {
+                        return "the servo bus library failed on a malformed packet; reopening \
+                                the port"
+                            .into();
+                    }
                 }
             }
             self.stats.ticks.fetch_add(1, Ordering::Relaxed);
@@ -517,10 +527,19 @@ pub fn read_present_positions(bus: &mut DxlBus) -> Result<[Option<i32>; 9], Stri
 /// Sync-reads Present Position of every servo into `snapshot`, with one deadline for all the
 /// replies (as the vendor SDK does): a lost reply costs one timeout per tick, not one per
 /// servo after it. `Err` = the port failed.
+///
+/// The replies are read from the port and framed here, not by dynamixel2's
+/// `read_status_response_deadline`: dynamixel2 0.9.1 panics on a status packet whose length
+/// field is below 4 (an arithmetic overflow for 0 and 1 in debug builds; a slice out of range
+/// for 2 and 3 with a matching CRC, in every build), so one corrupted length byte dropped the
+/// port to reopen it. The fake servo bus's [`Deframer`] frames them (a status packet is framed
+/// like an instruction: CRC over the stuffed bytes, then unstuffing; anything malformed
+/// skipped). Fuzzed by `tests/fuzz_packets.rs` and, on a pty, `tests/fuzz_status.rs`.
 fn sync_read_positions(bus: &mut DxlBus, snapshot: &mut TickSnapshot) -> Result<(), String> {
     const SYNC_READ: u8 = 0x82;
     const BROADCAST: u8 = 0xFE;
     let at = address::PRESENT_POSITION.to_le_bytes();
+    // This also throws away whatever was waiting on the port.
     bus.write_instruction(BROADCAST, SYNC_READ, 4 + ALL_IDS.len(), |params| {
         params[..4].copy_from_slice(&[at[0], at[1], 4, 0]);
         params[4..].copy_from_slice(&ALL_IDS);
@@ -530,29 +549,101 @@ fn sync_read_positions(bus: &mut DxlBus, snapshot: &mut TickSnapshot) -> Result<
     let bytes = 15 * ALL_IDS.len() as u64;
     let transfer = Duration::from_micros(bytes * 10_000_000 / u64::from(bus.baud_rate().max(1)));
     let deadline = Instant::now() + transfer + Duration::from_millis(34);
-    for _ in ALL_IDS {
-        match bus.read_status_response_deadline(deadline) {
-            Ok(reply) => {
-                let id = reply.packet_id();
-                let index = usize::from(id.wrapping_sub(1));
-                let alert = reply.alert();
-                if let (Some(slot), Ok(bytes)) = (
-                    snapshot.positions.get_mut(index),
-                    <[u8; 4]>::try_from(reply.parameters()),
-                ) {
-                    *slot = Some(i32::from_le_bytes(bytes));
-                    snapshot.alerts[index] = alert;
+    let mut deframer = Deframer::default();
+    let mut buffer = [0u8; 256];
+    // Packets framed, good or not. Once there are as many as servos, only what has already
+    // arrived is read: a corrupt reply does not cost a wait for the deadline, and an extra
+    // packet (noise) does not cost the reply after it.
+    let mut replies = 0;
+    loop {
+        match deframer.next_packet() {
+            Some(Ok(packet)) => {
+                replies += 1;
+                take_position(&packet, snapshot);
+            }
+            Some(Err(problem)) => {
+                // A corrupt reply: that servo misses this tick.
+                replies += 1;
+                tracing::debug!(%problem, "a servo's sync-read reply");
+            }
+            None => {
+                if snapshot.positions.iter().all(Option::is_some) {
+                    break;
+                }
+                let until = if replies >= ALL_IDS.len() {
+                    Instant::now()
+                } else {
+                    deadline
+                };
+                match read_before(bus, &mut buffer, until) {
+                    Ok(0) => break,
+                    Ok(n) => deframer.push(&buffer[..n]),
+                    Err(e) => return Err(e.to_string()),
                 }
             }
-            Err(dynamixel2::ReadError::Io(e)) if e.kind() == std::io::ErrorKind::TimedOut => {
-                break;
-            }
-            Err(dynamixel2::ReadError::Io(e)) => return Err(e.to_string()),
-            // A corrupt or refused reply: that servo misses this tick.
-            Err(e) => tracing::debug!(error = %e, "a servo's sync-read reply"),
         }
     }
     Ok(())
+}
+
+/// The position in a sync-read reply: a status packet (0x55) whose error byte has no error
+/// number (the Alert bit alone still comes with the data) and four bytes of Present Position.
+fn take_position(packet: &Instruction, snapshot: &mut TickSnapshot) {
+    let index = usize::from(packet.id.wrapping_sub(1));
+    match (packet.instruction, packet.params.as_slice()) {
+        (STATUS, [error, data @ ..]) if error & 0x7F == 0 => {
+            match (<[u8; 4]>::try_from(data), snapshot.positions.get_mut(index)) {
+                (Ok(bytes), Some(slot)) => {
+                    *slot = Some(i32::from_le_bytes(bytes));
+                    snapshot.alerts[index] = error & 0x80 != 0;
+                }
+                _ => tracing::debug!(
+                    id = packet.id,
+                    length = data.len(),
+                    "a sync-read reply of an unknown servo or of the wrong length"
+                ),
+            }
+        }
+        (STATUS, [error, ..]) => {
+            tracing::debug!(id = packet.id, error, "a servo refused the sync read")
+        }
+        (instruction, _) => tracing::debug!(
+            id = packet.id,
+            instruction,
+            "a malformed sync-read reply (not a status packet, or no error byte)"
+        ),
+    }
+}
+
+/// Reads what the port has, waiting until `deadline` at most: `Ok(0)` when nothing came by
+/// then (with a deadline already passed, only what is there now is read).
+fn read_before(bus: &DxlBus, buffer: &mut [u8], deadline: Instant) -> std::io::Result<usize> {
+    use rustix::event::{poll, PollFd, PollFlags, Timespec};
+    use rustix::io::Errno;
+    let port = bus.serial_port();
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let timeout = Timespec {
+            tv_sec: left.as_secs() as _,
+            tv_nsec: left.subsec_nanos() as _,
+        };
+        let mut fds = [PollFd::new(port, PollFlags::IN)];
+        match poll(&mut fds, Some(&timeout)) {
+            Ok(0) => return Ok(0),
+            Ok(_) => {}
+            Err(Errno::INTR) => continue,
+            Err(e) => return Err(e.into()),
+        }
+        match rustix::io::read(port, &mut *buffer) {
+            Ok(n) if n > 0 => return Ok(n),
+            // Readable but nothing there (a hang-up): as before, the replies are late until
+            // the deadline; without spinning meanwhile.
+            Ok(_) | Err(Errno::AGAIN) if left.is_zero() => return Ok(0),
+            Ok(_) => std::thread::sleep(Duration::from_millis(1)),
+            Err(Errno::AGAIN | Errno::INTR) => continue,
+            Err(e) => return Err(e.into()),
+        }
+    }
 }
 
 /// Reboots servo `id`, waits until it answers, restores its torque; whether that worked.

@@ -2,9 +2,16 @@
 //! every shape and tool calls with random arguments, into streamable HTTP (`/mcp`, with and
 //! without a session) and legacy SSE (`/messages/`). Every answer is a 2xx or 4xx with a clear
 //! body — never a 5xx, never a dropped connection — and the edge still serves a good client
-//! afterwards. Bounded cases; regressions in `proptest-regressions/`.
+//! afterwards. A 4xx names what was wrong: a non-empty message, in a JSON-RPC error object
+//! when the body is JSON. Every request has a timeout, so a hang fails a case (and is shrunk)
+//! instead of waiting for the test runner's kill.
+//!
+//! Bounded cases (`PROPTEST_CASES` for a longer run). Failures are saved to, and replayed
+//! first from, `fuzz_http.proptest-regressions` next to this file (proptest's runner only does
+//! that when it knows the source file: see [`config`]).
 
 use proptest::prelude::*;
+use proptest::test_runner::{FileFailurePersistence, TestCaseResult, TestRunner};
 use robotd_mcp::call_log::CallLog;
 use robotd_mcp::http::{router, RouterOptions};
 use robotd_mcp::McpService;
@@ -14,6 +21,10 @@ use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_tools::{Registry, ToolSettings};
 use serde_json::{json, Value};
 use std::sync::{Arc, OnceLock};
+use std::time::Duration;
+
+/// How long one request may take, answer included (the edge answers in milliseconds).
+const REQUEST_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// One served MCP edge for all cases, with an open streamable session and an SSE session.
 struct Edge {
@@ -47,12 +58,18 @@ fn edge() -> &'static Edge {
             let base = format!("http://{}", listener.local_addr().unwrap());
             tokio::spawn(async move { axum::serve(listener, app).await });
             robotd_runtime::telemetry::install_tls_provider();
-            let http = reqwest::Client::new();
+            // Every fuzzing request (and its answer) within REQUEST_TIMEOUT.
+            let http = reqwest::Client::builder()
+                .timeout(REQUEST_TIMEOUT)
+                .build()
+                .unwrap();
             let init = json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
                 "protocolVersion": "2025-06-18", "capabilities": {},
                 "clientInfo": {"name": "fuzz", "version": "1"}}});
-            let reply = post(&http, &base, None, init.to_string().into_bytes()).await;
-            let session = reply.2.expect("a session id");
+            let reply = post(&http, &base, None, init.to_string().into_bytes())
+                .await
+                .unwrap();
+            let session = reply.session.expect("a session id");
             let initialized = json!({"jsonrpc": "2.0", "method": "notifications/initialized"});
             post(
                 &http,
@@ -60,12 +77,28 @@ fn edge() -> &'static Edge {
                 Some(&session),
                 initialized.to_string().into_bytes(),
             )
-            .await;
-            // An SSE session: read the stream until its endpoint event.
-            let mut sse = http.get(format!("{base}/sse")).send().await.unwrap();
+            .await
+            .unwrap();
+            // An SSE session: read the stream until its endpoint event. The stream stays open
+            // for the whole run, so its client has no overall timeout (only its steps do).
+            let stream_client = reqwest::Client::builder()
+                .connect_timeout(REQUEST_TIMEOUT)
+                .build()
+                .unwrap();
+            let mut sse = tokio::time::timeout(
+                REQUEST_TIMEOUT,
+                stream_client.get(format!("{base}/sse")).send(),
+            )
+            .await
+            .expect("the SSE stream opens in time")
+            .unwrap();
             let mut text = String::new();
             let sse_path = loop {
-                let chunk = sse.chunk().await.unwrap().expect("the endpoint event");
+                let chunk = tokio::time::timeout(REQUEST_TIMEOUT, sse.chunk())
+                    .await
+                    .expect("the endpoint event in time")
+                    .unwrap()
+                    .expect("the endpoint event");
                 text.push_str(&String::from_utf8_lossy(&chunk));
                 if let Some(line) = text.lines().find(|l| l.starts_with("data: /messages/")) {
                     break line.trim_start_matches("data: ").to_owned();
@@ -96,13 +129,22 @@ fn edge() -> &'static Edge {
     })
 }
 
-/// POSTs `body` to `/mcp`: (status, body, session id header).
+/// An answer of `/mcp`.
+struct Answer {
+    status: u16,
+    content_type: String,
+    body: String,
+    session: Option<String>,
+}
+
+/// POSTs `body` to `/mcp`; `Err` = no answer within [`REQUEST_TIMEOUT`] or a dropped
+/// connection.
 async fn post(
     http: &reqwest::Client,
     base: &str,
     session: Option<&str>,
     body: Vec<u8>,
-) -> (u16, String, Option<String>) {
+) -> Result<Answer, String> {
     let mut request = http
         .post(format!("{base}/mcp"))
         .header("Content-Type", "application/json")
@@ -114,18 +156,26 @@ async fn post(
     let response = request
         .send()
         .await
-        .expect("the edge answers (no dropped connection)");
+        .map_err(|e| format!("no answer (hang or dropped connection): {e}"))?;
+    let header = |name: &str| {
+        response
+            .headers()
+            .get(name)
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_owned)
+    };
+    let (session, content_type) = (header("mcp-session-id"), header("content-type"));
     let status = response.status().as_u16();
-    let id = response
-        .headers()
-        .get("mcp-session-id")
-        .and_then(|v| v.to_str().ok())
-        .map(str::to_owned);
-    let text = tokio::time::timeout(std::time::Duration::from_secs(10), response.text())
+    let body = response
+        .text()
         .await
-        .expect("the answer ends")
-        .unwrap_or_default();
-    (status, text, id)
+        .map_err(|e| format!("status {status}, but the body did not end: {e}"))?;
+    Ok(Answer {
+        status,
+        content_type: content_type.unwrap_or_default(),
+        body,
+        session,
+    })
 }
 
 fn any_json() -> impl Strategy<Value = Value> {
@@ -193,17 +243,55 @@ fn message() -> impl Strategy<Value = Value> {
         })
 }
 
-/// A 2xx, a 4xx, or the session limit's 503 (a random `initialize` can open sessions).
-fn check(status: u16, body: &str) -> Result<(), TestCaseError> {
+/// A 2xx, a 4xx, or the session limit's 503 (a random `initialize` can open sessions); a
+/// refusal (4xx, 503) says why in its body.
+fn check(answer: Result<Answer, String>) -> Result<(), TestCaseError> {
+    let Answer {
+        status,
+        content_type,
+        body,
+        ..
+    } = answer.map_err(TestCaseError::fail)?;
     let full = status == 503 && body.contains("mcp.max_sessions");
     prop_assert!(
         (200..300).contains(&status) || (400..500).contains(&status) || full,
         "status {status}: {body}"
     );
+    if status >= 400 {
+        check_refusal(status, &content_type, &body)?;
+    }
     Ok(())
 }
 
-/// `PROPTEST_CASES` when set (a longer run), else `default` (the bounded CI run).
+/// A refusal's body is a human-readable message: a JSON-RPC error object with a message when
+/// the body is JSON, else the text itself.
+fn check_refusal(status: u16, content_type: &str, body: &str) -> Result<(), TestCaseError> {
+    let readable = |text: &str| text.chars().filter(|c| c.is_alphabetic()).count() >= 3;
+    let json = serde_json::from_str::<Value>(body).ok();
+    if content_type.starts_with("application/json") || json.as_ref().is_some_and(Value::is_object) {
+        let message = json
+            .as_ref()
+            .and_then(|v| v.pointer("/error/message"))
+            .and_then(Value::as_str)
+            .unwrap_or_default();
+        prop_assert!(
+            readable(message),
+            "status {status}: a JSON body without a JSON-RPC error message: {body}"
+        );
+    } else {
+        prop_assert!(
+            readable(body),
+            "status {status} ({content_type}) without a message: {body:?}"
+        );
+    }
+    Ok(())
+}
+
+/// Cases of the CI run: random bodies, and JSON-RPC messages (each sent on both transports).
+const BYTES_CASES: u32 = 300;
+const MESSAGE_CASES: u32 = 300;
+
+/// `PROPTEST_CASES` when set (a longer run, for each part), else `default` (the bounded CI run).
 fn cases(default: u32) -> u32 {
     std::env::var("PROPTEST_CASES")
         .ok()
@@ -211,51 +299,94 @@ fn cases(default: u32) -> u32 {
         .unwrap_or(default)
 }
 
+/// A runner for `cases` cases whose failures are saved to and replayed first from
+/// `fuzz_http.proptest-regressions` next to this file. `TestRunner::new` alone knows no source
+/// file (only the `proptest!` macro sets it), and with none proptest neither reads nor writes a
+/// regression file. The file is named here rather than by proptest's default, which looks for
+/// a `lib.rs`/`main.rs` above the test and falls back to this name with a warning.
+/// `PROPTEST_DISABLE_FAILURE_PERSISTENCE` still turns it off. Shrinking stops after a minute
+/// (a hanging case costs a request timeout per shrink step).
+fn config(cases: u32) -> ProptestConfig {
+    let mut config = ProptestConfig::with_cases(cases);
+    config.source_file = Some(file!());
+    if config.failure_persistence.is_some() {
+        config.failure_persistence = Some(Box::new(FileFailurePersistence::WithSource(
+            "proptest-regressions",
+        )));
+    }
+    config.max_shrink_time = 60_000;
+    config
+}
+
+/// Runs `test` on `strategy` with a fresh runner (a runner counts its successes across
+/// `run`s, so a second `run` on the same one would generate no new case at all).
+fn fuzz<S: Strategy>(cases: u32, strategy: S, test: impl Fn(S::Value) -> TestCaseResult)
+where
+    S::Value: std::fmt::Debug,
+{
+    let mut runner = TestRunner::new(config(cases));
+    if let Err(error) = runner.run(&strategy, test) {
+        panic!("{error}\n{runner}");
+    }
+}
+
 /// Random bytes, then JSON-RPC of every shape over both transports, then a good client: all in
 /// one test, so that "after the fuzzing" holds under a runner that starts each test alone.
 #[test]
 fn fuzzed_requests_get_clear_answers_and_a_good_client_is_served_after() {
     let edge = edge();
-    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig::with_cases(cases(300)));
-    runner
-        .run(&proptest::collection::vec(any::<u8>(), 0..300), |body| {
-            let (status, text, _) =
+    fuzz(
+        cases(BYTES_CASES),
+        proptest::collection::vec(any::<u8>(), 0..300),
+        |body| {
+            check(
                 edge.runtime
-                    .block_on(post(&edge.http, &edge.base, Some(&edge.session), body));
-            check(status, &text)
-        })
-        .unwrap();
-    runner
-        .run(&(message(), any::<bool>()), |(message, in_session)| {
+                    .block_on(post(&edge.http, &edge.base, Some(&edge.session), body)),
+            )
+        },
+    );
+    fuzz(
+        cases(MESSAGE_CASES),
+        (message(), any::<bool>()),
+        |(message, in_session)| {
             let session = in_session.then_some(edge.session.as_str());
             let body = message.to_string().into_bytes();
-            let (status, text, _) =
+            check(
                 edge.runtime
-                    .block_on(post(&edge.http, &edge.base, session, body.clone()));
-            check(status, &text)?;
-            // The same over legacy SSE: accepted (202) or refused (400), never more.
-            let status = edge.runtime.block_on(async {
-                edge.http
-                    .post(format!("{}{}", edge.base, edge.sse_path))
-                    .header("Content-Type", "application/json")
-                    .body(body)
-                    .send()
-                    .await
-                    .expect("the edge answers")
-                    .status()
-                    .as_u16()
-            });
-            prop_assert!(status == 202 || status == 400, "SSE post: {status}");
+                    .block_on(post(&edge.http, &edge.base, session, body.clone())),
+            )?;
+            // The same over legacy SSE: accepted (202) or refused (400) with a message.
+            let (status, text) = edge
+                .runtime
+                .block_on(async {
+                    let response = edge
+                        .http
+                        .post(format!("{}{}", edge.base, edge.sse_path))
+                        .header("Content-Type", "application/json")
+                        .body(body)
+                        .send()
+                        .await?;
+                    let status = response.status().as_u16();
+                    Ok::<_, reqwest::Error>((status, response.text().await?))
+                })
+                .map_err(|e| TestCaseError::fail(format!("SSE post: no answer: {e}")))?;
+            prop_assert!(status == 202 || status == 400, "SSE post: {status}: {text}");
+            if status == 400 {
+                check_refusal(status, "", &text)?;
+            }
             Ok(())
-        })
-        .unwrap();
+        },
+    );
     let list = json!({"jsonrpc": "2.0", "id": 99, "method": "tools/list"});
-    let (status, text, _) = edge.runtime.block_on(post(
-        &edge.http,
-        &edge.base,
-        Some(&edge.session),
-        list.to_string().into_bytes(),
-    ));
-    assert_eq!(status, 200, "{text}");
-    assert!(text.contains("pick_object"), "{text}");
+    let answer = edge
+        .runtime
+        .block_on(post(
+            &edge.http,
+            &edge.base,
+            Some(&edge.session),
+            list.to_string().into_bytes(),
+        ))
+        .unwrap();
+    assert_eq!(answer.status, 200, "{}", answer.body);
+    assert!(answer.body.contains("pick_object"), "{}", answer.body);
 }

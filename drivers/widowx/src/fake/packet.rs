@@ -5,6 +5,10 @@
 //! been checked over the stuffed bytes and the stuffing removed. Anything malformed is
 //! reported as [`FrameError`] and skipped, never trusted. [`status_packet`] builds a reply
 //! with stuffing and CRC. The CRC is dynamixel2's (the same table the vendor SDK uses).
+//!
+//! Status packets are framed the same way, so the real bus reads the servos' sync-read replies
+//! with [`Deframer`] too (`crate::bus`): `instruction` is then 0x55 ([`STATUS`]) and `params`
+//! the error byte followed by the data.
 
 use dynamixel2::checksum::calculate_checksum;
 
