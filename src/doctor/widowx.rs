@@ -49,7 +49,16 @@ pub(super) fn check_widowx(bus: Option<(PathBuf, u32)>) -> Check {
                 )
             }
         };
-    let servos = survey(&mut bus);
+    // dynamixel2 0.9 panics on a status packet whose length field is below 4 (a corrupt
+    // reply): report it as a bus problem instead of ending the doctor.
+    let surveyed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| survey(&mut bus)));
+    let Ok(servos) = surveyed else {
+        return Check::problem(
+            NAME,
+            format!("a servo on {shown} sent a malformed status packet"),
+            "check the cabling and that every servo runs DYNAMIXEL Protocol 2.0 at the configured              baud rate; power-cycle the arm",
+        );
+    };
     let missing: Vec<String> = servos
         .iter()
         .filter_map(|s| s.model.as_ref().err().map(|e| e.to_string()))
