@@ -41,11 +41,12 @@ pub async fn start(config: &Config, runtime: &Runtime) -> Result<Viewers> {
     let settings = BridgeSettings {
         camera_fps: config.foxglove.camera_fps,
         jpeg_quality: config.foxglove.jpeg_quality,
-        model: config.robot.driver.model(),
+        model: config.robot.model(),
         workspaces: runtime.workspaces.clone(),
         geofence: Some(geofence_boxes(runtime.safety_api()?.safety.fence())),
         topics: None,
         camera: true,
+        camera_intrinsics: Some(runtime.camera_intrinsics()),
     };
     let recording =
         robotd_foxglove::always_on::start(runtime.bus.clone(), &config.record, settings.clone())

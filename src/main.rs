@@ -90,8 +90,10 @@ enum Command {
     /// Record the running robotd's bus (camera, arm, objects, every topic) into an MCAP file
     /// that Foxglove opens; until Ctrl-C or --duration.
     Record(RecordArgs),
-    /// Publish an MCAP recording back on the bus (camera frames, arm and gripper state by
-    /// default), so a running robotd's perception and tools work on recorded data.
+    /// Publish an MCAP recording onto a bus without a robot (camera frames, arm and gripper
+    /// state by default), for your own subscribers. To run robotd's perception, workspace
+    /// model, dashboard and tools on a recording, serve it as the robot instead: robotd serve
+    /// --set robot.driver=replay --set robot.replay.file=FILE.mcap.
     Replay(ReplayArgs),
     /// Serve the simulator behind the Niryo Ned2's TCP protocol: a fake robot for the niryo
     /// driver and pyniryo scripts (`--set robot.scene=…`, `--set robot.time_scale=…`).
@@ -559,6 +561,8 @@ fn run() -> Result<std::process::ExitCode> {
                             robotd_driver_widowx::camera_intrinsics(&config.robot.widowx);
                         (source, (intrinsics.width, intrinsics.height))
                     }),
+                replay: (config.robot.driver == robotd_config::RobotDriver::Replay)
+                    .then(|| config.robot.replay.clone()),
             })?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report.to_json())?);

@@ -1,5 +1,10 @@
 //! `robotd record FILE.mcap` and `robotd replay FILE.mcap`: the running robotd's bus into an
-//! MCAP file, and a file back onto a bus (the work is in `robotd-foxglove`).
+//! MCAP file, and a file back onto a bus without a robot (the work is in `robotd-foxglove`).
+//!
+//! `robotd replay` refuses to publish a robot's topics (camera frames, arm and gripper state)
+//! onto a bus where a robotd runs: that robotd's own camera and arm publish them too, and the
+//! two would mix. Running robotd on a recording is the replay driver's job
+//! (`robot.driver = "replay"`, `drivers/replay`).
 
 use anyhow::{bail, Context, Result};
 use robotd_config::Config;
@@ -78,11 +83,13 @@ pub fn record(
     let settings = BridgeSettings {
         camera_fps: config.foxglove.camera_fps,
         jpeg_quality: config.foxglove.jpeg_quality,
-        model: config.robot.driver.model(),
+        model: config.robot.model(),
         workspaces: config.robot.workspace_infos(),
         geofence: None,
         topics: chosen.map(|list| list.into_iter().filter(|t| t != "camera/frames").collect()),
         camera,
+        // Another process: the camera's intrinsics are the running robotd's, unknown here.
+        camera_intrinsics: None,
     };
     let recording = robotd_foxglove::record::start(bus, path, settings)?;
     eprintln!(
@@ -117,6 +124,34 @@ pub fn record(
     ))
 }
 
+/// The topics a robot publishes: replaying them where a robotd runs mixes two robots.
+const ROBOT_TOPICS: [&str; 3] = ["camera/frames", "arm/state", "gripper/state"];
+
+/// Refuses to publish `topics` of a robot onto `bus` when a robotd runs there (it serves
+/// `system/ping`), whose own camera and arm publish the same topics.
+fn refuse_a_second_robot(bus: &Bus, topics: &[String], path: &Path) -> Result<()> {
+    let robot_topics: Vec<&str> = topics
+        .iter()
+        .map(String::as_str)
+        .filter(|t| ROBOT_TOPICS.contains(t))
+        .collect();
+    if robot_topics.is_empty() {
+        return Ok(());
+    }
+    let ping = bus
+        .client(&robotd_runtime::catalog::SYSTEM_PING)
+        .context("looking for a robotd on the bus")?;
+    if ping.has_server() {
+        bail!(
+            "a robotd is running on bus '{}', and its own camera and arm publish {}: replayed              and live data would mix. To run robotd's perception, workspace model, dashboard              and tools on the recording, start robotd with the recording as its robot: robotd              serve --set robot.driver=replay --set robot.replay.file={} (another --namespace              if this robotd keeps running); to publish it for your own subscribers, choose a              namespace without a robotd",
+            bus.namespace(),
+            robot_topics.join(", "),
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 /// Replays `path` onto the bus of `config`'s namespace.
 pub fn replay(config: &Config, path: &Path, topics: Option<&str>, speed: f64) -> Result<String> {
     if !(speed.is_finite() && speed >= 0.0) {
@@ -126,9 +161,19 @@ pub fn replay(config: &Config, path: &Path, topics: Option<&str>, speed: f64) ->
         speed,
         topics: topics.map(|t| topic_list(t, true)).transpose()?,
     };
+    let chosen: Vec<String> = match &options.topics {
+        Some(list) => list.clone(),
+        None => robotd_foxglove::replay::DEFAULT_TOPICS
+            .iter()
+            .map(|t| (*t).to_owned())
+            .collect(),
+    };
     let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd-replay"))
         .with_context(|| format!("joining the bus '{}'", config.bus.namespace))?;
-    let summary = runtime()?.block_on(robotd_foxglove::replay::replay(&bus, path, &options))?;
+    let summary = runtime()?.block_on(async {
+        refuse_a_second_robot(&bus, &chosen, path)?;
+        Ok::<_, anyhow::Error>(robotd_foxglove::replay::replay(&bus, path, &options).await?)
+    })?;
     let published: Vec<String> = summary
         .published
         .iter()

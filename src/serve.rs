@@ -285,6 +285,8 @@ impl Runtime {
             hardware.safety.clone(),
         )?;
         let processes = start_process_actors(config, &bus, &health, &restarts).await?;
+        // Everything that consumes the robot's data is up: a replayed recording may begin.
+        hardware.start_playback();
 
         let report_config = config.clone();
         let report_health = health.clone();
@@ -332,6 +334,11 @@ impl Runtime {
             processes,
             registry: Mutex::new(None),
         })
+    }
+
+    /// The camera's intrinsics as its driver reports them.
+    pub fn camera_intrinsics(&self) -> robotd_protocol::camera::CameraIntrinsics {
+        self.hardware.camera_intrinsics.clone()
     }
 
     /// The safety routes' state: the policy and an e-stop publisher on this runtime's bus.

@@ -545,3 +545,61 @@ fn bad_workspaces_are_refused_naming_each_one() {
         "{problems:#?}"
     );
 }
+
+#[test]
+fn the_replay_driver_needs_a_recording_and_takes_its_model_from_robot_replay() {
+    let load = |overrides: &[(&str, &str)]| {
+        Config::load_with_env(
+            LoadOptions {
+                file: None,
+                overrides: overrides
+                    .iter()
+                    .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+                    .collect(),
+            },
+            no_env(),
+        )
+    };
+    let error = load(&[("robot.driver", "replay")]).unwrap_err();
+    let message = error.to_string();
+    let problems = problems_of(error);
+    let problem = problems
+        .iter()
+        .find(|p| p.key == "robot.replay.file")
+        .expect(&message);
+    assert!(problem.reason.contains("needs a recording"), "{message}");
+
+    let error = load(&[
+        ("robot.driver", "replay"),
+        ("robot.replay.file", "session.mcap"),
+        ("robot.replay.speed", "0"),
+    ])
+    .unwrap_err();
+    assert!(problems_of(error)
+        .iter()
+        .any(|p| p.key == "robot.replay.speed"));
+
+    let config = load(&[
+        ("robot.driver", "replay"),
+        ("robot.replay.file", "session.mcap"),
+        ("robot.replay.loop", "true"),
+        ("robot.replay.model", "widowx250"),
+    ])
+    .unwrap();
+    assert_eq!(config.robot.driver, RobotDriver::Replay);
+    assert!(config.robot.replay.looping);
+    assert_eq!(config.robot.model(), config.robot.replay.model);
+    assert_eq!(config.robot.model().as_str(), "widowx250");
+    let ids: Vec<String> = config
+        .robot
+        .workspaces()
+        .into_iter()
+        .map(|w| w.id)
+        .collect();
+    assert_eq!(ids, ["widowx_ws"], "the replayed model's built-in sheets");
+    // The file itself is checked when the driver opens it, not while loading the config.
+    assert_eq!(
+        config.robot.replay.file.as_deref(),
+        Some(std::path::Path::new("session.mcap"))
+    );
+}

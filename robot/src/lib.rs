@@ -12,7 +12,8 @@
 //!
 //! Drivers: `sim-ned2` (the default) and `sim-widowx` run the simulator of `drivers/sim`;
 //! `niryo` drives a real Ned2 over TCP (`drivers/niryo`); `widowx` a real WidowX 250 s over
-//! its DYNAMIXEL servo bus (`drivers/widowx`). A new driver is a crate in `drivers/` plus one arm of the `match` in
+//! its DYNAMIXEL servo bus (`drivers/widowx`); `replay` plays a recording as the robot
+//! (`drivers/replay`: it never moves). A new driver is a crate in `drivers/` plus one arm of the `match` in
 //! [`Hardware::start`].
 //!
 //! ```no_run
@@ -51,6 +52,9 @@ pub enum StartError {
     /// The simulator's scene is missing, malformed or for another robot.
     #[error(transparent)]
     Scene(#[from] robotd_driver_sim::SceneError),
+    /// The recording of the replay driver is missing or cannot be played.
+    #[error(transparent)]
+    Replay(#[from] robotd_driver_replay::ReplayError),
     /// The audit log could not be opened (the motion policy refuses to run without it).
     #[error("safety.audit: {0}; fix the path or set safety.audit.enabled = false")]
     Audit(robotd_safety::AuditError),
@@ -84,6 +88,8 @@ pub struct Hardware {
     /// The camera's intrinsics as its driver reports them (zero distortion when the image is
     /// already an ideal pinhole image), for the perception actor.
     pub camera_intrinsics: robotd_protocol::camera::CameraIntrinsics,
+    /// The replay driver's recording, which plays once [`Hardware::start_playback`] is called.
+    pub replay: Option<robotd_driver_replay::Replay>,
     tasks: Vec<tokio::task::JoinHandle<()>>,
 }
 
@@ -118,6 +124,14 @@ impl Hardware {
                         .await;
                 let mut hardware = Self::start_with(bus, config, niryo.drivers, observer).await?;
                 hardware.tasks.extend(niryo.tasks);
+                Ok(hardware)
+            }
+            RobotDriver::Replay => {
+                let mut replay = robotd_driver_replay::open(&config.robot.replay)?;
+                let drivers = replay.drivers.clone();
+                let mut hardware = Self::start_with(bus, config, drivers, observer).await?;
+                hardware.tasks.append(&mut replay.tasks);
+                hardware.replay = Some(replay);
                 Ok(hardware)
             }
             RobotDriver::Widowx => {
@@ -212,8 +226,18 @@ impl Hardware {
             arm_context: context,
             safety,
             camera_intrinsics,
+            replay: None,
             tasks,
         })
+    }
+
+    /// Starts what the robot plays by itself: the replay driver's recording (nothing for
+    /// other drivers). Call once the actors that consume the robot's data (perception, the
+    /// workspace model) are up, so they see it from its start.
+    pub fn start_playback(&self) {
+        if let Some(replay) = &self.replay {
+            replay.start();
+        }
     }
 
     /// Stops the bus tasks and the actors (halting the arm first).

@@ -3,7 +3,8 @@
 //! robotd leans on a few things outside its own process: shared memory in `/dev/shm` for the
 //! iceoryx2 bus, the bus's bookkeeping files (which a crashed process can leave behind), an
 //! optional Redis server for the Python tools, `espeak-ng` and an audio output for speech, an
-//! LLM provider key for the agent, and with the niryo or widowx driver the robot itself. When one of them is missing robotd still starts, but a
+//! LLM provider key for the agent, with the niryo or widowx driver the robot itself, and with
+//! the replay driver its recording. When one of them is missing robotd still starts, but a
 //! feature quietly degrades or an actor keeps failing — and the log line that says why is easy
 //! to miss. The doctor checks each of them up front, in a few seconds, and prints one row per
 //! check:
@@ -47,6 +48,7 @@
 //! | [`niryo`] | `niryo` | with the niryo driver: the Ned2 answers (connect, handshake, hardware status) |
 //! | [`camera`] | `camera` | with a V4L2 camera configured: the device opens and gives the intrinsics' size in MJPG or YUYV |
 //! | [`widowx`] | `widowx` | with the widowx driver: the serial port opens, the nine servos answer with the right models, no latched hardware error |
+//! | [`replay`] | `replay` | with the replay driver: the recording opens and can be played (frames, arm states, robot model); what it holds |
 //! | [`secrets`] | — | `secrets.env`, shared by `redis` and `llm-keys` |
 //! | [`report`] | — | rows, the table and the JSON |
 //!
@@ -61,6 +63,7 @@
 //!     niryo: None,
 //!     widowx: None,
 //!     camera: None,
+//!     replay: None,
 //! };
 //! let report = run(&opts)?;
 //! print!("{}", report.render_table());
@@ -76,6 +79,7 @@ mod health;
 mod llm_keys;
 mod niryo;
 mod redis;
+mod replay;
 mod report;
 mod secrets;
 mod shm;
@@ -121,6 +125,8 @@ pub struct DoctorOptions {
     /// The camera source (`robot.widowx.camera_url`) and the frame size of its intrinsics,
     /// when the widowx driver has one (`None` otherwise).
     pub camera: Option<(String, (u32, u32))>,
+    /// `[robot.replay]` when `robot.driver = "replay"` (`None` otherwise).
+    pub replay: Option<robotd_driver::ReplayConfig>,
 }
 
 /// Runs every check and returns the report. Takes a few seconds at most, whatever the network
@@ -139,6 +145,7 @@ pub fn run(opts: &DoctorOptions) -> Result<DoctorReport> {
         niryo::check_niryo(opts.niryo.clone()),
         widowx::check_widowx(opts.widowx.clone()),
         camera::check_camera(opts.camera.clone()),
+        replay::check_replay(opts.replay.as_ref()),
     ];
     Ok(DoctorReport { checks })
 }
@@ -168,6 +175,7 @@ mod tests {
             niryo: None,
             widowx: None,
             camera: None,
+            replay: None,
         };
         let start = Instant::now();
         let report = run(&opts).expect("doctor runs");
@@ -185,7 +193,8 @@ mod tests {
                 "llm-keys",
                 "niryo",
                 "widowx",
-                "camera"
+                "camera",
+                "replay"
             ]
         );
         assert!(report.has_problems());

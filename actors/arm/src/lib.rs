@@ -117,6 +117,14 @@ impl ArmContext {
             })
     }
 
+    /// When the arm came to rest (0 while a motion runs): the driver's word when it knows
+    /// (a replayed recording), else the end of the last motion this actor ran.
+    pub fn still_since_ns(&self) -> u64 {
+        self.driver
+            .still_since_unix_ns()
+            .unwrap_or_else(|| self.shared.still_since_ns.load(Ordering::SeqCst))
+    }
+
     /// The state published on `arm/state`.
     pub fn state(&self) -> Result<ArmState, ArmError> {
         let q = self.driver.joints().map_err(arm_error)?;
@@ -128,7 +136,7 @@ impl ArmContext {
                 message: e.to_string(),
             })?;
         let flags = self.driver.flags();
-        let still_since_unix_ns = self.shared.still_since_ns.load(Ordering::SeqCst);
+        let still_since_unix_ns = self.still_since_ns();
         Ok(ArmState {
             joints: JointState::from_positions(q, robotd_protocol::envelope::unix_now_ns()),
             tool_pose,
@@ -609,7 +617,7 @@ pub async fn publish_arm_state(
             _ = ticker.tick() => ticks += 1,
             () = context.shared.changed.notified() => {}
         }
-        let still_since = context.shared.still_since_ns.load(Ordering::SeqCst);
+        let still_since = context.still_since_ns();
         let moving = context.driver.flags().moving || still_since == 0;
         let estop = context.control.estop_engaged();
         if moving

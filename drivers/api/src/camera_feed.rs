@@ -131,11 +131,23 @@ impl CameraFeed {
             timestamp_unix_ns: robotd_protocol::envelope::unix_now_ns()
                 .saturating_sub(self.latency.as_nanos() as u64),
         };
+        self.publish_taken(rgb, info);
+    }
+
+    /// A new frame whose source knows when and where it was taken (a recording): `rgb`
+    /// (RGB8, the camera's size) with that `info`, instead of the feed's own dating.
+    pub fn publish_taken(&self, rgb: Vec<u8>, info: CaptureInfo) {
         let mut latest = self.lock();
         latest.frame = Ok(Frame { rgb, info });
         latest.sequence += 1;
         drop(latest);
         self.arrived.notify_waiters();
+    }
+
+    /// Whether a frame is waiting that was not handed out yet.
+    pub fn has_unread(&self) -> bool {
+        let latest = self.lock();
+        latest.frame.is_ok() && latest.sequence != latest.taken
     }
 
     /// The problem the camera has now, if any.
@@ -226,8 +238,10 @@ mod tests {
 
         let before = robotd_protocol::envelope::unix_now_ns();
         feed.publish(vec![1, 2, 3]);
+        assert!(feed.has_unread());
         feed.frame_ready().await.unwrap();
         let info = feed.capture_into(&mut out).unwrap();
+        assert!(!feed.has_unread());
         assert_eq!(out, [1, 2, 3]);
         assert_eq!(info.camera_pose, at);
         // Dated `latency` before it arrived.

@@ -1,5 +1,7 @@
 //! `[robot]`: which arm robotd drives and the settings every driver shares (control rate,
-//! camera rate), plus the simulator's own (scene, time scale, sensor noise, fault injection).
+//! camera rate), plus the simulator's own (scene, time scale, sensor noise, fault injection)
+//! and each real or replay driver's section (`[robot.niryo]`, `[robot.widowx]`,
+//! `[robot.replay]`).
 
 use robotd_protocol::geometry::RobotModel;
 use robotd_protocol::workspace::{builtin_workspaces, WorkspaceInfo, WorkspaceSpec};
@@ -20,14 +22,18 @@ pub enum RobotDriver {
     Niryo,
     /// A real WidowX over Dynamixel Protocol 2.0.
     Widowx,
+    /// A recording played as the robot (`[robot.replay]`): it never moves.
+    Replay,
 }
 
 impl RobotDriver {
-    /// The robot model this driver drives.
-    pub fn model(self) -> RobotModel {
+    /// The robot model this driver always drives; `None` for the replay driver, whose model is
+    /// `[robot.replay] model` (use [`RobotConfig::model`], which knows both).
+    pub fn fixed_model(self) -> Option<RobotModel> {
         match self {
-            RobotDriver::SimNed2 | RobotDriver::Niryo => RobotModel::Ned2,
-            RobotDriver::SimWidowx | RobotDriver::Widowx => RobotModel::WidowX250,
+            RobotDriver::SimNed2 | RobotDriver::Niryo => Some(RobotModel::Ned2),
+            RobotDriver::SimWidowx | RobotDriver::Widowx => Some(RobotModel::WidowX250),
+            RobotDriver::Replay => None,
         }
     }
 
@@ -67,6 +73,9 @@ pub struct RobotConfig {
     /// `[robot.widowx]`: settings of the `widowx` driver (serial device, servos, camera).
     #[serde(default)]
     pub widowx: crate::widowx_config::WidowxConfig,
+    /// `[robot.replay]`: settings of the `replay` driver (the recording, its pace).
+    #[serde(default)]
+    pub replay: crate::replay_config::ReplayConfig,
     /// `[robot.camera]`: the wrist camera.
     #[serde(default)]
     pub camera: CameraConfig,
@@ -81,10 +90,15 @@ pub struct RobotConfig {
 }
 
 impl RobotConfig {
+    /// The robot model: the driver's, or for the replay driver `[robot.replay] model`.
+    pub fn model(&self) -> RobotModel {
+        self.driver.fixed_model().unwrap_or(self.replay.model)
+    }
+
     /// The workspaces robotd uses: `[[robot.workspaces]]`, else the model's built-in ones.
     pub fn workspaces(&self) -> Vec<WorkspaceSpec> {
         if self.workspaces.is_empty() {
-            builtin_workspaces(self.driver.model())
+            builtin_workspaces(self.model())
         } else {
             self.workspaces.clone()
         }
@@ -92,7 +106,7 @@ impl RobotConfig {
 
     /// [`Self::workspaces`] as the rest of robotd describes them (tools, workspace model).
     pub fn workspace_infos(&self) -> Vec<WorkspaceInfo> {
-        let model = self.driver.model();
+        let model = self.model();
         self.workspaces().iter().map(|w| w.to_info(model)).collect()
     }
 
@@ -237,6 +251,8 @@ impl Section for RobotConfig {
         }
         self.niryo.check(checks);
         self.widowx.check(checks);
+        self.replay
+            .check(checks, self.driver == RobotDriver::Replay);
         checks.range_f64(
             "camera.noise_stddev",
             self.camera.noise_stddev,

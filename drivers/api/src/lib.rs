@@ -21,9 +21,11 @@
 pub mod camera_feed;
 pub mod config;
 pub mod niryo_config;
+pub mod replay_config;
 pub mod widowx_config;
 pub use config::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
 pub use niryo_config::NiryoConfig;
+pub use replay_config::ReplayConfig;
 pub use widowx_config::WidowxConfig;
 
 use nalgebra::Isometry3;
@@ -200,6 +202,13 @@ pub trait ArmDriver: Send + Sync + 'static {
     fn joints(&self) -> Result<Vec<f64>, DriverError>;
     /// Moving / collision / calibration flags.
     fn flags(&self) -> ArmFlags;
+    /// When the arm came to rest (ns since the Unix epoch; 0 while it moves), for a driver
+    /// that knows it better than the arm actor, which notes the end of the motions it ran: a
+    /// replayed recording, whose arm came to rest at recorded times. `None` (the default):
+    /// the actor's own note.
+    fn still_since_unix_ns(&self) -> Option<u64> {
+        None
+    }
     /// Executes `motion` at `speed_scale` (0 < scale ≤ 1: the fraction of the joint velocity
     /// limits, so every segment takes [`nominal_travel_time_s`] / scale); returns when it has
     /// ended. Checks `control` at every control tick and returns [`DriverError::Stopped`] when

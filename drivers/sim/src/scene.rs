@@ -33,12 +33,12 @@ pub fn load_scene(robot: &RobotConfig) -> Result<Scene, SceneError> {
         Some(path) => {
             Scene::load(Path::new(path)).map_err(|e| SceneError::Invalid(e.to_string()))?
         }
-        None => match driver.model() {
+        None => match robot.model() {
             RobotModel::WidowX250 => Scene::default_widowx(),
             RobotModel::Ned2 => Scene::default_ned2(),
         },
     };
-    if scene.robot != driver.model() {
+    if scene.robot != robot.model() {
         return Err(SceneError::RobotMismatch {
             scene: scene.name.clone(),
             scene_robot: scene.robot.display_name().to_owned(),

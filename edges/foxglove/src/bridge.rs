@@ -7,7 +7,7 @@
 //! | channel | message | from |
 //! |---|---|---|
 //! | `/camera` | `foxglove.CompressedImage` (JPEG) | `camera/frames`, at most `camera_fps` a second |
-//! | `/camera/meta` | JSON: `frame_id`, `timestamp_unix_ns`, `width`, `height`, `camera_pose` | the same frames' headers (what replay needs to rebuild them) |
+//! | `/camera/meta` | JSON [`FrameMeta`]: `frame_id`, `timestamp_unix_ns`, `width`, `height`, `camera_pose`, `intrinsics` (when known) | the same frames' headers (what replay needs to rebuild them) |
 //! | `/tf` | `foxglove.FrameTransforms` | every link of the arm from its parent link (the URDF's tree, from `base_link`), by forward kinematics of `arm/state` |
 //! | `/joint_states` | JSON: `name` (the URDF's joint names), `position` (rad) | `arm/state` |
 //! | `/robot_description` | JSON `std_msgs/String`: the URDF, with simple visuals for the 3D panel | once a second (late viewers get it too) |
@@ -30,6 +30,7 @@ use robotd_kinematics::Kinematics;
 use robotd_protocol::agent::AgentEventKind;
 use robotd_protocol::geometry::RobotModel;
 use robotd_protocol::workspace::WorkspaceInfo;
+use robotd_recording::camera::FrameMeta;
 use robotd_runtime::bus::{Bus, BusError};
 use robotd_runtime::catalog::{
     AGENT_EVENTS, ARM_STATE, CAMERA_FRAMES, HEALTH_RESTARTS, OVERLAY_TEXT, WORKSPACE_OBJECTS,
@@ -56,6 +57,9 @@ pub struct BridgeSettings {
     pub topics: Option<Vec<String>>,
     /// Log the camera.
     pub camera: bool,
+    /// The camera's intrinsics, written into every frame's `/camera/meta` so a replay serves
+    /// the frames with them (`None` when the recorder does not know them).
+    pub camera_intrinsics: Option<robotd_protocol::camera::CameraIntrinsics>,
 }
 
 /// The running bridge; dropping it stops the thread.
@@ -136,11 +140,21 @@ struct Channels {
 impl Channels {
     fn new(context: &Arc<Context>) -> Self {
         Self {
-            camera: ChannelBuilder::new("/camera").context(context).build(),
-            camera_meta: json_channel(context, "/camera/meta", "robotd.CameraFrameMeta"),
+            camera: ChannelBuilder::new(robotd_recording::CAMERA)
+                .context(context)
+                .build(),
+            camera_meta: json_channel(
+                context,
+                robotd_recording::CAMERA_META,
+                "robotd.CameraFrameMeta",
+            ),
             tf: ChannelBuilder::new("/tf").context(context).build(),
             joints: json_channel(context, "/joint_states", "robotd.JointState"),
-            description: json_channel(context, "/robot_description", "std_msgs/String"),
+            description: json_channel(
+                context,
+                robotd_recording::ROBOT_DESCRIPTION,
+                "std_msgs/String",
+            ),
             arm: ChannelBuilder::new("/scene/arm").context(context).build(),
             objects: ChannelBuilder::new("/scene/objects")
                 .context(context)
@@ -318,14 +332,18 @@ async fn follow(
                 };
                 channels.camera.log_with_time(&image, ns);
                 if let Some(channel) = &channels.camera_meta {
-                    let meta = json!({
-                        "frame_id": header.frame_id,
-                        "timestamp_unix_ns": ns,
-                        "width": header.width,
-                        "height": header.height,
-                        "camera_pose": header.camera_pose,
-                    });
-                    channel.log_with_meta(meta.to_string().as_bytes(), at(ns));
+                    let meta = FrameMeta {
+                        frame_id: header.frame_id,
+                        timestamp_unix_ns: ns,
+                        width: header.width,
+                        height: header.height,
+                        camera_pose: header.camera_pose,
+                        intrinsics: settings.camera_intrinsics.clone(),
+                    };
+                    match serde_json::to_vec(&meta) {
+                        Ok(bytes) => channel.log_with_meta(&bytes, at(ns)),
+                        Err(error) => tracing::warn!(%error, "foxglove: a frame header"),
+                    }
                 }
             }
             Err(error) => tracing::warn!(%error, "foxglove: JPEG encoding failed"),

@@ -108,21 +108,24 @@ impl Recording {
     }
 }
 
-/// Messages per channel of the MCAP file at `path`.
+/// Messages per channel of the MCAP file at `path` (read a message at a time).
 pub fn summarize(path: &Path) -> Result<RecordSummary, RecordError> {
     let fail = |reason: String| RecordError::ReadBack {
         path: path.to_path_buf(),
         reason,
     };
-    let bytes = std::fs::read(path).map_err(|e| fail(e.to_string()))?;
     let mut messages = BTreeMap::new();
-    for message in mcap::MessageStream::new(&bytes).map_err(|e| fail(e.to_string()))? {
+    for message in
+        robotd_recording::reader::Messages::open(path).map_err(|e| fail(e.to_string()))?
+    {
         let message = message.map_err(|e| fail(e.to_string()))?;
-        *messages.entry(message.channel.topic.clone()).or_insert(0) += 1;
+        *messages.entry(message.topic.to_string()).or_insert(0) += 1;
     }
     Ok(RecordSummary {
         path: path.to_path_buf(),
-        bytes: bytes.len() as u64,
+        bytes: std::fs::metadata(path)
+            .map_err(|e| fail(e.to_string()))?
+            .len(),
         messages,
     })
 }

@@ -2,12 +2,18 @@
 //! the dashboard and the tools run on recorded data (a lab's session debugged without the
 //! robot).
 //!
-//! Messages go out in log-time order, at the recorded pace times `speed` (`0` = as fast as
-//! possible). Camera frames are rebuilt from `/camera` (JPEG, decoded) and `/camera/meta`
-//! (the header: frame id, size, camera pose) and published on `camera/frames` stamped with
-//! the replay's clock, so readers that want fresh frames take them. Bus topics come from
-//! `/bus/<topic>`; each message is decoded as its type before it is sent, and one that does
-//! not decode is skipped and counted, never sent half-read.
+//! The file is read a message at a time ([`robotd_recording::reader`]), never whole into
+//! memory. Messages go out in the file's order, at the recorded pace times `speed` (`0` = as
+//! fast as possible). Camera frames are rebuilt from `/camera` (JPEG) and `/camera/meta` (the
+//! header: frame id, size, camera pose) by [`robotd_recording::camera`] and published on
+//! `camera/frames` stamped with the replay's clock, so readers that want fresh frames take
+//! them. Bus topics come from `/bus/<topic>`; each message is decoded as its type before it is
+//! sent, and one that does not decode is skipped and counted, never sent half-read.
+//!
+//! A bus where a robotd runs already has a robot publishing `camera/frames` and `arm/state`:
+//! replayed and live data would mix there. `robotd replay` refuses that case; playing a
+//! recording as a running robotd's robot is the replay driver's job (`robot.driver =
+//! "replay"`).
 //!
 //! By default only what sensors produce is replayed — camera frames, `arm/state`,
 //! `gripper/state` — and the running robotd computes the rest (detections, objects) again;
@@ -15,12 +21,12 @@
 //! running robotd act on them: choose them on purpose.
 
 use crate::topics::{self, JsonPublisher};
-use foxglove::messages::CompressedImage;
-use foxglove::Decode;
+use robotd_recording::camera::{FramePairer, RecordedFrame};
+use robotd_recording::reader::{Messages, ReadError};
 use robotd_runtime::bus::{Bus, BusError, FRAME_CHANNELS, FRAME_HEIGHT, FRAME_WIDTH};
 use robotd_runtime::catalog::CAMERA_FRAMES;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// The topics replayed when none are chosen.
@@ -30,13 +36,8 @@ pub const DEFAULT_TOPICS: &[&str] = &["camera/frames", "arm/state", "gripper/sta
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     /// The file cannot be read or is not MCAP.
-    #[error("cannot read {path} as MCAP: {reason}")]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        reason: String,
-    },
+    #[error(transparent)]
+    Read(#[from] ReadError),
     /// A topic asked for is not one of robotd's.
     #[error("unknown topic '{0}': choose from camera/frames and the bus topics ({1})")]
     UnknownTopic(String, String),
@@ -77,10 +78,6 @@ pub async fn replay(
     path: &Path,
     options: &ReplayOptions,
 ) -> Result<ReplaySummary, ReplayError> {
-    let read_fail = |reason: String| ReplayError::Read {
-        path: path.to_path_buf(),
-        reason,
-    };
     let wanted: Vec<String> = match &options.topics {
         Some(list) => list.clone(),
         None => DEFAULT_TOPICS.iter().map(|t| (*t).to_owned()).collect(),
@@ -98,17 +95,16 @@ pub async fn replay(
         };
         publishers.insert(topics::channel_name(topic), json_topic.publisher(bus)?);
     }
-    let bytes = std::fs::read(path).map_err(|e| read_fail(e.to_string()))?;
-    let stream = mcap::MessageStream::new(&bytes).map_err(|e| read_fail(e.to_string()))?;
+    let stream = Messages::open(path)?;
     let mut summary = ReplaySummary::default();
     let started = Instant::now();
     let mut first_log_time: Option<u64> = None;
     let mut last_log_time = 0;
-    let mut pending_image: Option<(u64, image::RgbImage)> = None;
+    let mut frames = FramePairer::default();
     for message in stream {
-        let message = message.map_err(|e| read_fail(e.to_string()))?;
-        let topic = message.channel.topic.as_str();
-        let is_camera = topic == "/camera" || topic == "/camera/meta";
+        let message = message?;
+        let topic = &*message.topic;
+        let is_camera = topic == robotd_recording::CAMERA || topic == robotd_recording::CAMERA_META;
         if !(publishers.contains_key(topic) || (is_camera && camera.is_some())) {
             continue;
         }
@@ -122,23 +118,19 @@ pub async fn replay(
             }
         }
         match topic {
-            "/camera" => match decode_image(&message.data) {
-                Ok(image) => pending_image = Some((message.log_time, image)),
-                Err(reason) => skip(&mut summary, &reason),
-            },
-            "/camera/meta" => {
-                let Some((time, image)) = pending_image.take() else {
-                    skip(&mut summary, "camera meta without its image");
-                    continue;
+            robotd_recording::CAMERA | robotd_recording::CAMERA_META => {
+                let frame = match frames.take(&message) {
+                    Ok(Some(frame)) => frame,
+                    Ok(None) => continue,
+                    Err(reason) => {
+                        skip(&mut summary, &reason);
+                        continue;
+                    }
                 };
-                if time != message.log_time {
-                    skip(&mut summary, "camera meta of another image");
-                    continue;
-                }
                 let Some(publisher) = camera.as_ref() else {
                     continue;
                 };
-                match publish_frame(publisher, &image, &message.data) {
+                match publish_frame(publisher, &frame) {
                     Ok(()) => *summary.published.entry("camera/frames".into()).or_insert(0) += 1,
                     Err(reason) => skip(&mut summary, &reason),
                 }
@@ -166,51 +158,28 @@ pub async fn replay(
     Ok(summary)
 }
 
-fn decode_image(data: &[u8]) -> Result<image::RgbImage, String> {
-    let compressed =
-        CompressedImage::decode(data).map_err(|e| format!("camera: not a CompressedImage: {e}"))?;
-    if compressed.format != "jpeg" {
-        return Err(format!(
-            "camera: format '{}' (only jpeg is replayed)",
-            compressed.format
-        ));
-    }
-    let decoded = image::load_from_memory_with_format(&compressed.data, image::ImageFormat::Jpeg)
-        .map_err(|e| format!("camera: JPEG does not decode: {e}"))?;
-    let rgb = decoded.to_rgb8();
-    if rgb.width() as usize > FRAME_WIDTH || rgb.height() as usize > FRAME_HEIGHT {
-        return Err(format!(
-            "camera: {}x{} is larger than a bus frame ({FRAME_WIDTH}x{FRAME_HEIGHT})",
-            rgb.width(),
-            rgb.height()
-        ));
-    }
-    Ok(rgb)
-}
-
-#[derive(serde::Deserialize)]
-struct FrameMeta {
-    frame_id: u64,
-    camera_pose: [f64; 6],
-}
-
 fn publish_frame(
     publisher: &robotd_runtime::bus::FramePublisher,
-    image: &image::RgbImage,
-    meta: &[u8],
+    frame: &RecordedFrame,
 ) -> Result<(), String> {
-    let meta: FrameMeta = serde_json::from_slice(meta).map_err(|e| format!("camera meta: {e}"))?;
+    let meta = &frame.meta;
+    if meta.width as usize > FRAME_WIDTH || meta.height as usize > FRAME_HEIGHT {
+        return Err(format!(
+            "camera: {}x{} is larger than a bus frame ({FRAME_WIDTH}x{FRAME_HEIGHT})",
+            meta.width, meta.height
+        ));
+    }
+    let rgb = frame.decode()?;
     let mut loan = publisher.loan().map_err(|e| e.to_string())?;
     let header = loan.header_mut();
     header.frame_id = meta.frame_id;
-    header.width = image.width();
-    header.height = image.height();
+    header.width = meta.width;
+    header.height = meta.height;
     header.channels = FRAME_CHANNELS as u32;
     header.encoding = 0;
     header.camera_pose = meta.camera_pose;
     // Stamped now: the replayed frame is what the camera "sees" at this moment.
     header.timestamp_unix_ns = 0;
-    let bytes = image.as_raw();
-    loan.pixels_mut()[..bytes.len()].copy_from_slice(bytes);
+    loan.pixels_mut()[..rgb.len()].copy_from_slice(&rgb);
     loan.send().map(drop).map_err(|e| e.to_string())
 }

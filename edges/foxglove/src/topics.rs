@@ -13,7 +13,7 @@ use robotd_runtime::catalog;
 
 /// The channel name of a bus topic in Foxglove and in recordings: `/bus/<topic>`.
 pub fn channel_name(topic: &str) -> String {
-    format!("/bus/{topic}")
+    robotd_recording::bus_channel(topic)
 }
 
 /// A typed bus topic seen as JSON.
