@@ -3,7 +3,9 @@
 //! A session id travels in URLs (`/messages/?session_id=…`) and headers (`Mcp-Session-Id`)
 //! and ends up in proxies' logs. Knowing it must not be enough to post into someone else's
 //! session: each session is bound to the client that opened it — its IP address and the
-//! credential it presented (`Authorization`, compared by a keyed hash, never stored). A
+//! credential it presented (the bearer token, from `Authorization: Bearer …` or the guard's
+//! `?access_token=…`, so a client may use either on any request; any other `Authorization`
+//! as sent), compared by a keyed hash, never stored. A
 //! request naming a session with another owner is answered exactly like one naming an
 //! unknown session (404), so ids cannot be probed either.
 
@@ -22,9 +24,9 @@ pub struct SessionOwner {
 }
 
 impl SessionOwner {
-    /// The owner of a request with `headers` and `extensions` (where axum puts the peer's
-    /// `ConnectInfo<SocketAddr>`; without it the peer counts as unspecified).
-    pub fn of(headers: &HeaderMap, extensions: &Extensions) -> Self {
+    /// The owner of a request with `headers`, URL `query` and `extensions` (where axum puts
+    /// the peer's `ConnectInfo<SocketAddr>`; without it the peer counts as unspecified).
+    pub fn of(headers: &HeaderMap, query: Option<&str>, extensions: &Extensions) -> Self {
         let peer = extensions
             .get::<ConnectInfo<SocketAddr>>()
             .map(|info| canonical(info.0.ip()))
@@ -33,9 +35,17 @@ impl SessionOwner {
             .get(header::AUTHORIZATION)
             .map(|v| v.as_bytes())
             .unwrap_or_default();
+        let from_query = query.and_then(|q| {
+            q.split('&')
+                .find_map(|pair| pair.strip_prefix("access_token="))
+        });
+        let credential = authorization
+            .strip_prefix(b"Bearer ")
+            .or(from_query.map(str::as_bytes))
+            .unwrap_or(authorization);
         Self {
             peer,
-            credential: credential_hasher().hash_one(authorization),
+            credential: credential_hasher().hash_one(credential),
         }
     }
 }
@@ -61,13 +71,17 @@ mod tests {
     use axum::http::HeaderValue;
 
     fn owner(peer: &str, auth: Option<&str>) -> SessionOwner {
+        owner_with_query(peer, auth, None)
+    }
+
+    fn owner_with_query(peer: &str, auth: Option<&str>, query: Option<&str>) -> SessionOwner {
         let mut headers = HeaderMap::new();
         if let Some(auth) = auth {
             headers.insert(header::AUTHORIZATION, HeaderValue::from_str(auth).unwrap());
         }
         let mut extensions = Extensions::new();
         extensions.insert(ConnectInfo::<SocketAddr>(peer.parse().unwrap()));
-        SessionOwner::of(&headers, &extensions)
+        SessionOwner::of(&headers, query, &extensions)
     }
 
     #[test]
@@ -79,5 +93,15 @@ mod tests {
         assert_ne!(a, owner("127.0.0.2:5000", Some("Bearer x")));
         assert_ne!(a, owner("127.0.0.1:5000", Some("Bearer y")));
         assert_ne!(a, owner("127.0.0.1:5000", None));
+    }
+
+    #[test]
+    fn the_token_counts_the_same_from_the_header_or_the_url() {
+        let header = owner("127.0.0.1:1", Some("Bearer s3cret"));
+        let url = owner_with_query("127.0.0.1:2", None, Some("session_id=a&access_token=s3cret"));
+        assert_eq!(header, url);
+        let other = owner_with_query("127.0.0.1:2", None, Some("access_token=other"));
+        assert_ne!(header, other);
+        assert_ne!(header, owner("127.0.0.1:1", None));
     }
 }

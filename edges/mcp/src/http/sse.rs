@@ -82,7 +82,7 @@ pub(super) async fn open_sse(State(state): State<SseState>, request: Request) ->
         return full;
     }
     let id = new_session_id();
-    let owner = SessionOwner::of(request.headers(), request.extensions());
+    let owner = SessionOwner::of(request.headers(), request.uri().query(), request.extensions());
     state.service.scopes().bind_owner(&id, owner);
     let (to_server, from_client) = mpsc::channel::<ClientJsonRpcMessage>(64);
     let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);
@@ -138,6 +138,7 @@ pub(super) struct SessionQuery {
 pub(super) async fn post_message(
     State(state): State<SseState>,
     Query(query): Query<SessionQuery>,
+    uri: axum::http::Uri,
     connection: Option<Extension<ConnectInfo<SocketAddr>>>,
     headers: HeaderMap,
     body: Bytes,
@@ -152,7 +153,7 @@ pub(super) async fn post_message(
     if !state
         .service
         .scopes()
-        .owned_by(&id, &SessionOwner::of(&headers, &extensions))
+        .owned_by(&id, &SessionOwner::of(&headers, uri.query(), &extensions))
     {
         tracing::warn!(session = %id, "post into another client's SSE session refused");
         return (StatusCode::NOT_FOUND, "Could not find session").into_response();

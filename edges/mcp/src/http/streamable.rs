@@ -52,7 +52,7 @@ pub(super) async fn streamable_checks(
         max_body_bytes,
         cap,
     } = checks;
-    let owner = SessionOwner::of(request.headers(), request.extensions());
+    let owner = SessionOwner::of(request.headers(), request.uri().query(), request.extensions());
     let session = request
         .headers()
         .get("mcp-session-id")
