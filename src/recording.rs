@@ -91,6 +91,11 @@ pub fn record(
         // Another process: the camera's intrinsics are the running robotd's, unknown here.
         camera_intrinsics: None,
     };
+    let runtime = runtime()?;
+    {
+        let _in_runtime = runtime.enter();
+        warn_without_a_robotd(&bus)?;
+    }
     let recording = robotd_foxglove::record::start(bus, path, settings)?;
     eprintln!(
         "robotd: recording bus '{}' into {}{}",
@@ -98,7 +103,7 @@ pub fn record(
         path.display(),
         duration.map_or(" until Ctrl-C".to_owned(), |d| format!(" for {d:?}"))
     );
-    runtime()?.block_on(async {
+    runtime.block_on(async {
         match duration {
             Some(duration) => tokio::select! {
                 () = tokio::time::sleep(duration) => {}
@@ -124,6 +129,23 @@ pub fn record(
     ))
 }
 
+/// Says so when no robotd serves on `bus`: a wrong `--namespace` would otherwise record only
+/// the robot model and workspaces and report success.
+fn warn_without_a_robotd(bus: &Bus) -> Result<()> {
+    let ping = bus
+        .client(&robotd_runtime::catalog::SYSTEM_PING)
+        .context("looking for a robotd on the bus")?;
+    if !ping.has_server() {
+        eprintln!(
+            "robotd: warning: no robotd is running on bus '{}' (nothing answers system/ping): \
+             only other processes' messages will be recorded. Is this the namespace robotd \
+             serve printed? Pass it with --namespace",
+            bus.namespace()
+        );
+    }
+    Ok(())
+}
+
 /// The topics a robot publishes: replaying them where a robotd runs mixes two robots.
 const ROBOT_TOPICS: [&str; 3] = ["camera/frames", "arm/state", "gripper/state"];
 
@@ -143,7 +165,12 @@ fn refuse_a_second_robot(bus: &Bus, topics: &[String], path: &Path) -> Result<()
         .context("looking for a robotd on the bus")?;
     if ping.has_server() {
         bail!(
-            "a robotd is running on bus '{}', and its own camera and arm publish {}: replayed              and live data would mix. To run robotd's perception, workspace model, dashboard              and tools on the recording, start robotd with the recording as its robot: robotd              serve --set robot.driver=replay --set robot.replay.file={} (another --namespace              if this robotd keeps running); to publish it for your own subscribers, choose a              namespace without a robotd",
+            "a robotd is running on bus '{}', and its own camera and arm publish {}: replayed \
+             and live data would mix. To run robotd's perception, workspace model, dashboard \
+             and tools on the recording, start robotd with the recording as its robot: robotd \
+             serve --set robot.driver=replay --set robot.replay.file={} (another --namespace \
+             if this robotd keeps running); to publish it for your own subscribers, choose a \
+             namespace without a robotd",
             bus.namespace(),
             robot_topics.join(", "),
             path.display()

@@ -213,6 +213,16 @@ fn a_recording_opens_in_the_mcap_reader_and_replays_into_perception() {
     let stderr = String::from_utf8_lossy(&recorded.stderr);
     assert!(recorded.status.success(), "{stderr}");
     assert!(stderr.contains("robotd: wrote"), "{stderr}");
+    assert!(!stderr.contains("no robotd is running"), "{stderr}");
+    // A namespace without a robotd (a mistyped --namespace) is said so.
+    let elsewhere = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["record", "--namespace", &common::fresh_namespace("nobody")])
+        .args(["--duration", "1s"])
+        .arg(dir.path().join("nobody.mcap"))
+        .output()
+        .unwrap();
+    let warned = String::from_utf8_lossy(&elsewhere.stderr);
+    assert!(warned.contains("no robotd is running on bus"), "{warned}");
     // It never overwrites.
     let again = Command::new(env!("CARGO_BIN_EXE_robotd"))
         .args(["record", "--namespace", &namespace, "--duration", "1s"])
