@@ -50,6 +50,7 @@
 mod describe;
 mod error;
 mod frame;
+mod handles;
 mod pubsub;
 mod rpc;
 mod thread;
@@ -117,6 +118,10 @@ pub struct Bus {
 struct BusInner {
     node: Node<Ipc>,
     namespace: String,
+    /// Message-topic services opened by this process, shared by their ports.
+    topics: handles::Handles<pubsub::PubSubFactory>,
+    /// Event services opened by this process, shared by their notifiers and listeners.
+    events: handles::Handles<wake::EventFactory>,
 }
 
 impl std::fmt::Debug for Bus {
@@ -172,6 +177,8 @@ impl Bus {
             inner: Arc::new(BusInner {
                 node,
                 namespace: options.namespace,
+                topics: handles::Handles::default(),
+                events: handles::Handles::default(),
             }),
         };
         if options.cleanup_dead_nodes {

@@ -167,10 +167,23 @@ pub(crate) struct MessageHeader {
     pub(crate) seq: u64,
 }
 
-type PubSubFactory =
+pub(crate) type PubSubFactory =
     iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, [u8], MessageHeader>;
 
-fn open_service(bus: &Bus, spec: &TopicSpec) -> Result<PubSubFactory, BusError> {
+/// The topic's service handle: the one this process already holds (shared by its ports), or
+/// a new one.
+fn open_service(bus: &Bus, spec: &TopicSpec) -> Result<Arc<PubSubFactory>, BusError> {
+    // The settings are part of the key: a port asking for others gets iceoryx2's own check.
+    let key = format!(
+        "{}|{:?}|{}|{}",
+        spec.name, spec.overflow, spec.max_subscribers, spec.max_publishers
+    );
+    bus.inner
+        .topics
+        .get_or_open(&key, || open_service_handle(bus, spec))
+}
+
+fn open_service_handle(bus: &Bus, spec: &TopicSpec) -> Result<PubSubFactory, BusError> {
     let name = spec.name.as_str();
     let overflow = spec.overflow;
     bus.node()
@@ -202,7 +215,7 @@ thread_local! {
 
 /// Sends `T` messages on a topic.
 pub struct Publisher<T: Message> {
-    factory: PubSubFactory,
+    factory: Arc<PubSubFactory>,
     port: iceoryx2::port::publisher::Publisher<Ipc, [u8], MessageHeader>,
     notify: Notify,
     topic: TopicSpec,
@@ -303,6 +316,7 @@ impl Bus {
         ));
         Ok(Subscriber {
             port,
+            _service: service,
             wake: Wake::new(self, &data_event(&topic.name))?,
             consumed,
             topic,
@@ -333,7 +347,7 @@ async fn connect_new_publishers(
 /// Blocks a back-pressured sender until a subscriber consumed something, or gives up.
 #[derive(Clone)]
 pub(crate) struct ConsumedWaiter {
-    listener: Arc<iceoryx2::port::listener::Listener<Ipc>>,
+    listener: Arc<super::wake::PlainListener>,
     bus: Bus,
     last_cleanup: Arc<std::sync::Mutex<std::time::Instant>>,
 }
@@ -527,6 +541,8 @@ impl<T: Message> Publisher<T> {
 /// Receives `T` messages from a topic.
 pub struct Subscriber<T: Message> {
     port: Arc<iceoryx2::port::subscriber::Subscriber<Ipc, [u8], MessageHeader>>,
+    /// Keeps the topic's shared service handle open while the port lives.
+    _service: Arc<PubSubFactory>,
     wake: Wake,
     consumed: Option<Arc<Notify>>,
     topic: TopicSpec,

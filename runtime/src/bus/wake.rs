@@ -9,6 +9,7 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use std::os::fd::{AsRawFd, RawFd};
+use std::sync::Arc;
 use std::time::Duration;
 use tokio::io::unix::AsyncFd;
 
@@ -21,17 +22,34 @@ impl AsRawFd for ListenerFd {
     }
 }
 
+/// An event service's handle, shared by this process's notifiers and listeners on it.
+pub(crate) type EventFactory = iceoryx2::service::port_factory::event::PortFactory<Ipc>;
+
 /// Wakes a task when the paired [`Notify`] fires.
 pub(crate) struct Wake {
     // Field order matters: the registration must be dropped before the listener closes the fd.
     fd: AsyncFd<ListenerFd>,
-    listener: Listener<Ipc>,
+    listener: PlainListener,
     name: String,
 }
 
 /// Fires the paired [`Wake`]s.
 pub(crate) struct Notify {
     notifier: Notifier<Ipc>,
+    _service: Arc<EventFactory>,
+}
+
+/// A listener for blocking waits outside tokio, with its service's shared handle.
+pub(crate) struct PlainListener {
+    listener: Listener<Ipc>,
+    _service: Arc<EventFactory>,
+}
+
+impl std::ops::Deref for PlainListener {
+    type Target = Listener<Ipc>;
+    fn deref(&self) -> &Listener<Ipc> {
+        &self.listener
+    }
 }
 
 /// Name of the event that tells a topic's subscribers that data is waiting.
@@ -71,10 +89,14 @@ pub(crate) const EVENT_LIMITS: EventLimits = EventLimits {
     event_id_max_value: 1,
 };
 
-fn event_service(
-    bus: &Bus,
-    name: &str,
-) -> Result<iceoryx2::service::port_factory::event::PortFactory<Ipc>, BusError> {
+/// The event service `name`: the handle this process already holds, or a new one.
+fn event_service(bus: &Bus, name: &str) -> Result<Arc<EventFactory>, BusError> {
+    bus.inner
+        .events
+        .get_or_open(name, || open_event_service(bus, name))
+}
+
+fn open_event_service(bus: &Bus, name: &str) -> Result<EventFactory, BusError> {
     bus.node()
         .service_builder(&bus.service_name(name)?)
         .event()
@@ -153,27 +175,36 @@ impl Wake {
 }
 
 /// A plain listener on event service `name`, for blocking waits outside tokio.
-pub(crate) fn listener(bus: &Bus, name: &str) -> Result<Listener<Ipc>, BusError> {
-    event_service(bus, name)?
+pub(crate) fn listener(bus: &Bus, name: &str) -> Result<PlainListener, BusError> {
+    let service = event_service(bus, name)?;
+    let listener = service
         .listener_builder()
         .create()
         .map_err(|e| BusError::Setup {
             what: format!("listener on '{name}'"),
             reason: format!("{e:?}"),
-        })
+        })?;
+    Ok(PlainListener {
+        listener,
+        _service: service,
+    })
 }
 
 impl Notify {
     /// Creates a notifier on event service `name`.
     pub(crate) fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
-        let notifier = event_service(bus, name)?
+        let service = event_service(bus, name)?;
+        let notifier = service
             .notifier_builder()
             .create()
             .map_err(|e| BusError::Setup {
                 what: format!("notifier on '{name}'"),
                 reason: format!("{e:?}"),
             })?;
-        Ok(Self { notifier })
+        Ok(Self {
+            notifier,
+            _service: service,
+        })
     }
 
     /// Wakes every listener of the event service.
