@@ -3,7 +3,10 @@
 //! - **a cap** ([`ConnectionLimits::max_connections`]): past it, a new connection gets one
 //!   `503 Service Unavailable` naming the setting and is closed, so a client that opens
 //!   connections without end cannot use up the process's file descriptors (the same port
-//!   serves the e-stop);
+//!   serves the e-stop). So that one remote client cannot fill it, a remote address holds at
+//!   most a quarter of the places, and the last [`LOOPBACK_RESERVE`] are kept for clients on
+//!   this machine (the dashboard's e-stop, local tools). The guard closes the connection of
+//!   every request it refuses, so requests without the token hold no place either;
 //! - **an idle timeout** ([`ConnectionLimits::idle_timeout`]): a connection that does not
 //!   send a complete request head within it — a kept-alive connection left unused, or a
 //!   client that trickles its headers — is closed. A response in progress (a long tool call,
@@ -23,6 +26,7 @@ use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{watch, Semaphore};
+
 use tokio::task::JoinSet;
 
 /// How many connections the port holds open and how long one may wait idle.
@@ -43,6 +47,12 @@ impl Default for ConnectionLimits {
     }
 }
 
+/// Places under the cap only clients on this machine may take.
+pub const LOOPBACK_RESERVE: usize = 16;
+
+/// Turned-away connections answered at once; past this, more are closed without a word.
+const MAX_REFUSALS_IN_FLIGHT: usize = 64;
+
 /// How long open connections get to finish their responses after shutdown is asked.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(2);
 
@@ -57,7 +67,7 @@ pub(crate) async fn serve(
     limits: ConnectionLimits,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    let permits = Arc::new(Semaphore::new(limits.max_connections));
+    let places = Places::new(limits.max_connections);
     let (stop, stopping) = watch::channel(false);
     let mut connections = JoinSet::new();
     let mut refusals = JoinSet::new();
@@ -81,16 +91,18 @@ pub(crate) async fn serve(
         if let Err(error) = stream.set_nodelay(true) {
             tracing::debug!(%error, "TCP_NODELAY not set");
         }
-        let Ok(permit) = permits.clone().try_acquire_owned() else {
+        let Some(place) = places.take(peer.ip()) else {
             tracing::warn!(%peer, max = limits.max_connections, "HTTP connection refused: too many open");
-            refusals.spawn(refuse(stream, limits.max_connections));
+            if refusals.len() < MAX_REFUSALS_IN_FLIGHT {
+                refusals.spawn(refuse(stream, limits.max_connections));
+            }
             continue;
         };
         let app = app.clone();
         let stopping = stopping.clone();
         connections.spawn(async move {
             serve_connection(stream, peer, app, limits.idle_timeout, stopping).await;
-            drop(permit);
+            drop(place);
         });
     }
     let _ = stop.send(true);
@@ -101,6 +113,82 @@ pub(crate) async fn serve(
     .await;
     connections.abort_all();
     Ok(())
+}
+
+/// Who holds the port's places: all of them, the remote share, and each remote address's.
+#[derive(Clone)]
+struct Places {
+    all: Arc<Semaphore>,
+    remote: Arc<Semaphore>,
+    per_address: Arc<std::sync::Mutex<std::collections::HashMap<std::net::IpAddr, usize>>>,
+    max_per_address: usize,
+}
+
+/// A connection's place; given back when dropped.
+struct Place {
+    _all: tokio::sync::OwnedSemaphorePermit,
+    _remote: Option<tokio::sync::OwnedSemaphorePermit>,
+    address: Option<(std::net::IpAddr, Places)>,
+}
+
+impl Places {
+    fn new(max_connections: usize) -> Self {
+        let reserve = LOOPBACK_RESERVE.min(max_connections / 2);
+        Self {
+            all: Arc::new(Semaphore::new(max_connections)),
+            remote: Arc::new(Semaphore::new(max_connections - reserve)),
+            per_address: Arc::default(),
+            max_per_address: (max_connections / 4).max(1),
+        }
+    }
+
+    /// A place for a connection from `ip`, if the limits leave one.
+    fn take(&self, ip: std::net::IpAddr) -> Option<Place> {
+        let all = self.all.clone().try_acquire_owned().ok()?;
+        if is_this_machine(ip) {
+            return Some(Place {
+                _all: all,
+                _remote: None,
+                address: None,
+            });
+        }
+        let remote = self.remote.clone().try_acquire_owned().ok()?;
+        let mut counts = self.per_address.lock().unwrap_or_else(|e| e.into_inner());
+        let held = counts.entry(ip).or_default();
+        if *held >= self.max_per_address {
+            return None;
+        }
+        *held += 1;
+        Some(Place {
+            _all: all,
+            _remote: Some(remote),
+            address: Some((ip, self.clone())),
+        })
+    }
+}
+
+impl Drop for Place {
+    fn drop(&mut self) {
+        if let Some((ip, places)) = self.address.take() {
+            let mut counts = places.per_address.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(held) = counts.get_mut(&ip) {
+                *held -= 1;
+                if *held == 0 {
+                    counts.remove(&ip);
+                }
+            }
+        }
+    }
+}
+
+/// Loopback addresses, IPv4-mapped ones included.
+fn is_this_machine(ip: std::net::IpAddr) -> bool {
+    match ip {
+        std::net::IpAddr::V4(v4) => v4.is_loopback(),
+        std::net::IpAddr::V6(v6) => {
+            v6.is_loopback() || v6.to_ipv4_mapped().is_some_and(|v4| v4.is_loopback())
+        }
+    }
 }
 
 /// One connection: HTTP/1 with keep-alive, the idle timeout, and a graceful close on shutdown.
@@ -166,4 +254,38 @@ async fn refuse(mut stream: TcpStream, max_connections: usize) {
         while matches!(stream.read(&mut sink).await, Ok(n) if n > 0) {}
     })
     .await;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_remote_address_holds_a_quarter_and_this_machine_keeps_a_reserve() {
+        let places = Places::new(64);
+        let remote: std::net::IpAddr = "10.0.0.5".parse().unwrap();
+        let held: Vec<Place> = (0..16).map_while(|_| places.take(remote)).collect();
+        assert_eq!(held.len(), 16, "a quarter of 64");
+        assert!(places.take(remote).is_none());
+        // Other remote addresses fill the rest but the reserve.
+        let mut others = Vec::new();
+        for i in 0.. {
+            let ip: std::net::IpAddr = format!("10.0.1.{i}").parse().unwrap();
+            match places.take(ip) {
+                Some(place) => others.push(place),
+                None => break,
+            }
+        }
+        assert_eq!(held.len() + others.len(), 64 - LOOPBACK_RESERVE);
+        let local: Vec<Place> = (0..16)
+            .map_while(|_| places.take("127.0.0.1".parse().unwrap()))
+            .collect();
+        assert_eq!(local.len(), LOOPBACK_RESERVE, "this machine still gets in");
+        assert!(
+            places.take("::1".parse().unwrap()).is_none(),
+            "the cap holds"
+        );
+        drop(held);
+        assert!(places.take(remote).is_some(), "places are given back");
+    }
 }

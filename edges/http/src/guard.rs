@@ -20,7 +20,7 @@
 //!    is read, and streamed bodies are cut at the same limit.
 
 use axum::extract::{DefaultBodyLimit, Request, State};
-use axum::http::{header, StatusCode};
+use axum::http::{header, HeaderMap, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::Router;
@@ -170,6 +170,36 @@ fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
 }
 
 async fn check(State(guard): State<Arc<HttpGuard>>, request: Request, next: Next) -> Response {
+    match refusal(&guard, &request) {
+        // A refused client does not keep its connection: a place under the port's connection
+        // cap is not held by requests without the token.
+        Some(mut refused) => {
+            refused
+                .headers_mut()
+                .insert(header::CONNECTION, header::HeaderValue::from_static("close"));
+            refused
+        }
+        None => next.run(request).await,
+    }
+}
+
+/// The bearer token a request presents: `Authorization: Bearer <token>`, else
+/// `?access_token=<token>` in its URL `query` (what a browser can send for a page, an image
+/// or an event stream). The guard checks it; the MCP edge binds sessions to it.
+pub fn bearer_token<'a>(headers: &'a HeaderMap, query: Option<&'a str>) -> Option<&'a str> {
+    headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer "))
+        .or_else(|| {
+            query?
+                .split('&')
+                .find_map(|pair| pair.strip_prefix("access_token="))
+        })
+}
+
+/// The guard's answer to a request it refuses, or `None` to serve it.
+fn refusal(guard: &HttpGuard, request: &Request) -> Option<Response> {
     let headers = request.headers();
     let host = headers.get(header::HOST).and_then(|v| v.to_str().ok());
     if let Some(refusal) = guard.host_refusal(host) {
@@ -179,40 +209,31 @@ async fn check(State(guard): State<Arc<HttpGuard>>, request: Request, next: Next
         } else {
             StatusCode::FORBIDDEN
         };
-        return (status, refusal).into_response();
+        return Some((status, refusal).into_response());
     }
     if let Some(origin) = headers.get(header::ORIGIN) {
         let origin = origin.to_str().unwrap_or("");
         if !guard.origin_allowed(origin, host) {
             tracing::warn!(origin, "HTTP request with a foreign Origin refused");
-            return (
+            return Some((
                 StatusCode::FORBIDDEN,
                 "Forbidden: Origin not allowed (robotd serves local clients and its own pages; \
                  add the origin to [mcp] allowed_origins to allow it)",
             )
-                .into_response();
+                .into_response());
         }
     }
     let monitoring = matches!(request.uri().path(), "/health" | "/metrics");
     if let Some(token) = guard.token.as_deref() {
-        let from_query = request.uri().query().and_then(|q| {
-            q.split('&')
-                .find_map(|pair| pair.strip_prefix("access_token="))
-        });
-        let given = headers
-            .get(header::AUTHORIZATION)
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.strip_prefix("Bearer "))
-            .or(from_query)
-            .unwrap_or("");
+        let given = bearer_token(headers, request.uri().query()).unwrap_or("");
         let exempt = monitoring && guard.loopback;
         if !exempt && !constant_time_eq(given.as_bytes(), token.as_bytes()) {
-            return (
+            return Some((
                 StatusCode::UNAUTHORIZED,
                 [(header::WWW_AUTHENTICATE, "Bearer")],
                 "Unauthorized: send Authorization: Bearer <token> (or ?access_token=<token>)",
             )
-                .into_response();
+                .into_response());
         }
     }
     let too_long = headers
@@ -221,16 +242,16 @@ async fn check(State(guard): State<Arc<HttpGuard>>, request: Request, next: Next
         .and_then(|v| v.parse::<usize>().ok())
         .is_some_and(|n| n > guard.max_body_bytes);
     if too_long {
-        return (
+        return Some((
             StatusCode::PAYLOAD_TOO_LARGE,
             format!(
                 "Payload Too Large: requests are limited to {} bytes",
                 guard.max_body_bytes
             ),
         )
-            .into_response();
+            .into_response());
     }
-    next.run(request).await
+    None
 }
 
 #[cfg(test)]

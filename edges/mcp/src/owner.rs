@@ -31,18 +31,11 @@ impl SessionOwner {
             .get::<ConnectInfo<SocketAddr>>()
             .map(|info| canonical(info.0.ip()))
             .unwrap_or(IpAddr::V4(Ipv4Addr::UNSPECIFIED));
-        let authorization = headers
-            .get(header::AUTHORIZATION)
-            .map(|v| v.as_bytes())
+        // The token as the guard reads it; any other Authorization as sent.
+        let credential = robotd_http::guard::bearer_token(headers, query)
+            .map(str::as_bytes)
+            .or_else(|| headers.get(header::AUTHORIZATION).map(|v| v.as_bytes()))
             .unwrap_or_default();
-        let from_query = query.and_then(|q| {
-            q.split('&')
-                .find_map(|pair| pair.strip_prefix("access_token="))
-        });
-        let credential = authorization
-            .strip_prefix(b"Bearer ")
-            .or(from_query.map(str::as_bytes))
-            .unwrap_or(authorization);
         Self {
             peer,
             credential: credential_hasher().hash_one(credential),
