@@ -56,7 +56,8 @@ pub(super) fn check_widowx(bus: Option<(PathBuf, u32)>) -> Check {
         return Check::problem(
             NAME,
             format!("a servo on {shown} sent a malformed status packet"),
-            "check the cabling and that every servo runs DYNAMIXEL Protocol 2.0 at the configured              baud rate; power-cycle the arm",
+            "check the cabling and that every servo runs DYNAMIXEL Protocol 2.0 at the configured \
+             baud rate; power-cycle the arm",
         );
     };
     let missing: Vec<String> = servos

@@ -11,40 +11,43 @@ use robotd_protocol::objects::DetectedObject;
 /// Farthest a detection may lie from a tracked object and still be called that object, m.
 pub const MATCH_RADIUS_M: f64 = 0.03;
 
-/// `detections` with each empty `id` set from the matching object in `tracked`.
+/// `detections` with each empty `id` set from the matching object in `tracked`; closest pairs
+/// first, and each tracked object names one detection at most.
 pub fn with_stable_ids(
     detections: &[DetectedObject],
     tracked: &[DetectedObject],
 ) -> Vec<DetectedObject> {
-    detections
-        .iter()
-        .map(|detection| {
-            let mut detection = detection.clone();
-            if detection.id.is_empty() {
-                if let Some(object) = nearest_same_object(&detection, tracked) {
-                    detection.id = object.id.clone();
+    let mut named = detections.to_vec();
+    let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+    for (d, detection) in detections.iter().enumerate() {
+        if !detection.id.is_empty() {
+            continue;
+        }
+        for (t, object) in tracked.iter().enumerate() {
+            if object.label == detection.label && object.workspace_id == detection.workspace_id {
+                let distance = table_distance(detection, object);
+                if distance <= MATCH_RADIUS_M {
+                    pairs.push((distance, d, t));
                 }
             }
-            detection
-        })
-        .collect()
+        }
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut object_used = vec![false; tracked.len()];
+    let mut detection_named = vec![false; detections.len()];
+    for (_, d, t) in pairs {
+        if !object_used[t] && !detection_named[d] {
+            object_used[t] = true;
+            detection_named[d] = true;
+            named[d].id = tracked[t].id.clone();
+        }
+    }
+    named
 }
 
-fn nearest_same_object<'a>(
-    detection: &DetectedObject,
-    tracked: &'a [DetectedObject],
-) -> Option<&'a DetectedObject> {
-    let at = &detection.position.center_of_mass;
-    tracked
-        .iter()
-        .filter(|o| o.label == detection.label && o.workspace_id == detection.workspace_id)
-        .map(|o| {
-            let p = &o.position.center_of_mass;
-            (o, (p.x_m - at.x_m).hypot(p.y_m - at.y_m))
-        })
-        .filter(|(_, distance)| *distance <= MATCH_RADIUS_M)
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(o, _)| o)
+fn table_distance(a: &DetectedObject, b: &DetectedObject) -> f64 {
+    let (p, q) = (&a.position.center_of_mass, &b.position.center_of_mass);
+    (p.x_m - q.x_m).hypot(p.y_m - q.y_m)
 }
 
 #[cfg(test)]
@@ -78,6 +81,18 @@ mod tests {
         let named = with_stable_ids(&detections, &tracked);
         let ids: Vec<&str> = named.iter().map(|o| o.id.as_str()).collect();
         assert_eq!(ids, ["obj-2", "", "obj-1"]);
+    }
+
+    #[test]
+    fn one_tracked_object_names_one_box() {
+        let tracked = [object("obj-1", "pencil", 0.20, 0.00)];
+        let detections = [
+            object("", "pencil", 0.21, 0.0),
+            object("", "pencil", 0.201, 0.0),
+        ];
+        let named = with_stable_ids(&detections, &tracked);
+        let ids: Vec<&str> = named.iter().map(|o| o.id.as_str()).collect();
+        assert_eq!(ids, ["", "obj-1"], "the closer box gets the id");
     }
 
     #[test]

@@ -288,28 +288,33 @@ pub async fn agent_requests(
             continue;
         }
         let deadline = Instant::now() + Duration::from_secs(60);
-        let answered = loop {
+        let outcome = loop {
             let left = deadline.saturating_duration_since(Instant::now());
             match tokio::time::timeout(left, events.recv()).await {
-                Ok(Ok(event)) if finished.contains(&event.body.request_id) => {
+                Ok(Ok(event)) if event.body.request_id == request_id => {
                     if event.body.event.is_terminal() {
+                        break Some(matches!(
+                            event.body.event,
+                            robotd_protocol::agent::AgentEventKind::Answer { .. }
+                        ));
+                    }
+                }
+                Ok(Ok(event)) => {
+                    // An earlier request's final event: its second if one was seen already (a
+                    // request given up on may still get its first, late).
+                    if event.body.event.is_terminal()
+                        && !finished.insert(event.body.request_id.clone())
+                    {
                         tally.answered_twice.fetch_add(1, Ordering::Relaxed);
                     }
                 }
-                Ok(Ok(event)) if event.body.request_id == request_id => {
-                    if event.body.event.is_terminal() {
-                        break matches!(
-                            event.body.event,
-                            robotd_protocol::agent::AgentEventKind::Answer { .. }
-                        );
-                    }
-                }
-                Ok(Ok(_)) => {}
-                _ => break false,
+                _ => break None,
             }
         };
-        finished.insert(request_id);
-        let counter = if answered {
+        if outcome.is_some() {
+            finished.insert(request_id);
+        }
+        let counter = if outcome == Some(true) {
             &tally.answered
         } else {
             &tally.failed
