@@ -20,7 +20,7 @@
 use crate::control_table::{
     address, hardware_error_reasons, servo_name, ALL_IDS, GRIPPER_ID, JOINT_IDS,
 };
-use crate::fake::packet::{Deframer, Instruction, STATUS};
+use crate::packet::{Deframer, Instruction, STATUS};
 use crate::startup::{self, StartupSettings};
 use crate::DxlBus;
 use robotd_driver::DriverError;
@@ -532,9 +532,9 @@ pub fn read_present_positions(bus: &mut DxlBus) -> Result<[Option<i32>; 9], Stri
 /// `read_status_response_deadline`: dynamixel2 0.9.1 panics on a status packet whose length
 /// field is below 4 (an arithmetic overflow for 0 and 1 in debug builds; a slice out of range
 /// for 2 and 3 with a matching CRC, in every build), so one corrupted length byte dropped the
-/// port to reopen it. The fake servo bus's [`Deframer`] frames them (a status packet is framed
-/// like an instruction: CRC over the stuffed bytes, then unstuffing; anything malformed
-/// skipped). Fuzzed by `tests/fuzz_packets.rs` and, on a pty, `tests/fuzz_status.rs`.
+/// port to reopen it. [`Deframer`] (shared with the fake servo bus) frames them (a status
+/// packet is framed like an instruction: CRC over the stuffed bytes, then unstuffing; anything
+/// malformed skipped). Fuzzed by `tests/fuzz_packets.rs` and, on a pty, `tests/fuzz_status.rs`.
 fn sync_read_positions(bus: &mut DxlBus, snapshot: &mut TickSnapshot) -> Result<(), String> {
     const SYNC_READ: u8 = 0x82;
     const BROADCAST: u8 = 0xFE;

@@ -10,6 +10,7 @@
 //! - [`startup`]: ping and model check of every servo, the settings written, torque on;
 //! - [`bus`]: the bus thread and its control loop (sync write of goals, sync read of positions,
 //!   hardware-error recovery, reconnection), on the `dynamixel2` crate;
+//! - [`packet`]: Protocol 2.0 framing (the bus's sync reads and the fake's instructions);
 //! - [`arm`], [`gripper`]: the driver traits on top of it;
 //! - the camera: an MJPEG-over-HTTP stream (`robotd-driver-mjpeg`), posed on the wrist;
 //! - [`fake`]: the simulator as nine servos on a pty (`robotd fake-widowx`), which the vendor's
@@ -22,6 +23,7 @@ pub mod bus;
 pub mod control_table;
 pub mod fake;
 pub mod gripper;
+pub mod packet;
 pub mod startup;
 
 pub use arm::WidowxArm;

@@ -12,12 +12,13 @@
 //! hardware error on one servo, packets dropped, replies with a broken CRC, a bus that stops
 //! answering, and the adapter unplugged and plugged back in.
 
-pub mod packet;
+/// The packet framing, shared with the real bus (it lives in [`crate::packet`]).
+pub use crate::packet;
 pub mod servo;
 pub mod world;
 
 use crate::control_table::accepted_models;
-use packet::{status_packet, Deframer, Instruction};
+use crate::packet::{status_packet, Deframer, Instruction};
 use robotd_driver_sim::SimRobot;
 use rustix::fd::OwnedFd;
 use servo::{error, Servo};

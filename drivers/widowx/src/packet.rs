@@ -1,6 +1,8 @@
-//! The servo side of Protocol 2.0 framing: instruction packets in, status packets out.
+//! Protocol 2.0 packet framing, shared by the real bus and the fake servo bus: packets
+//! reassembled from a byte stream, status packets built.
 //!
-//! A controller's bytes arrive in arbitrary pieces; [`Deframer`] keeps what it has, skips
+//! On the servo side (`crate::fake`) instruction packets come in and status packets go out. A
+//! controller's bytes arrive in arbitrary pieces; [`Deframer`] keeps what it has, skips
 //! what is not a header, and hands out each complete instruction packet once its CRC has
 //! been checked over the stuffed bytes and the stuffing removed. Anything malformed is
 //! reported as [`FrameError`] and skipped, never trusted. [`status_packet`] builds a reply
@@ -9,6 +11,8 @@
 //! Status packets are framed the same way, so the real bus reads the servos' sync-read replies
 //! with [`Deframer`] too (`crate::bus`): `instruction` is then 0x55 ([`STATUS`]) and `params`
 //! the error byte followed by the data.
+//!
+//! (It lived in `fake::packet` first; `crate::fake::packet` still names it.)
 
 use dynamixel2::checksum::calculate_checksum;
 
@@ -16,7 +20,7 @@ use dynamixel2::checksum::calculate_checksum;
 pub const HEADER: [u8; 4] = [0xFF, 0xFF, 0xFD, 0x00];
 /// Instruction of a status packet.
 pub const STATUS: u8 = 0x55;
-/// Largest packet the fake accepts (its control tables are 256 bytes).
+/// Largest packet framed (the servos' control tables, and the fake's, are 256 bytes).
 const MAX_LENGTH: usize = 1024;
 
 /// One instruction packet, unstuffed.
