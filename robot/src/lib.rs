@@ -127,7 +127,9 @@ impl Hardware {
                 Ok(hardware)
             }
             RobotDriver::Replay => {
-                let mut replay = robotd_driver_replay::open(&config.robot.replay)?;
+                // Checks the file on the blocking pool. Should the actors not start, `replay`
+                // is dropped here and aborts its player (and so its reader thread).
+                let mut replay = robotd_driver_replay::open(&config.robot.replay).await?;
                 let drivers = replay.drivers.clone();
                 let mut hardware = Self::start_with(bus, config, drivers, observer).await?;
                 hardware.tasks.append(&mut replay.tasks);

@@ -37,6 +37,12 @@ pub enum ReplayError {
     /// The reader thread did not start.
     #[error("cannot start the replay's reader thread: {0}")]
     Thread(String),
+    /// `robot.replay.speed` is not a pace the replay plays at.
+    #[error(
+        "robot.replay.speed = {0}: must be from 0.1 to 10 (1.0 = the recorded pace, 2.0 = \
+         twice as fast)"
+    )]
+    Speed(f64),
 }
 
 /// A playable recording: what it holds and the camera intrinsics its frames are served with.

@@ -30,7 +30,11 @@
 //! The file is checked before anything starts ([`check::inspect`]): a missing file, one that
 //! is not MCAP, a recording without camera frames or arm states, of another robot model, or
 //! whose frames do not fit the intrinsics are refused with the file's name and what to do.
-//! The file is read as it plays ([`source`]), never whole into memory.
+//! [`open`] runs that check (one pass over the file) on tokio's blocking pool, never on a
+//! runtime worker. The file is read as it plays ([`source`]), never whole into memory.
+//!
+//! A [`Replay`] dropped before its tasks were handed on (its robot failed to start) aborts its
+//! player, and the reader thread ends with it, letting go of the file.
 //!
 //! The replay starts when [`Replay::start`] is called (`robotd serve` calls it once
 //! perception and the workspace model are up, so they see the recording from its first frame);
@@ -72,10 +76,13 @@ impl FedCamera for ReplayCamera {
 }
 
 /// An opened replay: the drivers, the player's task, and the switch that starts it.
+///
+/// Dropping it aborts the tasks still in [`Replay::tasks`] (take them to keep them running).
 pub struct Replay {
     /// The drivers for robotd's arm, gripper and camera actors.
     pub drivers: RobotDrivers,
-    /// The player (aborted when the robot shuts down; its reader thread then stops).
+    /// The player (aborted when the robot shuts down, or when the `Replay` is dropped while
+    /// it still holds it; its reader thread then stops).
     pub tasks: Vec<tokio::task::JoinHandle<()>>,
     /// What the file holds and how it is served.
     pub checked: Checked,
@@ -97,10 +104,47 @@ impl Replay {
     }
 }
 
-/// Checks the recording `[robot.replay]` names and opens it as a robot. Call from within a
-/// tokio runtime (the player is a task on it).
-pub fn open(config: &ReplayConfig) -> Result<Replay, ReplayError> {
-    let checked = inspect(config)?;
+impl Drop for Replay {
+    /// A player that never gets its start would wait forever, and its reader thread with it,
+    /// blocked on a full channel holding the file and decoded frames: abort it (the reader
+    /// thread then finds the channel closed and ends).
+    fn drop(&mut self) {
+        for task in &self.tasks {
+            task.abort();
+        }
+    }
+}
+
+/// The paces the replay plays at (`robot.replay.speed`).
+pub const SPEEDS: std::ops::RangeInclusive<f64> = 0.1..=10.0;
+
+/// `speed` when it is one the replay plays at.
+fn check_speed(speed: f64) -> Result<f64, ReplayError> {
+    if SPEEDS.contains(&speed) {
+        Ok(speed)
+    } else {
+        Err(ReplayError::Speed(speed))
+    }
+}
+
+/// Checks the recording `[robot.replay]` names and opens it as a robot. The check reads the
+/// whole file once, on tokio's blocking pool; the player is a task on the current runtime.
+pub async fn open(config: &ReplayConfig) -> Result<Replay, ReplayError> {
+    check_speed(config.speed)?;
+    let owned = config.clone();
+    let checked = tokio::task::spawn_blocking(move || inspect(&owned))
+        .await
+        .map_err(|e| ReplayError::Recording {
+            path: config.file.clone().unwrap_or_default(),
+            problem: format!("checking the file failed ({e})"),
+        })??;
+    open_checked(config, checked)
+}
+
+/// Opens a recording [`inspect`] found playable as a robot, without reading the file here.
+/// Call from within a tokio runtime (the player is a task on it).
+pub fn open_checked(config: &ReplayConfig, checked: Checked) -> Result<Replay, ReplayError> {
+    check_speed(config.speed)?;
     let contents = &checked.contents;
     let path = contents.path.clone();
     let (t0, t_end) = contents.span.unwrap_or_default();
@@ -165,6 +209,41 @@ pub fn open(config: &ReplayConfig) -> Result<Replay, ReplayError> {
     })
 }
 
+/// The warnings logged on this thread while `f` runs, one string each.
+#[cfg(test)]
+pub(crate) fn warnings_of<T>(f: impl FnOnce() -> T) -> (T, Vec<String>) {
+    use std::sync::Mutex;
+    #[derive(Clone, Default)]
+    struct Lines(Arc<Mutex<Vec<u8>>>);
+    impl std::io::Write for Lines {
+        fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+            self.0.lock().unwrap().extend_from_slice(bytes);
+            Ok(bytes.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let lines = Lines::default();
+    let writer = lines.clone();
+    let subscriber = tracing_subscriber::fmt()
+        .with_max_level(tracing::Level::WARN)
+        .with_ansi(false)
+        .with_writer(move || writer.clone())
+        .finish();
+    let result = tracing::subscriber::with_default(subscriber, f);
+    let text = String::from_utf8(lines.0.lock().unwrap().clone()).unwrap();
+    // A reason may hold a line break: a warning starts with its time and level.
+    let mut warnings: Vec<String> = Vec::new();
+    for line in text.lines() {
+        match warnings.last_mut() {
+            Some(last) if !line.contains(" WARN ") => last.push_str(line),
+            _ => warnings.push(line.to_owned()),
+        }
+    }
+    (result, warnings)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -180,7 +259,7 @@ mod tests {
             speed: 10.0,
             ..ReplayConfig::default()
         };
-        let replay = open(&config).unwrap();
+        let replay = open(&config).await.unwrap();
         let camera = replay.drivers.camera.clone();
         assert_eq!(camera.size(), (16, 12));
         let waiting = camera.frame_ready().await.unwrap_err().to_string();
@@ -203,5 +282,116 @@ mod tests {
         assert!(frames >= 1, "at least the last frame is always taken");
         assert!((replay.drivers.arm.joints().unwrap()[0] - 0.6).abs() < 1e-9);
         assert!(replay.drivers.gripper.status().unwrap().holding);
+    }
+
+    fn recording(dir: &std::path::Path) -> std::path::PathBuf {
+        let path = dir.join("s.mcap");
+        write_recording(&path, &Recorded::short_session());
+        path
+    }
+
+    /// Descriptors of this process open on `path`.
+    fn open_on(path: &std::path::Path) -> usize {
+        std::fs::read_dir("/proc/self/fd")
+            .unwrap()
+            .filter_map(|fd| std::fs::read_link(fd.ok()?.path()).ok())
+            .filter(|target| target == path)
+            .count()
+    }
+
+    #[tokio::test]
+    async fn the_check_reads_the_file_off_the_runtime() {
+        // The recording comes through a FIFO, which a second thread fills only once a task
+        // on this (single-threaded) runtime ran: a check that blocks the runtime's thread
+        // waits for the fallback after 5 s instead.
+        let dir = tempfile::tempdir().unwrap();
+        let bytes = std::fs::read(recording(dir.path())).unwrap();
+        let fifo = dir.path().join("fifo.mcap");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let (ran_tx, ran_rx) = std::sync::mpsc::channel::<()>();
+        let writer = {
+            let (fifo, bytes) = (fifo.clone(), bytes.clone());
+            std::thread::spawn(move || {
+                let ran = ran_rx.recv_timeout(Duration::from_secs(5)).is_ok();
+                std::fs::write(&fifo, &bytes).unwrap();
+                ran
+            })
+        };
+        tokio::spawn(async move {
+            let _ = ran_tx.send(());
+        });
+        let config = ReplayConfig {
+            file: Some(fifo.clone()),
+            ..ReplayConfig::default()
+        };
+        let replay = open(&config).await.unwrap();
+        assert!(
+            writer.join().unwrap(),
+            "the runtime ran nothing while the recording was checked"
+        );
+        assert_eq!(replay.checked.contents.camera_frames(), 13);
+        // The reader thread opens the FIFO again: let it read, then stop it.
+        std::fs::write(&fifo, &bytes).unwrap();
+        drop(replay);
+    }
+
+    #[tokio::test]
+    async fn a_replay_dropped_before_it_started_lets_go_of_its_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = recording(dir.path());
+        let config = ReplayConfig {
+            file: Some(path.clone()),
+            ..ReplayConfig::default()
+        };
+        let replay = open(&config).await.unwrap();
+        // The reader thread holds the file, blocked on the full channel.
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
+        while open_on(&path) == 0 && std::time::Instant::now() < deadline {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        assert_eq!(open_on(&path), 1, "the reader thread reads the file");
+        let player = replay.tasks[0].abort_handle();
+        // What robotd does when the actors fail to start after the replay was opened.
+        drop(replay);
+        while open_on(&path) > 0 && std::time::Instant::now() < deadline {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        assert_eq!(open_on(&path), 0, "the reader thread still holds the file");
+        assert!(player.is_finished());
+    }
+
+    #[tokio::test]
+    async fn a_pace_the_replay_cannot_play_is_refused_with_the_setting() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = recording(dir.path());
+        let good = ReplayConfig {
+            file: Some(path),
+            ..ReplayConfig::default()
+        };
+        let checked = inspect(&good).unwrap();
+        for speed in [0.0, -1.0, f64::NAN, f64::INFINITY, 0.01, 100.0] {
+            let config = ReplayConfig {
+                speed,
+                ..good.clone()
+            };
+            let error = open(&config).await.unwrap_err();
+            assert!(matches!(error, ReplayError::Speed(_)), "{error}");
+            let text = error.to_string();
+            assert!(text.contains("robot.replay.speed"), "{text}");
+            assert!(text.contains("0.1 to 10"), "{text}");
+            let error = open_checked(&config, checked.clone()).unwrap_err();
+            assert!(matches!(error, ReplayError::Speed(_)), "{error}");
+        }
+        for speed in [0.1, 10.0] {
+            let config = ReplayConfig {
+                speed,
+                ..good.clone()
+            };
+            assert!(open_checked(&config, checked.clone()).is_ok(), "{speed}");
+        }
     }
 }

@@ -46,6 +46,8 @@ pub const FRAME_DELAY: Duration = Duration::from_millis(50);
 pub const LAST_FRAME_WAIT: Duration = Duration::from_secs(10);
 /// The pause between the end of one lap and the start of the next.
 pub const LAP_GAP: Duration = Duration::from_millis(100);
+/// When a message whose recorded time is beyond any replay is due: after about 30 years.
+pub const FAR_FUTURE: Duration = Duration::from_secs(30 * 365 * 86_400);
 
 /// A message of the recording, decoded by the reader thread.
 #[derive(Debug)]
@@ -111,20 +113,34 @@ impl Clock {
         }
     }
 
-    /// When recorded instant `t` is due on the replay's (tokio) clock.
+    /// When recorded instant `t` is due on the replay's (tokio) clock. The file's times are
+    /// not trusted: one centuries after `t0` (or a pace that is not positive) is due in
+    /// [`FAR_FUTURE`], never an overflow.
     pub fn due(&self, t: u64) -> Instant {
-        self.start + Duration::from_nanos(t.saturating_sub(self.t0)).div_f64(self.speed)
+        let far = self.start + FAR_FUTURE;
+        let seconds = Duration::from_nanos(t.saturating_sub(self.t0)).as_secs_f64() / self.speed;
+        Duration::try_from_secs_f64(seconds)
+            .ok()
+            .and_then(|after| self.start.checked_add(after))
+            .map_or(far, |due| due.min(far))
     }
 
-    /// Recorded instant `t` on the replay's Unix clock (before its start for `t < t0`).
+    /// Recorded instant `t` on the replay's Unix clock (before its start for `t < t0`; clamped
+    /// to what a `u64` of nanoseconds holds).
     pub fn unix_at(&self, t: u64) -> u64 {
         let offset = (i128::from(t) - i128::from(self.t0)) as f64 / self.speed;
-        (i128::from(self.start_unix_ns) + offset as i128).max(0) as u64
+        i128::from(self.start_unix_ns)
+            .saturating_add(offset as i128)
+            .clamp(0, i128::from(u64::MAX)) as u64
     }
 
     fn next_lap(&mut self, length: Duration) {
-        self.start += length;
-        self.start_unix_ns += length.as_nanos() as u64;
+        self.start = self
+            .start
+            .checked_add(length)
+            .unwrap_or(self.start + FAR_FUTURE);
+        let nanos = u64::try_from(length.as_nanos()).unwrap_or(u64::MAX);
+        self.start_unix_ns = self.start_unix_ns.saturating_add(nanos);
     }
 }
 
@@ -188,9 +204,9 @@ impl Player {
         loop {
             while !lap_over {
                 let read_enough = pending.len() >= MAX_PENDING
-                    || pending
-                        .peek()
-                        .is_some_and(|Reverse(p)| newest >= p.log_time + REORDER.as_nanos() as u64);
+                    || pending.peek().is_some_and(|Reverse(p)| {
+                        newest >= p.log_time.saturating_add(REORDER.as_nanos() as u64)
+                    });
                 if read_enough {
                     break;
                 }
@@ -228,7 +244,7 @@ impl Player {
                     self.camera.set_problem(self.ended.clone());
                     return;
                 }
-                self.clock.next_lap(self.lap + LAP_GAP);
+                self.clock.next_lap(self.lap.saturating_add(LAP_GAP));
                 newest = 0;
                 lap_over = false;
                 continue;
@@ -488,6 +504,49 @@ mod tests {
         );
         // The states still come in time order.
         assert!((arm_driver.joints().unwrap()[0] - 0.005).abs() < 1e-9);
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn log_times_at_the_end_of_time_neither_overflow_nor_stop_the_replay() {
+        let (rig, player, rx) = rig(1.0, false, 1.0);
+        let arm_driver = crate::robot::ReplayArm(rig.robot.clone());
+        for item in [
+            arm(0.2, 0, at(0.1)),
+            arm(0.3, 0, u64::MAX - 5),
+            frame(1, u64::MAX),
+            Item::End,
+        ] {
+            rig.items.try_send(item).unwrap();
+        }
+        let player = tokio::spawn(player.run(rx));
+        rig.go.notify_one();
+        tokio::time::sleep(Duration::from_millis(101)).await;
+        assert_eq!(arm_driver.joints().unwrap()[0], 0.2);
+        // The rest is due centuries later: far in the future, not an overflow.
+        player.await.expect("the player does not panic");
+        assert_eq!(arm_driver.joints().unwrap()[0], 0.3);
+        assert_eq!(rig.camera.problem().as_deref(), Some("the recording ended"));
+    }
+
+    #[test]
+    fn the_clock_takes_any_recorded_time_and_any_pace_without_overflowing() {
+        for speed in [1.0, 0.1, 10.0, 1e-12, 0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let mut clock = Clock::new(T0, speed, 1_000);
+            let now = clock.start;
+            for t in [0, T0, T0 + 1, u64::MAX - 1, u64::MAX] {
+                let due = clock.due(t);
+                assert!(due >= now && due <= now + FAR_FUTURE, "{speed} {t}");
+                let _ = clock.unix_at(t);
+            }
+            clock.next_lap(Duration::MAX);
+            assert_eq!(clock.start_unix_ns, u64::MAX);
+        }
+        let clock = Clock::new(T0, 1e-12, u64::MAX - 10);
+        assert_eq!(clock.unix_at(u64::MAX), u64::MAX);
+        assert_eq!(Clock::new(T0, 1e-12, 10).unix_at(0), 0);
+        let clock = Clock::new(T0, 2.0, 1_000);
+        assert_eq!(clock.due(at(1.0)), clock.start + Duration::from_millis(500));
+        assert_eq!(clock.unix_at(at(1.0)), 500_001_000);
     }
 
     #[tokio::test(start_paused = true)]

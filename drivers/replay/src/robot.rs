@@ -19,6 +19,7 @@ use robotd_driver::{
 use robotd_protocol::arm::ArmState;
 use robotd_protocol::geometry::RobotModel;
 use robotd_protocol::gripper::GripperState;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 /// Why every command that would move the replayed robot is refused.
@@ -44,6 +45,18 @@ pub struct RecordedRobot {
     arm: Mutex<ArmNow>,
     gripper: Mutex<GripperStatus>,
     max_width_m: f64,
+    /// Arm states skipped for not being this model's finite joints.
+    skipped_arm_states: AtomicU64,
+}
+
+/// Whether the `n`th of a kind of problem is worth a log line: the 1st, 10th, 100th, … (a
+/// recording full of them costs a few lines, not one per message).
+pub fn worth_a_line(n: u64) -> bool {
+    let mut m = n;
+    while m >= 10 && m.is_multiple_of(10) {
+        m /= 10;
+    }
+    m == 1
 }
 
 fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -73,6 +86,7 @@ impl RecordedRobot {
                 width_m: max_width_m,
             }),
             max_width_m,
+            skipped_arm_states: AtomicU64::new(0),
         };
         robot.set_arm(first, first_log_time, clock);
         if let Some(state) = gripper {
@@ -85,11 +99,16 @@ impl RecordedRobot {
     pub fn set_arm(&self, state: &ArmState, log_time: u64, clock: &Clock) {
         let joints = &state.joints.positions_rad;
         if joints.len() != self.model.joint_count() || joints.iter().any(|q| !q.is_finite()) {
-            tracing::warn!(
-                joints = joints.len(),
-                "replay: an arm state without {} finite joints; skipped",
-                self.model.joint_count()
-            );
+            let skipped = self.skipped_arm_states.fetch_add(1, Ordering::Relaxed) + 1;
+            if worth_a_line(skipped) {
+                tracing::warn!(
+                    joints = joints.len(),
+                    skipped,
+                    "replay: an arm state without {} finite joints; skipped ({skipped} so far, \
+                     logged at the 1st, 10th, 100th, …)",
+                    self.model.joint_count()
+                );
+            }
             return;
         }
         let mut arm = lock(&self.arm);
@@ -110,6 +129,11 @@ impl RecordedRobot {
             collision_detected: state.collision_detected,
             calibrated: state.calibrated,
         };
+    }
+
+    /// Arm states skipped so far for not being this model's finite joints.
+    pub fn skipped_arm_states(&self) -> u64 {
+        self.skipped_arm_states.load(Ordering::Relaxed)
     }
 
     /// The gripper as recorded state `state` says.
@@ -266,5 +290,24 @@ mod tests {
         short.joints.positions_rad.pop();
         robot.set_arm(&short, at(5.0), &clock);
         assert_eq!(arm.joints().unwrap()[0], 0.9);
+    }
+
+    #[test]
+    fn malformed_arm_states_are_counted_and_logged_at_the_1st_10th_100th() {
+        let clock = Clock::new(T0, 1.0, 5_000_000_000_000);
+        let robot = robot(&clock);
+        let mut bad = arm_state(0.3, 0);
+        bad.joints.positions_rad[2] = f64::NAN;
+        let ((), warnings) = crate::warnings_of(|| {
+            for k in 0..1_000 {
+                robot.set_arm(&bad, at(0.001 * f64::from(k)), &clock);
+            }
+        });
+        assert_eq!(robot.skipped_arm_states(), 1_000);
+        assert_eq!(warnings.len(), 4, "{warnings:#?}");
+        assert!(warnings[3].contains("1000 so far"), "{}", warnings[3]);
+        assert_eq!(ReplayArm(robot).joints().unwrap()[0], 0.5, "none applied");
+        let logged: Vec<u64> = (1..=10_000).filter(|n| worth_a_line(*n)).collect();
+        assert_eq!(logged, [1, 10, 100, 1_000, 10_000]);
     }
 }

@@ -154,14 +154,26 @@ fn urdf_robot_name(data: &[u8]) -> Option<String> {
     robot_name(message.get("data")?.as_str()?)
 }
 
-/// The `name` attribute of a URDF's `<robot>` element.
+/// The `name` attribute of a URDF's root `<robot>` element, read with an XML parser (the
+/// declaration, comments and other attributes before it are skipped as XML says, entities
+/// unescaped); `None` when the first element is not `<robot>` or has no `name`.
 fn robot_name(urdf: &str) -> Option<String> {
-    let start = urdf.find("<robot")?;
-    let element = &urdf[start..start + urdf[start..].find('>')?];
-    let after = &element[element.find("name=")? + 5..];
-    let quote = after.chars().next().filter(|c| *c == '"' || *c == '\'')?;
-    let value = &after[1..];
-    Some(value[..value.find(quote)?].to_owned())
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(urdf);
+    loop {
+        match reader.read_event().ok()? {
+            Event::Start(element) | Event::Empty(element) => {
+                if element.local_name().as_ref() != b"robot" {
+                    return None;
+                }
+                let name = element.try_get_attribute("name").ok()??;
+                let name = name.decode_and_unescape_value(reader.decoder()).ok()?;
+                return Some(name.into_owned());
+            }
+            Event::Eof => return None,
+            _ => {}
+        }
+    }
 }
 
 /// The model whose URDF (the one robotd's kinematics and recorder use) names its robot `name`.
@@ -220,6 +232,31 @@ mod tests {
         assert_eq!(model_named("ur5"), None);
         assert_eq!(robot_name("<robot>"), None);
         assert_eq!(urdf_robot_name(b"not json"), None);
+    }
+
+    #[test]
+    fn the_robot_name_is_the_name_attribute_not_a_name_inside_another() {
+        let name = |urdf: &str| robot_name(urdf);
+        // `name=` inside another attribute's name or value is not the name.
+        assert_eq!(
+            name(r#"<robot filename="x" name="ned2">"#).as_deref(),
+            Some("ned2")
+        );
+        assert_eq!(
+            name(r#"<robot doc="name='x'" name="ned2"></robot>"#).as_deref(),
+            Some("ned2")
+        );
+        assert_eq!(name(r#"<robot filename="x"></robot>"#), None);
+        // Whitespace around `=`, the XML declaration, comments, entities.
+        assert_eq!(
+            name("<?xml version=\"1.0\"?>\n<!-- <robot name=\"old\"> -->\n<robot name = \"wx&amp;250\"/>")
+                .as_deref(),
+            Some("wx&250")
+        );
+        // Only the root element, and only a `<robot>` one.
+        assert_eq!(name(r#"<robots name="x"><robot name="y"/></robots>"#), None);
+        assert_eq!(name(r#"<robot_description name="x"/>"#), None);
+        assert_eq!(name(""), None);
     }
 
     #[test]

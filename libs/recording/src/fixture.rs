@@ -237,3 +237,83 @@ pub fn write_recording(path: &Path, recorded: &Recorded) {
     }
     writer.finish().expect("closes the file");
 }
+
+/// Recordings damaged on purpose, for the fuzz tests of what reads them (this crate's reader
+/// and description, the replay driver): cut, bits flipped, words overwritten, and length
+/// fields changed (random bytes seldom hit those, and they are what a reader trusts).
+pub mod damage {
+    /// One change to a file's bytes; offsets are fractions of its length, or indices into its
+    /// [`length_fields`].
+    #[derive(Debug, Clone, PartialEq)]
+    pub enum Damage {
+        /// Cut the file at this fraction of its length.
+        Truncate(f64),
+        /// Flip one bit (0-7) of the byte at this fraction.
+        Flip(f64, u8),
+        /// Overwrite the 8 bytes at this fraction (a length field, a time) with a value.
+        Word(f64, u64),
+        /// Add to the length field of this index (modulo their number; wrapping).
+        Length(usize, i64),
+    }
+
+    /// Where an MCAP file's length fields are, as `(offset, width in bytes)`: every record's
+    /// (in the file and in its chunks) and each chunk header's uncompressed size, compression
+    /// name length (4 bytes) and compressed size. Reads a valid file (panics on another).
+    pub fn length_fields(bytes: &[u8]) -> Vec<(usize, usize)> {
+        let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().unwrap()) as usize;
+        let mut fields = Vec::new();
+        let mut at = 8; // the magic
+        while at + 9 <= bytes.len() - 8 {
+            fields.push((at + 1, 8));
+            let (opcode, len) = (bytes[at], u64_at(at + 1));
+            if opcode == 0x06 {
+                // Chunk: start, end, uncompressed size, CRC, compression, compressed size.
+                let body = at + 9;
+                let compression =
+                    u32::from_le_bytes(bytes[body + 28..body + 32].try_into().unwrap());
+                let sizes = body + 32 + compression as usize;
+                fields.extend([(body + 16, 8), (body + 28, 4), (sizes, 8)]);
+                let (mut inner, end) = (sizes + 8, sizes + 8 + u64_at(sizes));
+                while inner + 9 <= end {
+                    fields.push((inner + 1, 8));
+                    inner += 9 + u64_at(inner + 1);
+                }
+            }
+            at += 9 + len;
+        }
+        fields
+    }
+
+    /// `bytes` (whose [`length_fields`] are `fields`) with `changes` applied in order.
+    pub fn apply(bytes: &[u8], fields: &[(usize, usize)], changes: &[Damage]) -> Vec<u8> {
+        let mut bytes = bytes.to_vec();
+        let at = |fraction: f64, len: usize| ((fraction * len as f64) as usize).min(len - 1);
+        for change in changes {
+            match *change {
+                Damage::Truncate(fraction) if !bytes.is_empty() => {
+                    let len = bytes.len();
+                    bytes.truncate(at(fraction, len));
+                }
+                Damage::Flip(fraction, bit) if !bytes.is_empty() => {
+                    let i = at(fraction, bytes.len());
+                    bytes[i] ^= 1 << (bit % 8);
+                }
+                Damage::Word(fraction, word) if bytes.len() >= 8 => {
+                    let i = at(fraction, bytes.len() - 7);
+                    bytes[i..i + 8].copy_from_slice(&word.to_le_bytes());
+                }
+                Damage::Length(field, delta) if !fields.is_empty() => {
+                    let (i, width) = fields[field % fields.len()];
+                    if i + width <= bytes.len() {
+                        let mut word = [0u8; 8];
+                        word[..width].copy_from_slice(&bytes[i..i + width]);
+                        let value = u64::from_le_bytes(word).wrapping_add_signed(delta);
+                        bytes[i..i + width].copy_from_slice(&value.to_le_bytes()[..width]);
+                    }
+                }
+                _ => {}
+            }
+        }
+        bytes
+    }
+}

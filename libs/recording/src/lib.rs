@@ -62,6 +62,9 @@ pub const GRIPPER_STATE: &str = "/bus/gripper/state";
 pub mod fixture;
 
 #[cfg(test)]
+mod fuzz;
+
+#[cfg(test)]
 mod tests {
     use super::*;
 

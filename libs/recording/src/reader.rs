@@ -3,7 +3,13 @@
 //! [`Messages`] drives the `mcap` crate's sans-I/O [`LinearReader`] from a buffered file: it
 //! holds one record (at most one chunk) at a time, so replaying a gigabyte-long session costs
 //! megabytes, not a gigabyte. Chunk checksums are checked, and a record longer than
-//! [`RECORD_LIMIT`] is refused rather than allocated.
+//! [`RECORD_LIMIT`] is refused rather than allocated (so is a read the reader asks for beyond
+//! it: a corrupt chunk header can claim gigabytes).
+//!
+//! The files are the user's, so a corrupt one must not take robotd down: `mcap` 0.25's reader
+//! can panic on crafted input (an uncompressed chunk's records longer than the chunk overflow
+//! its bookkeeping), so each step of the reader runs under `catch_unwind`, and a panic ends the
+//! messages with [`ReadError::Damaged`] like any other corruption.
 //!
 //! Errors say which file and how far it got: a file that is not MCAP at all
 //! ([`ReadError::NotMcap`]) differs from one that breaks off after some messages
@@ -15,11 +21,17 @@ use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOp
 use std::collections::HashMap;
 use std::fs::File;
 use std::io::{BufReader, Read};
+use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The longest record read (a camera image is well under a megabyte).
 pub const RECORD_LIMIT: usize = 64 << 20;
+
+/// The most bytes the reader may ask for at once: a record of [`RECORD_LIMIT`] with its opcode
+/// and length, or a chunk header with a compression name of reasonable length. More is a
+/// corrupt length field.
+const READ_LIMIT: usize = RECORD_LIMIT + 1024;
 
 /// Why a recording cannot be read (further).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -161,6 +173,13 @@ impl Messages {
             };
             match event {
                 LinearReadEvent::ReadRequest(need) => {
+                    if need > READ_LIMIT {
+                        return Err(self.fail(format!(
+                            "a record claims {need} more bytes (more than the {} MB limit: a \
+                             corrupt length)",
+                            RECORD_LIMIT >> 20
+                        )));
+                    }
                     let read = self.file.read(self.reader.insert(need));
                     match read {
                         Ok(n) => self.reader.notify_read(n),
@@ -205,15 +224,38 @@ impl Iterator for Messages {
         if self.done {
             return None;
         }
-        match self.next_message() {
-            Ok(Some(message)) => Some(Ok(message)),
-            Ok(None) => {
+        // The reader's state after a panic is unknown, so nothing more is read from it.
+        let step = catch_unwind(AssertUnwindSafe(|| self.next_message()));
+        match step {
+            Ok(Ok(Some(message))) => Some(Ok(message)),
+            Ok(Ok(None)) => {
                 self.done = true;
                 None
             }
-            Err(error) => Some(Err(error)),
+            Ok(Err(error)) => Some(Err(error)),
+            Err(panic) => {
+                self.done = true;
+                Some(Err(ReadError::Damaged {
+                    path: self.path.clone(),
+                    messages: self.messages,
+                    reason: format!(
+                        "the file is corrupt: the MCAP reader failed on it ({}); the messages \
+                         before are good",
+                        panic_message(panic.as_ref())
+                    ),
+                }))
+            }
         }
     }
+}
+
+/// What a caught panic said.
+fn panic_message(panic: &(dyn std::any::Any + Send)) -> &str {
+    panic
+        .downcast_ref::<&str>()
+        .copied()
+        .or_else(|| panic.downcast_ref::<String>().map(String::as_str))
+        .unwrap_or("a panic")
 }
 
 #[cfg(test)]
@@ -263,6 +305,76 @@ mod tests {
         std::fs::write(&text, b"{\"this\": \"is json\"}").unwrap();
         let error = Messages::open(&text).unwrap().next().unwrap().unwrap_err();
         assert!(error.to_string().contains("MCAP magic"), "{error}");
+    }
+
+    /// Where the body of the first chunk record of an MCAP file starts.
+    pub(crate) fn first_chunk_body(bytes: &[u8]) -> usize {
+        let mut at = 8; // the magic
+        loop {
+            let opcode = bytes[at];
+            let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+            if opcode == 0x06 {
+                return at + 9;
+            }
+            at += 9 + len;
+        }
+    }
+
+    /// The fixture with its first chunk's header changed by `change(header bytes)`.
+    fn with_chunk_header(dir: &Path, change: impl Fn(&mut [u8])) -> PathBuf {
+        let path = dir.join("s.mcap");
+        write_recording(&path, &Recorded::short_session());
+        let mut bytes = std::fs::read(&path).unwrap();
+        let body = first_chunk_body(&bytes);
+        change(&mut bytes[body..]);
+        let changed = dir.join("changed.mcap");
+        std::fs::write(&changed, &bytes).unwrap();
+        changed
+    }
+
+    fn first_error(path: &Path) -> (u64, ReadError) {
+        let mut messages = Messages::open(path).unwrap();
+        let mut good = 0;
+        loop {
+            match messages.next() {
+                Some(Ok(_)) => good += 1,
+                Some(Err(error)) => {
+                    assert!(messages.next().is_none(), "nothing after an error");
+                    return (good, error);
+                }
+                None => panic!("a corrupt file must not end cleanly"),
+            }
+        }
+    }
+
+    #[test]
+    fn a_chunk_whose_records_overrun_it_is_damaged_not_a_panic() {
+        // A chunk header: start, end, uncompressed size (u64 each), uncompressed CRC (u32),
+        // compression (u32 length + bytes; empty), compressed size (u64). A compressed size of
+        // 1 makes mcap 0.25 subtract the first record's length from 1 (a panic in debug).
+        let dir = tempfile::tempdir().unwrap();
+        let path = with_chunk_header(dir.path(), |header| {
+            assert_eq!(header[28..32], [0, 0, 0, 0], "an uncompressed chunk");
+            header[32..40].copy_from_slice(&1u64.to_le_bytes());
+        });
+        let (_, error) = first_error(&path);
+        assert!(matches!(error, ReadError::Damaged { .. }), "{error}");
+        let text = error.to_string();
+        assert!(text.contains("is damaged after"), "{text}");
+        assert!(text.contains("changed.mcap"), "{text}");
+        let contents = crate::contents::Contents::inspect(&path).unwrap();
+        assert!(contents.damaged.is_some(), "described up to the damage");
+    }
+
+    #[test]
+    fn a_chunk_header_claiming_gigabytes_is_refused_not_allocated() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = with_chunk_header(dir.path(), |header| {
+            header[28..32].copy_from_slice(&0xFFFF_FF00u32.to_le_bytes());
+        });
+        let (_, error) = first_error(&path);
+        assert!(matches!(error, ReadError::Damaged { .. }), "{error}");
+        assert!(error.to_string().contains("corrupt length"), "{error}");
     }
 
     #[test]
