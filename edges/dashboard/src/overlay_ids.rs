@@ -100,7 +100,10 @@ mod tests {
         let mut elsewhere = object("obj-9", "pencil", 0.2, 0.0);
         elsewhere.workspace_id = "gazebo_1".into();
         let named = with_stable_ids(
-            &[object("", "pencil", 0.2, 0.0), object("own", "pencil", 0.2, 0.0)],
+            &[
+                object("", "pencil", 0.2, 0.0),
+                object("own", "pencil", 0.2, 0.0),
+            ],
             &[elsewhere],
         );
         assert_eq!(named[0].id, "");

@@ -174,9 +174,10 @@ async fn check(State(guard): State<Arc<HttpGuard>>, request: Request, next: Next
         // A refused client does not keep its connection: a place under the port's connection
         // cap is not held by requests without the token.
         Some(mut refused) => {
-            refused
-                .headers_mut()
-                .insert(header::CONNECTION, header::HeaderValue::from_static("close"));
+            refused.headers_mut().insert(
+                header::CONNECTION,
+                header::HeaderValue::from_static("close"),
+            );
             refused
         }
         None => next.run(request).await,
@@ -228,12 +229,14 @@ fn refusal(guard: &HttpGuard, request: &Request) -> Option<Response> {
         let given = bearer_token(headers, request.uri().query()).unwrap_or("");
         let exempt = monitoring && guard.loopback;
         if !exempt && !constant_time_eq(given.as_bytes(), token.as_bytes()) {
-            return Some((
-                StatusCode::UNAUTHORIZED,
-                [(header::WWW_AUTHENTICATE, "Bearer")],
-                "Unauthorized: send Authorization: Bearer <token> (or ?access_token=<token>)",
-            )
-                .into_response());
+            return Some(
+                (
+                    StatusCode::UNAUTHORIZED,
+                    [(header::WWW_AUTHENTICATE, "Bearer")],
+                    "Unauthorized: send Authorization: Bearer <token> (or ?access_token=<token>)",
+                )
+                    .into_response(),
+            );
         }
     }
     let too_long = headers
@@ -242,14 +245,16 @@ fn refusal(guard: &HttpGuard, request: &Request) -> Option<Response> {
         .and_then(|v| v.parse::<usize>().ok())
         .is_some_and(|n| n > guard.max_body_bytes);
     if too_long {
-        return Some((
-            StatusCode::PAYLOAD_TOO_LARGE,
-            format!(
-                "Payload Too Large: requests are limited to {} bytes",
-                guard.max_body_bytes
-            ),
-        )
-            .into_response());
+        return Some(
+            (
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!(
+                    "Payload Too Large: requests are limited to {} bytes",
+                    guard.max_body_bytes
+                ),
+            )
+                .into_response(),
+        );
     }
     None
 }

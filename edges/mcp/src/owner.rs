@@ -91,7 +91,11 @@ mod tests {
     #[test]
     fn the_token_counts_the_same_from_the_header_or_the_url() {
         let header = owner("127.0.0.1:1", Some("Bearer s3cret"));
-        let url = owner_with_query("127.0.0.1:2", None, Some("session_id=a&access_token=s3cret"));
+        let url = owner_with_query(
+            "127.0.0.1:2",
+            None,
+            Some("session_id=a&access_token=s3cret"),
+        );
         assert_eq!(header, url);
         let other = owner_with_query("127.0.0.1:2", None, Some("access_token=other"));
         assert_ne!(header, other);

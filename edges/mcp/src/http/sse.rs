@@ -82,7 +82,11 @@ pub(super) async fn open_sse(State(state): State<SseState>, request: Request) ->
         return full;
     }
     let id = new_session_id();
-    let owner = SessionOwner::of(request.headers(), request.uri().query(), request.extensions());
+    let owner = SessionOwner::of(
+        request.headers(),
+        request.uri().query(),
+        request.extensions(),
+    );
     state.service.scopes().bind_owner(&id, owner);
     let (to_server, from_client) = mpsc::channel::<ClientJsonRpcMessage>(64);
     let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);

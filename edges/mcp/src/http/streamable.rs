@@ -52,7 +52,11 @@ pub(super) async fn streamable_checks(
         max_body_bytes,
         cap,
     } = checks;
-    let owner = SessionOwner::of(request.headers(), request.uri().query(), request.extensions());
+    let owner = SessionOwner::of(
+        request.headers(),
+        request.uri().query(),
+        request.extensions(),
+    );
     let session = request
         .headers()
         .get("mcp-session-id")
