@@ -46,16 +46,8 @@ fn read(bytes: Vec<u8>) -> Result<(), String> {
         .map_err(|e| e.to_string())
 }
 
-/// `PROPTEST_CASES` when set (a longer run), else `default` (the bounded CI run).
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(cases(400)))]
+    #![proptest_config(ProptestConfig::with_cases(robotd_fuzzing::cases(400)))]
 
     /// Raw bytes: a reply, or an error that says something.
     #[test]

@@ -43,16 +43,8 @@ fn change() -> impl Strategy<Value = Damage> {
     ]
 }
 
-/// `PROPTEST_CASES` when set (a longer run), else `default` (the bounded CI run).
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(cases(150)))]
+    #![proptest_config(ProptestConfig::with_cases(robotd_fuzzing::cases(150)))]
 
     #[test]
     fn a_damaged_recording_is_played_or_refused_never_a_panic(

@@ -27,16 +27,8 @@ fn stream() -> impl Strategy<Value = Vec<u8>> {
     proptest::collection::vec(piece, 0..12).prop_map(|v| v.concat())
 }
 
-/// `PROPTEST_CASES` when set (a longer run), else `default` (the bounded CI run).
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(cases(500)))]
+    #![proptest_config(ProptestConfig::with_cases(robotd_fuzzing::cases(500)))]
 
     #[test]
     fn any_stream_gives_packets_or_errors(bytes in stream(), chunk in 1usize..17) {

@@ -14,11 +14,11 @@
 
 use dynamixel2::checksum::calculate_checksum;
 use proptest::prelude::*;
-use proptest::test_runner::{FileFailurePersistence, TestCaseResult, TestRunner};
 use robotd_driver_widowx::bus::read_present_positions;
 use robotd_driver_widowx::control_table::ALL_IDS;
 use robotd_driver_widowx::fake::packet::{status_packet, stuff, Deframer, HEADER, STATUS};
 use robotd_driver_widowx::DxlBus;
+use robotd_fuzzing::{cases, fuzz, runner_config};
 use std::cell::RefCell;
 use std::fs::File;
 use std::io::{Read, Write};
@@ -347,40 +347,6 @@ fn piece() -> impl Strategy<Value = Piece> {
     ]
 }
 
-/// `PROPTEST_CASES` when set (a longer run), else `default` (the bounded CI run).
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-/// `cases` cases, failures saved to and replayed first from
-/// `fuzz_status.proptest-regressions` next to this file (unless
-/// `PROPTEST_DISABLE_FAILURE_PERSISTENCE` is set).
-fn config(cases: u32) -> ProptestConfig {
-    let mut config = ProptestConfig::with_cases(cases);
-    config.source_file = Some(file!());
-    if config.failure_persistence.is_some() {
-        config.failure_persistence = Some(Box::new(FileFailurePersistence::WithSource(
-            "proptest-regressions",
-        )));
-    }
-    config.max_shrink_time = 60_000;
-    config
-}
-
-/// Runs `test` on `strategy` with a fresh runner.
-fn fuzz<S: Strategy>(cases: u32, strategy: S, test: impl Fn(S::Value) -> TestCaseResult)
-where
-    S::Value: std::fmt::Debug,
-{
-    let mut runner = TestRunner::new(config(cases));
-    if let Err(error) = runner.run(&strategy, test) {
-        panic!("{error}\n{runner}");
-    }
-}
-
 /// robotd's sync read against `steps`, in time: a slow answer is tried once more before it
 /// counts (a loaded machine can stall a thread for a moment; a hang stalls every time).
 fn sync_read_in_time(
@@ -403,7 +369,7 @@ fn sync_read_in_time(
 fn any_answer_gives_positions_or_gaps_in_time() {
     let rig = RefCell::new(Rig::open());
     let script = (proptest::collection::vec(piece(), 0..12), 1usize..64);
-    fuzz(cases(160), script, |(pieces, chunk)| {
+    fuzz(runner_config!(cases(160)), script, |(pieces, chunk)| {
         let positions = sync_read_in_time(&rig, &steps(&pieces, chunk))?;
         for (id, position) in ALL_IDS.iter().zip(positions) {
             if let Some(position) = position {
@@ -427,27 +393,31 @@ fn good_replies_in_any_order_and_chunking_are_all_read() {
         proptest::collection::vec(0u8..3, 9),
         1usize..40,
     );
-    fuzz(cases(64), replies, |(ids, values, pauses, chunk)| {
-        let mut pieces = Vec::new();
-        for ((id, (position, alert)), pause) in ids.iter().zip(&values).zip(&pauses) {
-            pieces.push(Piece::Pause(*pause));
-            pieces.push(Piece::Reply {
-                id: *id,
-                position: *position,
-                alert: *alert,
-            });
-        }
-        let positions = sync_read_in_time(&rig, &steps(&pieces, chunk))?;
-        for (id, (position, _)) in ids.iter().zip(&values) {
-            prop_assert_eq!(
-                positions[usize::from(*id - 1)],
-                Some(*position),
-                "servo {}",
-                id
-            );
-        }
-        Ok(())
-    });
+    fuzz(
+        runner_config!(cases(64)),
+        replies,
+        |(ids, values, pauses, chunk)| {
+            let mut pieces = Vec::new();
+            for ((id, (position, alert)), pause) in ids.iter().zip(&values).zip(&pauses) {
+                pieces.push(Piece::Pause(*pause));
+                pieces.push(Piece::Reply {
+                    id: *id,
+                    position: *position,
+                    alert: *alert,
+                });
+            }
+            let positions = sync_read_in_time(&rig, &steps(&pieces, chunk))?;
+            for (id, (position, _)) in ids.iter().zip(&values) {
+                prop_assert_eq!(
+                    positions[usize::from(*id - 1)],
+                    Some(*position),
+                    "servo {}",
+                    id
+                );
+            }
+            Ok(())
+        },
+    );
 }
 
 /// Replies with a length field below 4, on which dynamixel2 0.9.1's reader panics (with a

@@ -11,7 +11,7 @@
 //! that when it knows the source file: see [`config`]).
 
 use proptest::prelude::*;
-use proptest::test_runner::{FileFailurePersistence, TestCaseResult, TestRunner};
+use robotd_fuzzing::{cases, fuzz, runner_config};
 use robotd_mcp::call_log::CallLog;
 use robotd_mcp::http::{router, RouterOptions};
 use robotd_mcp::McpService;
@@ -291,52 +291,13 @@ fn check_refusal(status: u16, content_type: &str, body: &str) -> Result<(), Test
 const BYTES_CASES: u32 = 300;
 const MESSAGE_CASES: u32 = 300;
 
-/// `PROPTEST_CASES` when set (a longer run, for each part), else `default` (the bounded CI run).
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
-/// A runner for `cases` cases whose failures are saved to and replayed first from
-/// `fuzz_http.proptest-regressions` next to this file. `TestRunner::new` alone knows no source
-/// file (only the `proptest!` macro sets it), and with none proptest neither reads nor writes a
-/// regression file. The file is named here rather than by proptest's default, which looks for
-/// a `lib.rs`/`main.rs` above the test and falls back to this name with a warning.
-/// `PROPTEST_DISABLE_FAILURE_PERSISTENCE` still turns it off. Shrinking stops after a minute
-/// (a hanging case costs a request timeout per shrink step).
-fn config(cases: u32) -> ProptestConfig {
-    let mut config = ProptestConfig::with_cases(cases);
-    config.source_file = Some(file!());
-    if config.failure_persistence.is_some() {
-        config.failure_persistence = Some(Box::new(FileFailurePersistence::WithSource(
-            "proptest-regressions",
-        )));
-    }
-    config.max_shrink_time = 60_000;
-    config
-}
-
-/// Runs `test` on `strategy` with a fresh runner (a runner counts its successes across
-/// `run`s, so a second `run` on the same one would generate no new case at all).
-fn fuzz<S: Strategy>(cases: u32, strategy: S, test: impl Fn(S::Value) -> TestCaseResult)
-where
-    S::Value: std::fmt::Debug,
-{
-    let mut runner = TestRunner::new(config(cases));
-    if let Err(error) = runner.run(&strategy, test) {
-        panic!("{error}\n{runner}");
-    }
-}
-
 /// Random bytes, then JSON-RPC of every shape over both transports, then a good client: all in
 /// one test, so that "after the fuzzing" holds under a runner that starts each test alone.
 #[test]
 fn fuzzed_requests_get_clear_answers_and_a_good_client_is_served_after() {
     let edge = edge();
     fuzz(
-        cases(BYTES_CASES),
+        runner_config!(cases(BYTES_CASES)),
         proptest::collection::vec(any::<u8>(), 0..300),
         |body| {
             check(
@@ -346,7 +307,7 @@ fn fuzzed_requests_get_clear_answers_and_a_good_client_is_served_after() {
         },
     );
     fuzz(
-        cases(MESSAGE_CASES),
+        runner_config!(cases(MESSAGE_CASES)),
         (message(), any::<bool>()),
         |(message, in_session)| {
             let session = in_session.then_some(edge.session.as_str());

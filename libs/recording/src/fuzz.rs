@@ -56,14 +56,6 @@ fn damaged(changes: &[Damage]) -> Vec<u8> {
     damage::apply(fixture(), length_fields(), changes)
 }
 
-/// `PROPTEST_CASES` when set (a longer run), else `default` (the bounded CI run).
-fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 fn clear(error: &ReadError, path: &Path) -> Result<(), TestCaseError> {
     let text = error.to_string();
     prop_assert!(
@@ -80,7 +72,7 @@ fn clear(error: &ReadError, path: &Path) -> Result<(), TestCaseError> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(cases(300)))]
+    #![proptest_config(ProptestConfig::with_cases(robotd_fuzzing::cases(300)))]
 
     #[test]
     fn a_damaged_recording_is_read_or_refused_never_a_panic(
