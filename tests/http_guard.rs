@@ -145,6 +145,21 @@ fn off_loopback_every_route_needs_the_token_even_without_mcp() {
     assert!(stderr.contains("mcp.token: is required"), "{stderr}");
 }
 
+/// Opens a legacy SSE stream from 127.0.0.1; returns it (read up to its `endpoint` event) and
+/// the session id.
+fn open_sse(port: u16) -> (BufReader<TcpStream>, String) {
+    let mut sse = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    sse.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    write!(
+        sse,
+        "GET /sse HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nAccept: text/event-stream\r\n\r\n"
+    )
+    .unwrap();
+    let mut sse = BufReader::new(sse);
+    let id = sse_session(&mut sse);
+    (sse, id)
+}
+
 /// Reads an SSE stream until its `endpoint` event; returns the session id.
 fn sse_session(stream: &mut BufReader<TcpStream>) -> String {
     let mut line = String::new();
@@ -167,15 +182,7 @@ fn a_session_belongs_to_the_client_that_opened_it() {
     let _robotd = common::start_robotd(&namespace, port, &[]);
 
     // Legacy SSE: the stream is opened from 127.0.0.1.
-    let mut sse = TcpStream::connect(("127.0.0.1", port)).unwrap();
-    sse.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    write!(
-        sse,
-        "GET /sse HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nAccept: text/event-stream\r\n\r\n"
-    )
-    .unwrap();
-    let mut sse = BufReader::new(sse);
-    let id = sse_session(&mut sse);
+    let (_sse, id) = open_sse(port); // kept open: the session lives with its stream
     let path = format!("/messages/?session_id={id}");
     let headers = [("Content-Type", "application/json")];
     let (status, body) = common::http_request_from(OTHER, port, "POST", &path, &headers, INIT);
@@ -384,15 +391,7 @@ fn idle_connections_are_closed_and_streams_are_not() {
         .set_read_timeout(Some(Duration::from_secs(10)))
         .unwrap();
     // An MCP SSE stream open across the timeout.
-    let mut sse = TcpStream::connect(("127.0.0.1", port)).unwrap();
-    sse.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    write!(
-        sse,
-        "GET /sse HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nAccept: text/event-stream\r\n\r\n"
-    )
-    .unwrap();
-    let mut sse = BufReader::new(sse);
-    sse_session(&mut sse);
+    let (mut sse, _) = open_sse(port);
 
     let answer = read_until_closed(&mut kept);
     assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
