@@ -210,7 +210,8 @@ enum BenchCommand {
     Ping(BenchPingArgs),
     /// The service for N minutes under a realistic mix (MCP clients coming and going, motions,
     /// the agent, Redis down and up, actor faults and kills), sampled every 5 s; exit 1 when
-    /// memory, descriptors or threads grow, a fault is not recovered or a call is lost.
+    /// memory, descriptors or threads grow, a fault is not recovered, a call is lost or runs
+    /// twice, or the robot stays stuck.
     Soak(BenchSoakArgs),
     /// JPEG encoding of a 640×480 camera frame: robotd's encoder beside the `image` crate's,
     /// and a copy of the frame as the floor.
