@@ -603,3 +603,40 @@ fn the_replay_driver_needs_a_recording_and_takes_its_model_from_robot_replay() {
         Some(std::path::Path::new("session.mcap"))
     );
 }
+
+#[test]
+fn the_viewers_sections_refuse_bad_values() {
+    let file = TempFile::new(
+        r#"
+        [dashboard]
+        camera_fps = 0.1
+        jpeg_quality = 5
+        [foxglove]
+        bind = "0.0.0.0:8765"
+        camera_fps = 31.0
+        [record]
+        dir = "recordings"
+        max_file_bytes = 1000
+        keep_files = 0
+        topics = ["arm/state", "no/such/topic"]
+        "#,
+    );
+    let error = Config::load_with_env(with_file(&file), no_env()).unwrap_err();
+    let message = error.to_string();
+    let problems = problems_of(error);
+    for (key, says) in [
+        ("dashboard.camera_fps", "0.5 … 30"),
+        ("dashboard.jpeg_quality", "10 to 100"),
+        ("foxglove.bind", "loopback"),
+        ("foxglove.camera_fps", "0.5 … 30"),
+        ("record.max_file_bytes", "1048576"),
+        ("record.keep_files", "from 1"),
+        ("record.topics", "no/such/topic"),
+    ] {
+        let problem = problems
+            .iter()
+            .find(|p| p.key == key)
+            .unwrap_or_else(|| panic!("no problem for {key}:\n{message}"));
+        assert!(problem.reason.contains(says), "{key}: {}", problem.reason);
+    }
+}
