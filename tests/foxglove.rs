@@ -395,3 +395,35 @@ fn always_on_recording_rotates_and_keeps_the_newest_files() {
         );
     }
 }
+
+/// `robotd record` and `robotd replay` refuse what they cannot do before touching the bus or a
+/// file: an unknown topic, a bad speed or duration, a file that is not a recording.
+#[test]
+fn record_and_replay_refuse_bad_arguments_with_a_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let not_mcap = dir.path().join("notes.mcap");
+    std::fs::write(&not_mcap, b"these are not MCAP bytes").unwrap();
+    let namespace = common::fresh_namespace("badargs");
+    let run = |args: &[&str]| {
+        let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
+            .args(["--namespace", &namespace])
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(!output.status.success(), "{args:?} succeeded");
+        String::from_utf8_lossy(&output.stderr).into_owned()
+    };
+    let file = dir.path().join("out.mcap");
+    let file = file.to_str().unwrap();
+    let said = run(&["record", "--topics", "arm/state,bogus/topic", file]);
+    assert!(said.contains("unknown topic 'bogus/topic'"), "{said}");
+    assert!(said.contains("arm/state"), "lists the known topics: {said}");
+    let said = run(&["record", "--duration", "ten", file]);
+    assert!(said.to_lowercase().contains("duration"), "{said}");
+    let notes = not_mcap.to_str().unwrap();
+    let said = run(&["replay", "--speed=-1", notes]);
+    assert!(said.contains("--speed"), "{said}");
+    let said = run(&["replay", notes]);
+    assert!(said.contains("notes.mcap"), "names the file: {said}");
+    assert!(!std::path::Path::new(file).exists(), "nothing written");
+}
