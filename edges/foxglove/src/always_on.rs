@@ -90,7 +90,7 @@ pub fn start(
         return Ok(None);
     }
     std::fs::create_dir_all(&config.dir)
-        .map_err(|e| format!("[record] dir {}: {e}", config.dir.display()))?;
+        .map_err(|e| format!("record.dir {} cannot be created: {e}", config.dir.display()))?;
     if !config.topics.is_empty() {
         settings.camera = config.topics.iter().any(|t| t == "camera/frames");
         settings.topics = Some(config.topics.clone());
