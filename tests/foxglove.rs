@@ -89,6 +89,15 @@ fn the_live_view_serves_camera_transforms_objects_and_topics() {
             "foxglove.CompressedImage"
         );
         assert_eq!(channels["/bus/arm/state"].1["encoding"], "json");
+        // Bus topics carry the JSON Schema generated from their Rust type, not a placeholder.
+        let arm_channel = &channels["/bus/arm/state"].1;
+        assert_eq!(arm_channel["schemaEncoding"], "jsonschema");
+        let arm_schema: Value =
+            serde_json::from_str(arm_channel["schema"].as_str().unwrap()).unwrap();
+        assert_eq!(
+            arm_schema["properties"]["tool_pose"]["properties"]["x"]["type"], "number",
+            "{arm_schema}"
+        );
         let subscriptions: Vec<Value> = wanted
             .iter()
             .enumerate()
@@ -257,6 +266,15 @@ fn a_recording_opens_in_the_mcap_reader_and_replays_into_perception() {
     );
     assert_eq!(channels["/camera"]["message_encoding"], "protobuf");
     assert_eq!(channels["/bus/arm/state"]["schema_name"], "arm.state");
+    assert_eq!(channels["/bus/arm/state"]["schema_encoding"], "jsonschema");
+    // The schema's JSON Schema is in the file (the reader script prints no schema data; MCAP
+    // keeps schema records uncompressed, and repeats them in the summary).
+    let bytes = std::fs::read(&file).unwrap();
+    let has = |needle: &str| bytes.windows(needle.len()).any(|w| w == needle.as_bytes());
+    assert!(
+        has(r#""title":"ArmState""#) && has(r#""properties":{"joints""#),
+        "no JSON Schema of arm.state in the recording"
+    );
     assert_eq!(read["last"]["/camera"]["has_jpeg"], true, "{read}");
     let recorded_objects = read["last"]["/bus/perception/detections"]["objects"]
         .as_array()

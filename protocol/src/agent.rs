@@ -24,10 +24,11 @@
 
 use crate::envelope::Message;
 use crate::validate::{non_empty, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Ask the agent to carry out a task.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct AgentRequest {
     /// Id chosen by the sender; every event about this request carries it.
     pub request_id: String,
@@ -47,7 +48,7 @@ impl Message for AgentRequest {
 }
 
 /// Stop working on a request (between tool calls; a motion under way finishes).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct AgentCancel {
     /// The request to cancel.
     pub request_id: String,
@@ -58,7 +59,7 @@ impl Message for AgentCancel {
 }
 
 /// One step of the agent's work on a request.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct AgentEvent {
     /// The request this is about.
     pub request_id: String,
@@ -73,7 +74,7 @@ impl Message for AgentEvent {
 }
 
 /// What happened in an [`AgentEvent`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum AgentEventKind {
     /// The agent's understanding of the task and its plan.

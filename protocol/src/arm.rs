@@ -25,6 +25,7 @@
 use crate::envelope::Message;
 use crate::geometry::{JointState, Pose, PoseDelta};
 use crate::validate::{non_empty, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// How the tool travels to a target pose.
@@ -266,7 +267,7 @@ impl Message for ArmReply {
 }
 
 /// What the arm is doing, published periodically and on every change.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ArmState {
     /// Joint positions and velocities.
     pub joints: JointState,

@@ -18,12 +18,13 @@
 
 use crate::location::ParseEnumError;
 use crate::validate::{finite, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::str::FromStr;
 
 /// A tool pose: position in metres and orientation as roll/pitch/yaw in radians, base frame.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Pose {
     /// Forward distance from the base, metres.
     #[serde(rename = "x")]
@@ -238,7 +239,7 @@ impl fmt::Display for Point2 {
 }
 
 /// A point in space, metres. On the wire: `{x, y, z}`, as in the object JSON.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Point3 {
     /// Forward, metres.
     #[serde(rename = "x")]
@@ -287,7 +288,7 @@ impl Validate for Point3 {
 }
 
 /// Joint positions (and, when known, velocities) of an arm at one instant.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct JointState {
     /// One position per joint, base to wrist, radians.
     pub positions_rad: Vec<f64>,

@@ -18,6 +18,7 @@
 
 use crate::envelope::Message;
 use crate::validate::{in_range, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Widest opening any supported gripper can be asked for, metres (WidowX: 2 × 0.037).
@@ -155,7 +156,7 @@ impl Message for GripperReply {
 }
 
 /// The gripper's state, published on every change.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct GripperState {
     /// Whether an object is between the fingers.
     pub holding: bool,

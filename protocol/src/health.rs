@@ -17,6 +17,7 @@
 
 use crate::envelope::Message;
 use crate::geometry::{Pose, RobotModel};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -93,7 +94,7 @@ impl Message for ActorHealth {
 }
 
 /// A supervisor is restarting (or giving up on) an actor.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct RestartEvent {
     /// Actor name.
     pub actor: String,
@@ -114,7 +115,7 @@ impl Message for RestartEvent {
 }
 
 /// Engage or release the emergency stop (and, published by the safety actor, its state).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct EmergencyStop {
     /// True: stop all motion and refuse new motion. False: release.
     pub engaged: bool,

@@ -29,11 +29,12 @@
 use crate::envelope::Message;
 use crate::geometry::{Point2, Point3};
 use crate::validate::{finite, in_range, non_empty, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// A point in image coordinates, as fractions of the image width (`u`) and height (`v`),
 /// origin top-left.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct RelPoint {
     /// Horizontal position, 0 = left edge, 1 = right edge.
     pub u: f64,
@@ -42,7 +43,7 @@ pub struct RelPoint {
 }
 
 /// An axis-aligned box in image coordinates, fractions of width and height.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct RelBox {
     /// Left edge.
     pub u_min: f64,
@@ -55,7 +56,7 @@ pub struct RelBox {
 }
 
 /// Where the object is in the base frame.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ObjectPosition {
     /// Centre of mass of the object's mask, projected to the table (grip here), metres.
     pub center_of_mass: Point3,
@@ -64,7 +65,7 @@ pub struct ObjectPosition {
 }
 
 /// Where the object is in the image it was detected in.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ImageCoordinates {
     /// Centre of the bounding box.
     pub center_rel: RelPoint,
@@ -75,7 +76,7 @@ pub struct ImageCoordinates {
 }
 
 /// Size of the object on the table.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Dimensions {
     /// Extent along y, metres.
     pub width_m: f64,
@@ -86,7 +87,7 @@ pub struct Dimensions {
 }
 
 /// One object the perception pipeline found, in the object JSON of the MCP tools.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct DetectedObject {
     /// Stable id while the object is tracked.
     pub id: String,
@@ -187,7 +188,7 @@ impl Validate for DetectedObject {
 }
 
 /// The objects found in one camera frame.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Detections {
     /// The frame they were detected in.
     pub frame_id: u64,

@@ -10,6 +10,7 @@
 
 use crate::envelope::Message;
 use crate::validate::{in_range, non_empty, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Most objects one message may carry.
@@ -20,7 +21,7 @@ pub const MAX_NAME_BYTES: usize = 128;
 pub const MAX_FRAME_SIDE: u32 = 8192;
 
 /// One object in pixels.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PixelDetection {
     /// Its label (stored lower-case).
     pub label: String,
@@ -41,7 +42,7 @@ fn no_class() -> i64 {
 }
 
 /// The objects a detector found in one camera frame.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PixelDetections {
     /// The frame they were found in (its header's `frame_id`).
     pub frame_id: u64,

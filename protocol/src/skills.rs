@@ -16,6 +16,7 @@ use crate::geometry::Point2;
 use crate::location::{Direction, Location};
 use crate::objects::DetectedObject;
 use crate::validate::{finite, in_range, non_empty, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Largest `z_offset` a pick accepts, metres.
@@ -402,7 +403,7 @@ impl Message for SkillReply {
 }
 
 /// Progress of a running skill.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct SkillProgress {
     /// The request's `run_id`.
     pub run_id: u64,
@@ -419,7 +420,7 @@ impl Message for SkillProgress {
 }
 
 /// Stop the skill with this `run_id` (the arm stops at once and holds).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct SkillCancel {
     /// The request's `run_id`.
     pub run_id: u64,

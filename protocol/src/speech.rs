@@ -19,13 +19,14 @@
 
 use crate::envelope::Message;
 use crate::validate::{in_range, non_empty, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Default priority of a [`SpeakRequest`]; higher is spoken first.
 pub const DEFAULT_SPEECH_PRIORITY: u8 = 5;
 
 /// Ask the TTS actor to say something.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct SpeakRequest {
     /// What to say.
     pub text: String,
@@ -71,7 +72,7 @@ impl Message for SpeakRequest {
 }
 
 /// What happened to a [`SpeakRequest`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum SpeechEvent {
     /// Speaking has begun.
@@ -100,7 +101,7 @@ impl Message for SpeechEvent {
 }
 
 /// What an overlay text is, which decides how viewers show it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum OverlayKind {
     /// The task the user gave (`set_user_task`).
@@ -123,7 +124,7 @@ impl OverlayKind {
 }
 
 /// A text to show over the video.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TextOverlay {
     /// The text.
     pub text: String,

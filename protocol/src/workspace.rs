@@ -40,6 +40,7 @@ use crate::geometry::{Point2, Pose, RobotModel};
 use crate::location::{Location, WorkspacePoint};
 use crate::objects::DetectedObject;
 use crate::validate::{non_empty, Validate, ValidationError};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Largest distance of a workspace corner from the robot base, metres.
@@ -492,7 +493,7 @@ impl Message for WorkspaceReply {
 }
 
 /// The detectable-label list, published at start and on every change.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct DetectableLabels {
     /// Lower-case labels.
     pub labels: Vec<String>,
@@ -560,7 +561,7 @@ impl Message for WorkspaceQuery {
 
 /// The objects the workspace model remembers for a workspace, with stable ids, published
 /// after every detection it applied.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TrackedObjects {
     /// The workspace.
     pub workspace_id: String,

@@ -15,7 +15,7 @@
 //! | `/scene/objects` | `foxglove.SceneUpdate` | `workspace/objects`: a box and a label per object |
 //! | `/scene/workspace` | `foxglove.SceneUpdate` | the workspaces' sheets, the geofence's edges and the keep-out zones, once a second |
 //! | `/log` | `foxglove.Log` | overlays (speech, tasks, system messages), restarts, agent answers and errors |
-//! | `/bus/<topic>` | JSON, schema named by the message type | every message topic ([`crate::topics`]) |
+//! | `/bus/<topic>` | JSON, schema named by the message type, with its JSON Schema (generated from the Rust type) | every message topic ([`crate::topics`]) |
 //!
 //! Log times are the bus's (a frame's capture time, a message's send time), so a recording
 //! replays with the original timing. A channel nobody listens to costs nothing: the SDK drops
@@ -105,11 +105,22 @@ fn at(ns: u64) -> PartialMetadata {
 
 /// A JSON channel, with a schema named `schema_name` that accepts any object.
 fn json_channel(context: &Arc<Context>, topic: &str, schema_name: &str) -> Option<Arc<RawChannel>> {
-    let schema = Schema::new(
+    json_channel_with(
+        context,
+        topic,
         schema_name,
-        "jsonschema",
-        br#"{"type":"object"}"#.as_slice(),
-    );
+        br#"{"type":"object"}"#.to_vec(),
+    )
+}
+
+/// A JSON channel whose schema is `schema_name` with the JSON Schema `schema`.
+fn json_channel_with(
+    context: &Arc<Context>,
+    topic: &str,
+    schema_name: &str,
+    schema: Vec<u8>,
+) -> Option<Arc<RawChannel>> {
+    let schema = Schema::new(schema_name, "jsonschema", schema);
     match ChannelBuilder::new(topic)
         .message_encoding("json")
         .schema(schema)
@@ -211,10 +222,11 @@ async fn follow(
         if !wanted {
             continue;
         }
-        let Some(channel) = json_channel(
+        let Some(channel) = json_channel_with(
             context,
             &topics::channel_name(topic.name()),
             topic.type_name(),
+            topic.schema(),
         ) else {
             continue;
         };

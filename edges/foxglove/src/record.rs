@@ -3,8 +3,9 @@
 //! A recording is the [`crate::bridge`]'s channels written by the Foxglove SDK's MCAP writer:
 //! the camera as JPEG (`foxglove.CompressedImage`) with each frame's header beside it, the arm
 //! as transforms and a scene, the objects and workspace as scenes, logs, and every bus topic as
-//! JSON under `/bus/<topic>` with its message type as the schema name. Log times are the bus's,
-//! so [`crate::replay`] reproduces the timing.
+//! JSON under `/bus/<topic>` with its message type as the schema name and its JSON Schema
+//! ([`crate::topics::JsonTopic::schema`]). Log times are the bus's, so [`crate::replay`]
+//! reproduces the timing.
 
 use crate::bridge::{self, BridgeSettings};
 use foxglove::{Context, McapWriter};

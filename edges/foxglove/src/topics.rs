@@ -10,6 +10,8 @@
 use robotd_protocol::envelope::Message;
 use robotd_runtime::bus::{Bus, BusError, Publisher, Subscriber, Topic};
 use robotd_runtime::catalog;
+use schemars::generate::SchemaSettings;
+use schemars::JsonSchema;
 
 /// The channel name of a bus topic in Foxglove and in recordings: `/bus/<topic>`.
 pub fn channel_name(topic: &str) -> String {
@@ -22,6 +24,10 @@ pub trait JsonTopic: Send + Sync {
     fn name(&self) -> &'static str;
     /// The message type's wire name, e.g. `arm.state` (the recording's schema name).
     fn type_name(&self) -> &'static str;
+    /// The message type's JSON Schema (draft 2020-12, as JSON bytes), generated from the Rust
+    /// type with `schemars`: the fields of the JSON each message is, with nested types inlined
+    /// (no `$ref`s), for Foxglove's panels and for readers of recordings.
+    fn schema(&self) -> Vec<u8>;
     /// A subscriber handing out each message as JSON.
     fn subscribe(&self, bus: &Bus) -> Result<Box<dyn JsonSubscriber>, BusError>;
     /// A publisher taking JSON.
@@ -46,13 +52,17 @@ struct TypedSubscriber<T: Message>(Subscriber<T>);
 
 struct TypedPublisher<T: Message>(Publisher<T>);
 
-impl<T: Message> JsonTopic for Typed<T> {
+impl<T: Message + JsonSchema> JsonTopic for Typed<T> {
     fn name(&self) -> &'static str {
         self.0.name()
     }
 
     fn type_name(&self) -> &'static str {
         T::TYPE
+    }
+
+    fn schema(&self) -> Vec<u8> {
+        json_schema::<T>()
     }
 
     fn subscribe(&self, bus: &Bus) -> Result<Box<dyn JsonSubscriber>, BusError> {
@@ -88,8 +98,18 @@ impl<T: Message> JsonPublisher for TypedPublisher<T> {
     }
 }
 
-fn typed<T: Message>(topic: Topic<T>) -> Box<dyn JsonTopic> {
+fn typed<T: Message + JsonSchema>(topic: Topic<T>) -> Box<dyn JsonTopic> {
     Box::new(Typed(topic))
+}
+
+/// The JSON Schema of `T` as JSON bytes: draft 2020-12 with every subschema inlined, since
+/// Foxglove reads a message's fields from `properties` and does not follow `$ref`s.
+fn json_schema<T: JsonSchema>() -> Vec<u8> {
+    let generator = SchemaSettings::draft2020_12()
+        .with(|settings| settings.inline_subschemas = true)
+        .into_generator();
+    let schema = generator.into_root_schema_for::<T>();
+    serde_json::to_vec(&schema).expect("a JSON Schema is JSON")
 }
 
 /// Every message topic of robotd's catalogue (a test holds it to [`catalog::entries`]).
@@ -219,5 +239,405 @@ mod tests {
         assert_eq!(find("arm/state").unwrap().type_name(), "arm.state");
         assert!(find("camera/frames").is_none());
         assert_eq!(channel_name("arm/state"), "/bus/arm/state");
+    }
+
+    /// A sample message of each bridged topic as serde writes it (every variant of the
+    /// tagged enums), keyed by topic name.
+    fn samples() -> Vec<(&'static str, Vec<serde_json::Value>)> {
+        use robotd_protocol::agent::{AgentCancel, AgentEvent, AgentEventKind, AgentRequest};
+        use robotd_protocol::arm::ArmState;
+        use robotd_protocol::geometry::{JointState, Pose};
+        use robotd_protocol::gripper::GripperState;
+        use robotd_protocol::health::{EmergencyStop, RestartEvent};
+        use robotd_protocol::objects::{DetectedObject, Detections};
+        use robotd_protocol::pixels::{PixelDetection, PixelDetections};
+        use robotd_protocol::skills::{SkillCancel, SkillProgress};
+        use robotd_protocol::speech::{OverlayKind, SpeakRequest, SpeechEvent, TextOverlay};
+        use robotd_protocol::workspace::{DetectableLabels, TrackedObjects};
+        use serde_json::to_value as v;
+
+        let object = DetectedObject {
+            id: "pencil_1".into(),
+            label: "pencil".into(),
+            workspace_id: "niryo_ws".into(),
+            ..DetectedObject::default()
+        };
+        let agent_event = |seq: u32, event: AgentEventKind| AgentEvent {
+            request_id: "r1".into(),
+            seq,
+            event,
+        };
+        let text = || "hello".to_owned();
+        vec![
+            (
+                "arm/state",
+                vec![v(ArmState {
+                    joints: JointState {
+                        positions_rad: vec![0.0; 6],
+                        velocities_rad_s: vec![],
+                        timestamp_unix_ns: 1,
+                    },
+                    tool_pose: Pose::new(0.2, 0.0, 0.3, 0.0, 1.57, 0.0),
+                    moving: false,
+                    collision_detected: false,
+                    calibrated: true,
+                    estop_engaged: false,
+                    still_since_unix_ns: 1,
+                })
+                .unwrap()],
+            ),
+            (
+                "gripper/state",
+                vec![v(GripperState {
+                    holding: true,
+                    width_m: 0.02,
+                    moving: false,
+                })
+                .unwrap()],
+            ),
+            (
+                "safety/estop",
+                vec![v(EmergencyStop {
+                    engaged: true,
+                    reason: "test".into(),
+                    source: "mcp".into(),
+                })
+                .unwrap()],
+            ),
+            (
+                "perception/detections",
+                vec![
+                    v(Detections::default()).unwrap(),
+                    v(Detections {
+                        objects: vec![object.clone()],
+                        ..Detections::default()
+                    })
+                    .unwrap(),
+                ],
+            ),
+            (
+                "perception/pixel_detections",
+                vec![v(PixelDetections {
+                    frame_id: 3,
+                    camera_pose: [0.0; 6],
+                    source: "python-colour".into(),
+                    objects: vec![
+                        PixelDetection {
+                            label: "pencil".into(),
+                            confidence: 0.9,
+                            class_id: -1,
+                            bbox_px: [1, 2, 3, 4],
+                            mask_pixels: None,
+                        },
+                        PixelDetection {
+                            label: "cube".into(),
+                            confidence: 0.5,
+                            class_id: 2,
+                            bbox_px: [1, 2, 3, 4],
+                            mask_pixels: Some(vec![5, 6]),
+                        },
+                    ],
+                })
+                .unwrap()],
+            ),
+            (
+                "workspace/objects",
+                vec![v(TrackedObjects {
+                    objects: vec![object],
+                    ..TrackedObjects::default()
+                })
+                .unwrap()],
+            ),
+            (
+                "workspace/labels",
+                vec![
+                    v(DetectableLabels::default()).unwrap(),
+                    v(DetectableLabels {
+                        labels: vec!["pencil".into()],
+                        added: Some("pencil".into()),
+                        builtin: vec![],
+                    })
+                    .unwrap(),
+                ],
+            ),
+            (
+                "speech/speak",
+                vec![v(SpeakRequest {
+                    text: text(),
+                    priority: 3,
+                    source: "mcp".into(),
+                })
+                .unwrap()],
+            ),
+            (
+                "speech/events",
+                vec![
+                    v(SpeechEvent::Started { text: text() }).unwrap(),
+                    v(SpeechEvent::Finished {
+                        text: text(),
+                        duration_ms: 10,
+                    })
+                    .unwrap(),
+                    v(SpeechEvent::Dropped {
+                        text: text(),
+                        reason: "queue full".into(),
+                    })
+                    .unwrap(),
+                ],
+            ),
+            (
+                "overlay/text",
+                vec![
+                    v(TextOverlay {
+                        text: text(),
+                        kind: OverlayKind::RobotSpeech,
+                        duration_s: 2.0,
+                        tool_name: Some("speak".into()),
+                    })
+                    .unwrap(),
+                    v(TextOverlay {
+                        text: text(),
+                        kind: OverlayKind::SystemMessage,
+                        duration_s: 2.0,
+                        tool_name: None,
+                    })
+                    .unwrap(),
+                ],
+            ),
+            (
+                "skills/progress",
+                vec![v(SkillProgress {
+                    run_id: 1,
+                    step: 1,
+                    total: 3,
+                    message: "picking".into(),
+                })
+                .unwrap()],
+            ),
+            ("skills/cancel", vec![v(SkillCancel { run_id: 1 }).unwrap()]),
+            (
+                "agent/request",
+                vec![v(AgentRequest {
+                    request_id: "r1".into(),
+                    text: text(),
+                })
+                .unwrap()],
+            ),
+            (
+                "agent/events",
+                vec![
+                    v(agent_event(0, AgentEventKind::Plan { text: text() })).unwrap(),
+                    v(agent_event(
+                        1,
+                        AgentEventKind::ToolCall {
+                            call_id: "c1".into(),
+                            name: "speak".into(),
+                            arguments_json: "{}".into(),
+                        },
+                    ))
+                    .unwrap(),
+                    v(agent_event(
+                        2,
+                        AgentEventKind::ToolResult {
+                            call_id: "c1".into(),
+                            name: "speak".into(),
+                            text: text(),
+                            ok: true,
+                        },
+                    ))
+                    .unwrap(),
+                    v(agent_event(3, AgentEventKind::Answer { text: text() })).unwrap(),
+                    v(agent_event(
+                        4,
+                        AgentEventKind::Error {
+                            message: "oops".into(),
+                        },
+                    ))
+                    .unwrap(),
+                    v(agent_event(5, AgentEventKind::Cancelled)).unwrap(),
+                ],
+            ),
+            (
+                "agent/cancel",
+                vec![v(AgentCancel {
+                    request_id: "r1".into(),
+                })
+                .unwrap()],
+            ),
+            (
+                "health/restarts",
+                vec![v(RestartEvent {
+                    actor: "arm".into(),
+                    attempt: 1,
+                    reason: "panic".into(),
+                    backoff_ms: 100,
+                    safe_state_ok: true,
+                    budget_exhausted: false,
+                })
+                .unwrap()],
+            ),
+        ]
+    }
+
+    /// Why `value` does not match `schema`, if it does not: a small checker of the JSON Schema
+    /// keywords schemars writes (`type`, `const`, `enum`, `properties`, `required`, `items`,
+    /// `minItems`/`maxItems`, `oneOf`, `anyOf`); subschemas are inlined, so no `$ref`.
+    fn mismatch(schema: &serde_json::Value, value: &serde_json::Value, at: &str) -> Option<String> {
+        use serde_json::Value;
+        let Value::Object(schema) = schema else {
+            return (schema != &Value::Bool(true)).then(|| format!("{at}: schema {schema}"));
+        };
+        if let Some(reference) = schema.get("$ref") {
+            return Some(format!("{at}: unresolved $ref {reference}"));
+        }
+        if let Some(types) = schema.get("type") {
+            let types: Vec<&str> = match types {
+                Value::String(t) => vec![t.as_str()],
+                Value::Array(ts) => ts.iter().filter_map(Value::as_str).collect(),
+                other => return Some(format!("{at}: bad type {other}")),
+            };
+            let fits = types.iter().any(|t| match *t {
+                "object" => value.is_object(),
+                "array" => value.is_array(),
+                "string" => value.is_string(),
+                "boolean" => value.is_boolean(),
+                "null" => value.is_null(),
+                "integer" => value.is_i64() || value.is_u64(),
+                "number" => value.is_number(),
+                _ => false,
+            });
+            if !fits {
+                return Some(format!("{at}: {value} is not of type {types:?}"));
+            }
+        }
+        if let Some(constant) = schema.get("const") {
+            if constant != value {
+                return Some(format!("{at}: {value} is not {constant}"));
+            }
+        }
+        if let Some(Value::Array(options)) = schema.get("enum") {
+            if !options.contains(value) {
+                return Some(format!("{at}: {value} is not one of {options:?}"));
+            }
+        }
+        if let Value::Object(object) = value {
+            for name in schema
+                .get("required")
+                .and_then(Value::as_array)
+                .into_iter()
+                .flatten()
+            {
+                let name = name.as_str().unwrap_or_default();
+                if !object.contains_key(name) {
+                    return Some(format!("{at}: required property {name:?} missing"));
+                }
+            }
+            if let Some(Value::Object(properties)) = schema.get("properties") {
+                for (name, field) in object {
+                    match properties.get(name) {
+                        Some(sub) => {
+                            if let Some(why) = mismatch(sub, field, &format!("{at}.{name}")) {
+                                return Some(why);
+                            }
+                        }
+                        None if schema.get("additionalProperties") == Some(&Value::Bool(false)) => {
+                            return Some(format!("{at}: property {name:?} not allowed"))
+                        }
+                        None => {}
+                    }
+                }
+            }
+        }
+        if let Value::Array(items) = value {
+            let count = items.len() as u64;
+            if schema
+                .get("minItems")
+                .and_then(Value::as_u64)
+                .is_some_and(|n| count < n)
+                || schema
+                    .get("maxItems")
+                    .and_then(Value::as_u64)
+                    .is_some_and(|n| count > n)
+            {
+                return Some(format!("{at}: {count} items out of bounds"));
+            }
+            if let Some(item) = schema.get("items") {
+                for (i, element) in items.iter().enumerate() {
+                    if let Some(why) = mismatch(item, element, &format!("{at}[{i}]")) {
+                        return Some(why);
+                    }
+                }
+            }
+        }
+        if let Some(Value::Array(options)) = schema.get("oneOf") {
+            let fitting = options
+                .iter()
+                .filter(|o| mismatch(o, value, at).is_none())
+                .count();
+            if fitting != 1 {
+                return Some(format!("{at}: {value} fits {fitting} of oneOf's schemas"));
+            }
+        }
+        if let Some(Value::Array(options)) = schema.get("anyOf") {
+            if options.iter().all(|o| mismatch(o, value, at).is_some()) {
+                return Some(format!("{at}: {value} fits none of anyOf's schemas"));
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn every_topic_has_a_real_json_schema_its_messages_match() {
+        let samples = samples();
+        for topic in all() {
+            let name = topic.name();
+            let schema: serde_json::Value = serde_json::from_slice(&topic.schema())
+                .unwrap_or_else(|e| panic!("{name}: the schema is not JSON: {e}"));
+            assert!(schema.is_object(), "{name}: the schema is not an object");
+            assert_ne!(
+                schema,
+                serde_json::json!({"type": "object"}),
+                "{name}: the placeholder schema"
+            );
+            assert!(
+                schema.get("properties").is_some() || schema.get("oneOf").is_some(),
+                "{name}: the schema names no fields: {schema}"
+            );
+            assert!(
+                !String::from_utf8(topic.schema()).unwrap().contains("$ref"),
+                "{name}: subschemas are inlined (Foxglove does not follow $ref)"
+            );
+            let (_, messages) = samples
+                .iter()
+                .find(|(n, _)| *n == name)
+                .unwrap_or_else(|| panic!("{name}: no sample message in samples()"));
+            for message in messages {
+                if let Some(why) = mismatch(&schema, message, name) {
+                    panic!("{name}: the sample does not match its schema: {why}\n{schema}");
+                }
+            }
+        }
+        // The checker catches a message that does not match.
+        let arm = serde_json::from_slice(&find("arm/state").unwrap().schema()).unwrap();
+        let mut bad = samples[0].1[0].clone();
+        bad.as_object_mut().unwrap().remove("moving");
+        assert!(mismatch(&arm, &bad, "arm/state").is_some());
+        bad["moving"] = serde_json::json!("yes");
+        assert!(mismatch(&arm, &bad, "arm/state").is_some());
+    }
+
+    #[test]
+    fn a_schema_names_its_nested_fields() {
+        let schema: serde_json::Value =
+            serde_json::from_slice(&find("arm/state").unwrap().schema()).unwrap();
+        assert_eq!(schema["title"], "ArmState");
+        assert_eq!(
+            schema["properties"]["tool_pose"]["properties"]["x"]["type"],
+            "number"
+        );
+        let required = schema["required"].as_array().unwrap();
+        assert!(required.contains(&"joints".into()));
+        // Fields with a serde default are optional.
+        assert!(!required.contains(&"estop_engaged".into()));
     }
 }
