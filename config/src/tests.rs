@@ -52,6 +52,21 @@ fn problems_of(error: ConfigError) -> Vec<Problem> {
     }
 }
 
+/// Loads `toml` and checks that each `(key, says)` is refused with a reason containing `says`.
+fn assert_refused(toml: &str, expected: &[(&str, &str)]) {
+    let file = TempFile::new(toml);
+    let error = Config::load_with_env(with_file(&file), no_env()).unwrap_err();
+    let message = error.to_string();
+    let problems = problems_of(error);
+    for (key, says) in expected {
+        let problem = problems
+            .iter()
+            .find(|p| p.key == *key)
+            .unwrap_or_else(|| panic!("no problem for {key}:\n{message}"));
+        assert!(problem.reason.contains(says), "{key}: {}", problem.reason);
+    }
+}
+
 #[test]
 fn defaults_load() {
     let config = Config::load_with_env(LoadOptions::default(), no_env()).unwrap();
@@ -448,23 +463,17 @@ fn workspaces_come_from_the_configuration_or_the_model() {
 
 #[test]
 fn the_niryo_driver_needs_a_host_and_sane_settings() {
-    let file = TempFile::new(
+    assert_refused(
         "[robot]\ndriver = \"niryo\"\nport = 0\n[robot.niryo]\nsegment_rad = 0.0\n\
          reconnect_max_ms = 60000\ngripper_speed = 5\n",
+        &[
+            ("robot.host", "needs the robot's address"),
+            ("robot.port", "1 to 65535"),
+            ("robot.niryo.segment_rad", "0"),
+            ("robot.niryo.reconnect_max_ms", "60000"),
+            ("robot.niryo.gripper_speed", "5"),
+        ],
     );
-    let error = Config::load_with_env(with_file(&file), no_env()).unwrap_err();
-    let message = error.to_string();
-    let problems = problems_of(error);
-    for (key, says) in [
-        ("robot.host", "needs the robot's address"),
-        ("robot.port", "1 to 65535"),
-        ("robot.niryo.segment_rad", "0"),
-        ("robot.niryo.reconnect_max_ms", "60000"),
-        ("robot.niryo.gripper_speed", "5"),
-    ] {
-        let problem = problems.iter().find(|p| p.key == key).expect(&message);
-        assert!(problem.reason.contains(says), "{key}: {message}");
-    }
     let spaces = TempFile::new("[robot]\ndriver = \"niryo\"\nhost = \"http://robot/x\"\n");
     let message = Config::load_with_env(with_file(&spaces), no_env())
         .unwrap_err()
@@ -477,25 +486,19 @@ fn the_niryo_driver_needs_a_host_and_sane_settings() {
 
 #[test]
 fn the_widowx_driver_settings_are_refused_with_their_key_and_reason() {
-    let file = TempFile::new(
+    assert_refused(
         "[robot]\ndriver = \"widowx\"\n[robot.widowx]\ndevice = \"\"\nbaud_rate = 9600\n\
          gripper_closed_ticks = 2000\ngripper_open_ticks = 2050\ngripper_pwm = 900\n\
          camera_url = \"rtsp://cam/stream\"\ncamera_latency_ms = 5000\n",
+        &[
+            ("robot.widowx.device", "must name the serial device"),
+            ("robot.widowx.baud_rate", "9600"),
+            ("robot.widowx.gripper_open_ticks", "100 ticks away"),
+            ("robot.widowx.gripper_pwm", "900"),
+            ("robot.widowx.camera_url", "neither a V4L2 device"),
+            ("robot.widowx.camera_latency_ms", "5000"),
+        ],
     );
-    let error = Config::load_with_env(with_file(&file), no_env()).unwrap_err();
-    let message = error.to_string();
-    let problems = problems_of(error);
-    for (key, says) in [
-        ("robot.widowx.device", "must name the serial device"),
-        ("robot.widowx.baud_rate", "9600"),
-        ("robot.widowx.gripper_open_ticks", "100 ticks away"),
-        ("robot.widowx.gripper_pwm", "900"),
-        ("robot.widowx.camera_url", "neither a V4L2 device"),
-        ("robot.widowx.camera_latency_ms", "5000"),
-    ] {
-        let problem = problems.iter().find(|p| p.key == key).expect(&message);
-        assert!(problem.reason.contains(says), "{key}: {message}");
-    }
     let v4l2 = TempFile::new(
         "[robot]\ndriver = \"widowx\"\n[robot.widowx]\ncamera_url = \"/dev/video0\"\n",
     );
@@ -606,7 +609,7 @@ fn the_replay_driver_needs_a_recording_and_takes_its_model_from_robot_replay() {
 
 #[test]
 fn the_viewers_sections_refuse_bad_values() {
-    let file = TempFile::new(
+    assert_refused(
         r#"
         [dashboard]
         camera_fps = 0.1
@@ -620,23 +623,14 @@ fn the_viewers_sections_refuse_bad_values() {
         keep_files = 0
         topics = ["arm/state", "no/such/topic"]
         "#,
+        &[
+            ("dashboard.camera_fps", "0.5 … 30"),
+            ("dashboard.jpeg_quality", "10 to 100"),
+            ("foxglove.bind", "loopback"),
+            ("foxglove.camera_fps", "0.5 … 30"),
+            ("record.max_file_bytes", "1048576"),
+            ("record.keep_files", "from 1"),
+            ("record.topics", "no/such/topic"),
+        ],
     );
-    let error = Config::load_with_env(with_file(&file), no_env()).unwrap_err();
-    let message = error.to_string();
-    let problems = problems_of(error);
-    for (key, says) in [
-        ("dashboard.camera_fps", "0.5 … 30"),
-        ("dashboard.jpeg_quality", "10 to 100"),
-        ("foxglove.bind", "loopback"),
-        ("foxglove.camera_fps", "0.5 … 30"),
-        ("record.max_file_bytes", "1048576"),
-        ("record.keep_files", "from 1"),
-        ("record.topics", "no/such/topic"),
-    ] {
-        let problem = problems
-            .iter()
-            .find(|p| p.key == key)
-            .unwrap_or_else(|| panic!("no problem for {key}:\n{message}"));
-        assert!(problem.reason.contains(says), "{key}: {}", problem.reason);
-    }
 }
