@@ -97,7 +97,8 @@ impl Workload {
     }
 
     /// What a user does when a motion left the arm stuck: clears the collision flag, and puts
-    /// down an object the gripper still holds where the pencil was last seen.
+    /// down an object the gripper still holds where the reply suggests (`… put it down with
+    /// place_object, e.g. at [x, y]`), else where the pencil was last seen.
     async fn recover_like_a_user(&self, client: &McpClient, reply: Option<&str>, at: (f64, f64)) {
         let Some(reply) = reply else {
             return;
@@ -107,12 +108,9 @@ impl Workload {
                 .await;
         }
         if reply.contains("still held") {
-            self.call(
-                client,
-                "place_object",
-                json!({"place_coordinate": [at.0, at.1]}),
-            )
-            .await;
+            let (x, y) = suggested_place(reply).unwrap_or(at);
+            self.call(client, "place_object", json!({"place_coordinate": [x, y]}))
+                .await;
         }
     }
 
@@ -325,6 +323,14 @@ pub async fn agent_requests(
     Ok(())
 }
 
+/// The free spot a tool's reply suggests for an object still held: `e.g. at [x, y]`.
+fn suggested_place(reply: &str) -> Option<(f64, f64)> {
+    let rest = &reply[reply.find("e.g. at [")? + "e.g. at [".len()..];
+    let (x, rest) = rest.split_once(',')?;
+    let y = rest.split_once(']')?.0;
+    Some((x.trim().parse().ok()?, y.trim().parse().ok()?))
+}
+
 /// One injected fault and whether (and how fast) the service recovered.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct InjectedFault {
@@ -473,4 +479,19 @@ async fn redis_connected(port: u16) -> bool {
     health(port)
         .await
         .is_some_and(|h| h["redis"]["state"] == "connected")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::suggested_place;
+
+    #[test]
+    fn the_place_a_reply_suggests_is_read() {
+        let reply = "❌ Failed to place object: 'pencil' would not fit at [0.226, -0.052]: 'green \
+                     cylinder' is in the way; 'pencil' is still held: put it down with \
+                     place_object, e.g. at [0.248, -0.002]";
+        assert_eq!(suggested_place(reply), Some((0.248, -0.002)));
+        assert_eq!(suggested_place("'pencil' is still held"), None);
+        assert_eq!(suggested_place("e.g. at [x, 1]"), None);
+    }
 }
