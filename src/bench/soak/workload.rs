@@ -27,6 +27,8 @@ const CALL_TIMEOUT: Duration = Duration::from_secs(60);
 struct PencilTrack {
     home_y: Option<f64>,
     last_seen: (f64, f64),
+    /// The last move was refused as not fitting: the next goes the other way.
+    refused: bool,
 }
 
 /// Shared by the workload's tasks.
@@ -97,21 +99,44 @@ impl Workload {
     }
 
     /// What a user does when a motion left the arm stuck: clears the collision flag, and puts
-    /// down an object the gripper still holds where the reply suggests (`… put it down with
-    /// place_object, e.g. at [x, y]`), else where the pencil was last seen.
-    async fn recover_like_a_user(&self, client: &McpClient, reply: Option<&str>, at: (f64, f64)) {
+    /// down an object the gripper still holds where the pencil was last seen, or, when that is
+    /// refused, where the reply suggests (`… put it down with place_object, e.g. at [x, y]`).
+    /// Returns whether the object was put down somewhere else.
+    async fn recover_like_a_user(
+        &self,
+        client: &McpClient,
+        reply: Option<&str>,
+        at: (f64, f64),
+    ) -> bool {
         let Some(reply) = reply else {
-            return;
+            return false;
         };
         if reply.contains("clear_collision_detected") {
             self.call(client, "clear_collision_detected", json!({}))
                 .await;
         }
         if reply.contains("still held") {
-            let (x, y) = suggested_place(reply).unwrap_or(at);
-            self.call(client, "place_object", json!({"place_coordinate": [x, y]}))
+            // Where it was first; if that is refused too, where the reply suggests.
+            let placed = self
+                .call(
+                    client,
+                    "place_object",
+                    json!({"place_coordinate": [at.0, at.1]}),
+                )
                 .await;
+            let still_held = placed.as_deref().is_some_and(|r| r.contains("still held"));
+            if let Some((x, y)) = placed
+                .as_deref()
+                .and_then(suggested_place)
+                .or_else(|| suggested_place(reply))
+                .filter(|_| still_held)
+            {
+                self.call(client, "place_object", json!({"place_coordinate": [x, y]}))
+                    .await;
+                return true;
+            }
         }
+        false
     }
 
     /// Clients that come and go: each connects (SSE and streamable HTTP in turn), looks at the
@@ -122,6 +147,7 @@ impl Workload {
         let mut pencil = PencilTrack {
             home_y: None,
             last_seen: (0.22, -0.05),
+            refused: false,
         };
         while self.running() {
             n += 1;
@@ -190,7 +216,14 @@ impl Workload {
             let home = *pencil.home_y.get_or_insert(y);
             // Toward home: the pencil stays within 1 cm of where it started, whatever a failed
             // move left it at (a place refused next to the marker otherwise follows).
-            let direction = if y > home { "right" } else { "left" };
+            // A move refused as not fitting (another object where it would go) is not tried
+            // again: the next goes the other way, as a user would.
+            let toward_home = y > home;
+            let direction = if toward_home != pencil.refused {
+                "right"
+            } else {
+                "left"
+            };
             pencil.last_seen = (x, y);
             let started_s = self.start.elapsed().as_secs_f64();
             let moved = self
@@ -203,8 +236,16 @@ impl Workload {
                 .await;
             let ok = moved.as_deref().map(Outcome::of_reply) == Some(Outcome::Ok);
             self.motions.record(started_s, ok);
-            self.recover_like_a_user(client, moved.as_deref(), (x, y))
-                .await;
+            pencil.refused = moved
+                .as_deref()
+                .is_some_and(|r| r.contains("would not fit"));
+            if self
+                .recover_like_a_user(client, moved.as_deref(), (x, y))
+                .await
+            {
+                // Put down elsewhere: where it lands is its new home.
+                pencil.home_y = None;
+            }
         } else {
             let text = found.map(|(text, _)| text);
             self.recover_like_a_user(client, text.as_deref(), pencil.last_seen)
