@@ -165,6 +165,56 @@ async fn oversized_messages_are_refused_before_sending() {
     );
 }
 
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn full_queues_of_largest_messages_fit_in_shared_memory() {
+    // Publishers reserve one segment sized for `max_bytes`: every subscriber's queue full of
+    // messages of the largest size the topic admits must fit, and arrive intact.
+    const TOPIC: Topic<Other> =
+        Topic::new("largest", Overflow::back_pressure(4)).with_max_bytes(8 * 1024);
+    let bus = common::fresh_bus("pubsub");
+    let mut first = bus.subscriber(&TOPIC).unwrap();
+    let mut second = bus.subscriber(&TOPIC).unwrap();
+    let publisher = bus.publisher(&TOPIC).unwrap();
+    // The longest text whose encoded message the topic accepts.
+    let mut length = 8 * 1024;
+    let largest = loop {
+        let message = Other {
+            text: char::from(b'a' + (length % 26) as u8)
+                .to_string()
+                .repeat(length),
+        };
+        match publisher.publish(&message) {
+            Ok(delivered) => break (message, delivered),
+            Err(BusError::TooLarge { .. }) => length -= 1,
+            Err(other) => panic!("{other}"),
+        }
+    };
+    assert_eq!(largest.1, 2);
+    assert!(
+        length > 8 * 1024 - 200,
+        "envelope took {} bytes",
+        8 * 1024 - length
+    );
+    let mut sent = vec![largest.0];
+    for n in 1..4 {
+        let message = Other {
+            text: char::from(b'a' + n as u8).to_string().repeat(length),
+        };
+        assert_eq!(publisher.publish(&message).unwrap(), 2);
+        sent.push(message);
+    }
+    for subscriber in [&mut first, &mut second] {
+        for expected in &sent {
+            let message = tokio::time::timeout(Duration::from_secs(5), subscriber.recv())
+                .await
+                .expect("message within 5 s")
+                .unwrap();
+            assert_eq!(&message.body, expected);
+        }
+        assert!(subscriber.try_recv().unwrap().is_none());
+    }
+}
+
 fn dropped_count(topic: &str) -> f64 {
     let text = robotd_runtime::metrics::Metrics::global().render();
     text.lines()

@@ -144,11 +144,8 @@ pub(crate) const MESSAGE_HEADER_TYPE: &str = "robotd.MessageHeader.v1";
 /// Subscriber ports a message topic admits (all processes together). robotd's own actors and
 /// edges open at most six on one topic; the rest is room for external actors and tools.
 ///
-/// Memory: every publisher allocates, at creation, an 8-byte counter per sample for each of
-/// the 255 data segments a dynamic (growing) publisher may use, and its samples are
-/// `subscribers × (depth + borrowed) + loaned`. With 32 subscribers and depth 64 that was
-/// 4.3 MB per publisher, most of an idle robotd's heap; 16 subscribers and shallower queues
-/// keep it under 0.6 MB.
+/// Memory: a publisher's samples are `subscribers × (depth + borrowed) + loaned`, each with
+/// an 8-byte counter in the publisher's heap and `max_bytes` of (sparse) shared memory.
 pub(crate) const TOPIC_MAX_SUBSCRIBERS: usize = 16;
 
 /// Samples a topic subscriber holds at once: robotd (Rust and Python) copies each message out
@@ -242,10 +239,16 @@ impl Bus {
         topic: TopicSpec,
     ) -> Result<Publisher<T>, BusError> {
         let service = open_service(self, &topic)?;
+        // One static segment of `samples × max_bytes`: the pages of a sample are only backed
+        // by memory once a message is written into them (the segment is a sparse shared-memory
+        // file, and the pool hands the most recently freed sample out first), so a topic's
+        // size limit costs address space, not RAM. A dynamic (growing) segment would instead
+        // reserve, in this process and in every subscriber, a table for the 255 segments it
+        // may grow into: ~0.3 MB per publisher, most of an idle robotd's heap.
         let mut builder = service
             .publisher_builder()
-            .initial_max_slice_len(1024)
-            .allocation_strategy(AllocationStrategy::PowerOfTwo);
+            .initial_max_slice_len(topic.max_bytes)
+            .allocation_strategy(AllocationStrategy::Static);
         let mut consumed = None;
         if let Overflow::BackPressure { max_wait, .. } = topic.overflow {
             // The sender waits on the subscribers' "consumed" event; every wake-up retries.

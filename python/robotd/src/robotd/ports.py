@@ -116,10 +116,13 @@ class Publisher(PortOwner):
     def __init__(self, bus, spec: TopicSpec, create: bool = False):
         self.spec = spec
         self._service = bus.open_topic(spec, create)
+        # One static segment sized for the topic's largest message, as robotd's own
+        # publishers do: untouched pages of the sparse segment cost no memory, while a growing
+        # segment reserves bookkeeping for 255 segments in every process that reads it.
         self._port = (
             self._service.publisher_builder()
-            .initial_max_slice_len(1024)
-            .allocation_strategy(iox2.AllocationStrategy.PowerOfTwo)
+            .initial_max_slice_len(spec.max_bytes)
+            .allocation_strategy(iox2.AllocationStrategy.Static)
             .create()
         )
         self._data = bus.open_event(bus.catalog.event("data", spec.name)).notifier_builder().create()
