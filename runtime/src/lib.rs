@@ -12,6 +12,7 @@
 //!   refusing unknown keys and bad values with the place and the reason.
 //! - [`telemetry`]: logs, daily log files, OpenTelemetry export, trace context for envelopes.
 //! - [`metrics`]: the Prometheus metrics behind `GET /metrics`.
+//! - [`heap`]: gives memory freed by a burst of work back to the system.
 //!
 //! A request across the bus, in one process (two processes work the same way):
 //!
@@ -42,6 +43,7 @@
 pub mod bus;
 pub mod catalog;
 pub mod config;
+pub mod heap;
 pub mod host;
 pub mod limits;
 pub mod metrics;

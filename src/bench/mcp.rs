@@ -54,6 +54,8 @@ pub struct McpFigures {
     pub calls_per_s_64_clients: f64,
     /// Resident memory of the robotd service after the load, MB.
     pub service_rss_mb: f64,
+    /// Resident memory of the robotd service 3 s after every client closed its session, MB.
+    pub service_rss_after_clients_left_mb: f64,
     /// Sequential calls per latency measurement.
     pub calls: usize,
     /// Seconds of each throughput run.
@@ -73,7 +75,8 @@ impl McpFigures {
              get_detected_objects at obs. pose, direct          {:>7.0}\n\
              calls/s, 8 clients (HTTP)                          {:>9.0}\n\
              calls/s, 64 clients (HTTP)                         {:>9.0}           ≥ 5,000\n\
-             service RSS after load                             {:>9.1} MB        ≤ 60 MB\n",
+             service RSS after load                             {:>9.1} MB        ≤ 80 MB\n\
+             service RSS 3 s after the clients left             {:>9.1} MB        near idle\n",
             self.coordinate_sse_us_p50,
             self.coordinate_sse_us_p99,
             self.coordinate_http_us_p50,
@@ -87,6 +90,7 @@ impl McpFigures {
             self.calls_per_s_8_clients,
             self.calls_per_s_64_clients,
             self.service_rss_mb,
+            self.service_rss_after_clients_left_mb,
         )
     }
 }
@@ -174,7 +178,22 @@ async fn direct_latency(
     Ok(Latency::of(&mut samples))
 }
 
-async fn throughput(url: &str, clients: usize, run_for: Duration) -> Result<f64> {
+/// Connected clients, still holding their sessions.
+struct Clients(Vec<Arc<McpClient>>);
+
+impl Clients {
+    /// The clients leave: each closes its session.
+    async fn leave(self) {
+        for client in self.0 {
+            if let Ok(client) = Arc::try_unwrap(client) {
+                let _ = client.cancel().await;
+            }
+        }
+    }
+}
+
+/// Calls per second of `clients` concurrent clients for `run_for`; the clients stay connected.
+async fn throughput(url: &str, clients: usize, run_for: Duration) -> Result<(f64, Clients)> {
     let mut sessions = Vec::with_capacity(clients);
     for _ in 0..clients {
         sessions.push(Arc::new(connect(url, None).await?));
@@ -203,7 +222,7 @@ async fn throughput(url: &str, clients: usize, run_for: Duration) -> Result<f64>
         total += task.await??;
     }
     let elapsed = started.elapsed().as_secs_f64();
-    Ok(total as f64 / elapsed)
+    Ok((total as f64 / elapsed, Clients(sessions)))
 }
 
 fn rss_mb(pid: u32) -> Result<f64> {
@@ -275,11 +294,16 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
             direct_latency(&registry, "get_detected_objects", &objects, calls).await?;
 
         let run_for = Duration::from_secs_f64(throughput_s);
-        let calls_8 = throughput(&http_url, 8, run_for).await?;
-        let calls_64 = throughput(&http_url, 64, run_for).await?;
+        let (calls_8, clients_8) = throughput(&http_url, 8, run_for).await?;
+        let (calls_64, clients_64) = throughput(&http_url, 64, run_for).await?;
         let service_rss_mb = rss_mb(pid)?;
+        clients_8.leave().await;
+        clients_64.leave().await;
         let _ = sse.cancel().await;
         let _ = http.cancel().await;
+        // The service returns freed memory one second after the last session closed.
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        let service_rss_after_clients_left_mb = rss_mb(pid)?;
         Ok::<_, anyhow::Error>(McpFigures {
             coordinate_sse_us_p50: coordinate_sse.p50_us,
             coordinate_sse_us_p99: coordinate_sse.p99_us,
@@ -294,6 +318,7 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
             calls_per_s_8_clients: calls_8,
             calls_per_s_64_clients: calls_64,
             service_rss_mb,
+            service_rss_after_clients_left_mb,
             calls,
             throughput_s,
         })

@@ -66,8 +66,10 @@ impl CallScopes {
         lock(&self.owners).get(id).is_none_or(|o| o == owner)
     }
 
-    /// The session closed: cancel everything it started.
+    /// The session closed: cancel everything it started, and give the memory it used back to
+    /// the system soon (once for a burst of sessions closing).
     pub fn close_session(&self, id: &str) {
+        robotd_runtime::heap::release_soon();
         lock(&self.owners).remove(id);
         if let Some(token) = lock(&self.sessions).remove(id) {
             token.cancel();
