@@ -27,8 +27,60 @@ const CALL_TIMEOUT: Duration = Duration::from_secs(60);
 struct PencilTrack {
     home_y: Option<f64>,
     last_seen: (f64, f64),
-    /// The last move was refused as not fitting: the next goes the other way.
-    refused: bool,
+    /// The direction of the last move.
+    last_direction: &'static str,
+    /// Moves refused in a row as not fitting (another object where the pencil would go).
+    refusals: u32,
+}
+
+/// What a visit does with the pencil.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PencilMove {
+    /// `move2by` 1 cm this way.
+    By(&'static str),
+    /// Both ways were refused (it lies against another object): put it in the middle of the
+    /// largest free space, as a user would.
+    ToFreeSpace,
+}
+
+impl PencilTrack {
+    fn new() -> Self {
+        Self {
+            home_y: None,
+            last_seen: (0.22, -0.05),
+            last_direction: "right",
+            refusals: 0,
+        }
+    }
+
+    /// The next move of the pencil seen at `y`: toward where it started (so it stays within
+    /// 1 cm of it, whatever a failed move left it at); the other way after a refusal, as a
+    /// user would not ask again; to free space when both ways were refused.
+    fn next_move(&mut self, y: f64) -> PencilMove {
+        let home = *self.home_y.get_or_insert(y);
+        let direction = match self.refusals {
+            0 if y > home => "right",
+            0 => "left",
+            1 if self.last_direction == "right" => "left",
+            1 => "right",
+            _ => return PencilMove::ToFreeSpace,
+        };
+        self.last_direction = direction;
+        PencilMove::By(direction)
+    }
+
+    /// Records a move's reply; `relocated` when it put the pencil somewhere new.
+    fn moved(&mut self, reply: Option<&str>, relocated: bool) {
+        if reply.is_some_and(|r| r.contains("would not fit")) {
+            self.refusals += 1;
+        } else {
+            self.refusals = 0;
+        }
+        if relocated {
+            // Put down elsewhere: where it lands is its new home.
+            self.home_y = None;
+        }
+    }
 }
 
 /// Shared by the workload's tasks.
@@ -139,16 +191,31 @@ impl Workload {
         false
     }
 
+    /// Puts the pencil at `at` in the middle of the largest free space; the reply of the
+    /// motion, or of the question when that failed.
+    async fn move_to_free_space(&self, client: &McpClient, at: (f64, f64)) -> Option<String> {
+        let (text, data) = self
+            .call_full(client, "get_largest_free_space_with_center", json!({}))
+            .await?;
+        let center = &data["data"]["center"];
+        let (Some(x), Some(y)) = (center[0].as_f64(), center[1].as_f64()) else {
+            return Some(text);
+        };
+        self.call(
+            client,
+            "pick_place_object",
+            json!({"object_name": "pencil", "pick_coordinate": [at.0, at.1],
+                   "place_coordinate": [x, y]}),
+        )
+        .await
+    }
+
     /// Clients that come and go: each connects (SSE and streamable HTTP in turn), looks at the
     /// workspace, moves the pencil 1 cm and back toward where it started, asks cheap questions,
     /// and leaves.
     pub async fn visiting_clients(self: Arc<Self>) {
         let mut n = 0u64;
-        let mut pencil = PencilTrack {
-            home_y: None,
-            last_seen: (0.22, -0.05),
-            refused: false,
-        };
+        let mut pencil = PencilTrack::new();
         while self.running() {
             n += 1;
             let url = if n.is_multiple_of(2) {
@@ -213,39 +280,22 @@ impl Workload {
             Some((at["x"].as_f64()?, at["y"].as_f64()?))
         });
         if let Some((x, y)) = at {
-            let home = *pencil.home_y.get_or_insert(y);
-            // Toward home: the pencil stays within 1 cm of where it started, whatever a failed
-            // move left it at (a place refused next to the marker otherwise follows).
-            // A move refused as not fitting (another object where it would go) is not tried
-            // again: the next goes the other way, as a user would.
-            let toward_home = y > home;
-            let direction = if toward_home != pencil.refused {
-                "right"
-            } else {
-                "left"
-            };
             pencil.last_seen = (x, y);
             let started_s = self.start.elapsed().as_secs_f64();
-            let moved = self
-                .call(
-                    client,
-                    "move2by",
-                    json!({"object_name": "pencil", "pick_coordinate": [x, y],
-                           "direction": direction, "distance": 0.01}),
-                )
-                .await;
+            let (moved, to_free_space) = match pencil.next_move(y) {
+                PencilMove::By(direction) => {
+                    let args = json!({"object_name": "pencil", "pick_coordinate": [x, y],
+                                      "direction": direction, "distance": 0.01});
+                    (self.call(client, "move2by", args).await, false)
+                }
+                PencilMove::ToFreeSpace => (self.move_to_free_space(client, (x, y)).await, true),
+            };
             let ok = moved.as_deref().map(Outcome::of_reply) == Some(Outcome::Ok);
             self.motions.record(started_s, ok);
-            pencil.refused = moved
-                .as_deref()
-                .is_some_and(|r| r.contains("would not fit"));
-            if self
+            let put_elsewhere = self
                 .recover_like_a_user(client, moved.as_deref(), (x, y))
-                .await
-            {
-                // Put down elsewhere: where it lands is its new home.
-                pencil.home_y = None;
-            }
+                .await;
+            pencil.moved(moved.as_deref(), put_elsewhere || (to_free_space && ok));
         } else {
             let text = found.map(|(text, _)| text);
             self.recover_like_a_user(client, text.as_deref(), pencil.last_seen)
@@ -524,7 +574,30 @@ async fn redis_connected(port: u16) -> bool {
 
 #[cfg(test)]
 mod tests {
-    use super::suggested_place;
+    use super::{suggested_place, PencilMove, PencilTrack};
+
+    const REFUSED: &str = "❌ Failed to pick and move 'pencil': 'pencil' would not fit at \
+                           [0.226, -0.052]: 'green cylinder' is in the way";
+    const MOVED: &str = "✓ Moved 'pencil' 1 cm";
+
+    #[test]
+    fn the_pencil_goes_home_then_the_other_way_then_to_free_space() {
+        let mut pencil = PencilTrack::new();
+        assert_eq!(pencil.next_move(-0.05), PencilMove::By("left"));
+        pencil.moved(Some(MOVED), false);
+        assert_eq!(pencil.next_move(-0.04), PencilMove::By("right"));
+        pencil.moved(Some(REFUSED), false);
+        assert_eq!(pencil.next_move(-0.04), PencilMove::By("left"));
+        pencil.moved(Some(REFUSED), false);
+        assert_eq!(pencil.next_move(-0.04), PencilMove::ToFreeSpace);
+        pencil.moved(Some(REFUSED), false);
+        assert_eq!(pencil.next_move(-0.04), PencilMove::ToFreeSpace);
+        pencil.moved(Some("✓ Picked and placed"), true);
+        // Its new place is its home: the next move goes 1 cm and comes back.
+        assert_eq!(pencil.next_move(0.03), PencilMove::By("left"));
+        pencil.moved(Some(MOVED), false);
+        assert_eq!(pencil.next_move(0.04), PencilMove::By("right"));
+    }
 
     #[test]
     fn the_place_a_reply_suggests_is_read() {
