@@ -22,15 +22,15 @@ const VISITOR_INTERVAL: Duration = Duration::from_secs(1);
 /// Longest a tool call may take before it counts as lost.
 const CALL_TIMEOUT: Duration = Duration::from_secs(60);
 
-/// Where the pencil started and was last seen (visits move it 1 cm back and forth).
+/// Where the pencil started and was last seen, and how its last moves went. Visits move it
+/// 1 cm left of where it started and back; one that ended up elsewhere (a failed move, a
+/// recovery) is put back where it started, which was free when the scene was made.
 #[derive(Debug, Clone)]
 struct PencilTrack {
-    home_y: Option<f64>,
+    home: Option<(f64, f64)>,
     last_seen: (f64, f64),
-    /// The direction of the last move.
-    last_direction: &'static str,
-    /// Moves refused in a row as not fitting (another object where the pencil would go).
-    refusals: u32,
+    /// Moves in a row that failed for another reason than an injected fault.
+    failures: u32,
 }
 
 /// What a visit does with the pencil.
@@ -38,48 +38,53 @@ struct PencilTrack {
 enum PencilMove {
     /// `move2by` 1 cm this way.
     By(&'static str),
-    /// Both ways were refused (it lies against another object): put it in the middle of the
-    /// largest free space, as a user would.
-    ToFreeSpace,
+    /// `pick_place_object` back where it started.
+    Home,
+    /// `push_object` 2 cm this way, toward where it started: picking it was refused too
+    /// (another object next to it, as the refusal says: "move one of them apart first").
+    Push(&'static str),
 }
+
+/// Farthest from where it started that the pencil is still moved 1 cm at a time, metres.
+const NEAR_HOME_M: f64 = 0.015;
 
 impl PencilTrack {
     fn new() -> Self {
         Self {
-            home_y: None,
+            home: None,
             last_seen: (0.22, -0.05),
-            last_direction: "right",
-            refusals: 0,
+            failures: 0,
         }
     }
 
-    /// The next move of the pencil seen at `y`: toward where it started (so it stays within
-    /// 1 cm of it, whatever a failed move left it at); the other way after a refusal, as a
-    /// user would not ask again; to free space when both ways were refused.
-    fn next_move(&mut self, y: f64) -> PencilMove {
-        let home = *self.home_y.get_or_insert(y);
-        let direction = match self.refusals {
-            0 if y > home => "right",
-            0 => "left",
-            1 if self.last_direction == "right" => "left",
-            1 => "right",
-            _ => return PencilMove::ToFreeSpace,
+    /// The next move of the pencil seen at `at`.
+    fn next_move(&mut self, at: (f64, f64)) -> PencilMove {
+        let home = *self.home.get_or_insert(at);
+        let (dx, dy) = (at.0 - home.0, at.1 - home.1);
+        let near_home = dx.abs().max(dy.abs()) <= NEAR_HOME_M;
+        match self.failures {
+            0 if near_home && dy > 0.005 => PencilMove::By("right"),
+            0 if near_home => PencilMove::By("left"),
+            0 | 1 => PencilMove::Home,
+            _ if dy.abs() >= dx.abs() && dy > 0.0 => PencilMove::Push("right"),
+            _ if dy.abs() >= dx.abs() => PencilMove::Push("left"),
+            _ if dx > 0.0 => PencilMove::Push("down"),
+            _ => PencilMove::Push("up"),
+        }
+    }
+
+    /// Records how `attempted` went.
+    fn moved(&mut self, attempted: PencilMove, outcome: Option<Outcome>) {
+        self.failures = match (outcome, attempted) {
+            // Pushed closer: try picking it up again.
+            (Some(Outcome::Ok), PencilMove::Push(_)) => 1,
+            (Some(Outcome::Ok), _) => 0,
+            // The injected gripper fault says nothing about where the pencil lies.
+            (Some(Outcome::InjectedFault), _) => self.failures,
+            // Picking it up was refused or failed: push it next.
+            (_, PencilMove::Home) => self.failures.max(1) + 1,
+            _ => self.failures + 1,
         };
-        self.last_direction = direction;
-        PencilMove::By(direction)
-    }
-
-    /// Records a move's reply; `relocated` when it put the pencil somewhere new.
-    fn moved(&mut self, reply: Option<&str>, relocated: bool) {
-        if reply.is_some_and(|r| r.contains("would not fit")) {
-            self.refusals += 1;
-        } else {
-            self.refusals = 0;
-        }
-        if relocated {
-            // Put down elsewhere: where it lands is its new home.
-            self.home_y = None;
-        }
     }
 }
 
@@ -191,25 +196,6 @@ impl Workload {
         false
     }
 
-    /// Puts the pencil at `at` in the middle of the largest free space; the reply of the
-    /// motion, or of the question when that failed.
-    async fn move_to_free_space(&self, client: &McpClient, at: (f64, f64)) -> Option<String> {
-        let (text, data) = self
-            .call_full(client, "get_largest_free_space_with_center", json!({}))
-            .await?;
-        let center = &data["data"]["center"];
-        let (Some(x), Some(y)) = (center[0].as_f64(), center[1].as_f64()) else {
-            return Some(text);
-        };
-        self.call(
-            client,
-            "pick_place_object",
-            json!({"object_name": "pencil", "pick_coordinate": [at.0, at.1],
-                   "place_coordinate": [x, y]}),
-        )
-        .await
-    }
-
     /// Clients that come and go: each connects (SSE and streamable HTTP in turn), looks at the
     /// workspace, moves the pencil 1 cm and back toward where it started, asks cheap questions,
     /// and leaves.
@@ -282,20 +268,33 @@ impl Workload {
         if let Some((x, y)) = at {
             pencil.last_seen = (x, y);
             let started_s = self.start.elapsed().as_secs_f64();
-            let (moved, to_free_space) = match pencil.next_move(y) {
-                PencilMove::By(direction) => {
-                    let args = json!({"object_name": "pencil", "pick_coordinate": [x, y],
-                                      "direction": direction, "distance": 0.01});
-                    (self.call(client, "move2by", args).await, false)
+            let attempted = pencil.next_move((x, y));
+            let (tool, args) = match attempted {
+                PencilMove::By(direction) => (
+                    "move2by",
+                    json!({"object_name": "pencil", "pick_coordinate": [x, y],
+                           "direction": direction, "distance": 0.01}),
+                ),
+                PencilMove::Home => {
+                    let home = pencil.home.unwrap_or((x, y));
+                    (
+                        "pick_place_object",
+                        json!({"object_name": "pencil", "pick_coordinate": [x, y],
+                               "place_coordinate": [home.0, home.1]}),
+                    )
                 }
-                PencilMove::ToFreeSpace => (self.move_to_free_space(client, (x, y)).await, true),
+                PencilMove::Push(direction) => (
+                    "push_object",
+                    json!({"object_name": "pencil", "push_coordinate": [x, y],
+                           "direction": direction, "distance": 20}),
+                ),
             };
-            let ok = moved.as_deref().map(Outcome::of_reply) == Some(Outcome::Ok);
-            self.motions.record(started_s, ok);
-            let put_elsewhere = self
-                .recover_like_a_user(client, moved.as_deref(), (x, y))
+            let moved = self.call(client, tool, args).await;
+            let outcome = moved.as_deref().map(Outcome::of_reply);
+            self.motions.record(started_s, outcome == Some(Outcome::Ok));
+            self.recover_like_a_user(client, moved.as_deref(), (x, y))
                 .await;
-            pencil.moved(moved.as_deref(), put_elsewhere || (to_free_space && ok));
+            pencil.moved(attempted, outcome);
         } else {
             let text = found.map(|(text, _)| text);
             self.recover_like_a_user(client, text.as_deref(), pencil.last_seen)
@@ -576,27 +575,45 @@ async fn redis_connected(port: u16) -> bool {
 mod tests {
     use super::{suggested_place, PencilMove, PencilTrack};
 
-    const REFUSED: &str = "❌ Failed to pick and move 'pencil': 'pencil' would not fit at \
-                           [0.226, -0.052]: 'green cylinder' is in the way";
-    const MOVED: &str = "✓ Moved 'pencil' 1 cm";
+    use crate::bench::soak::sampler::Outcome;
 
     #[test]
-    fn the_pencil_goes_home_then_the_other_way_then_to_free_space() {
+    fn the_pencil_goes_left_and_back_and_home_after_a_failure() {
         let mut pencil = PencilTrack::new();
-        assert_eq!(pencil.next_move(-0.05), PencilMove::By("left"));
-        pencil.moved(Some(MOVED), false);
-        assert_eq!(pencil.next_move(-0.04), PencilMove::By("right"));
-        pencil.moved(Some(REFUSED), false);
-        assert_eq!(pencil.next_move(-0.04), PencilMove::By("left"));
-        pencil.moved(Some(REFUSED), false);
-        assert_eq!(pencil.next_move(-0.04), PencilMove::ToFreeSpace);
-        pencil.moved(Some(REFUSED), false);
-        assert_eq!(pencil.next_move(-0.04), PencilMove::ToFreeSpace);
-        pencil.moved(Some("✓ Picked and placed"), true);
-        // Its new place is its home: the next move goes 1 cm and comes back.
-        assert_eq!(pencil.next_move(0.03), PencilMove::By("left"));
-        pencil.moved(Some(MOVED), false);
-        assert_eq!(pencil.next_move(0.04), PencilMove::By("right"));
+        let home = (0.22, -0.05);
+        assert_eq!(pencil.next_move(home), PencilMove::By("left"));
+        pencil.moved(PencilMove::By("left"), Some(Outcome::Ok));
+        assert_eq!(pencil.next_move((0.22, -0.04)), PencilMove::By("right"));
+        // The injected gripper fault changes nothing.
+        pencil.moved(PencilMove::By("right"), Some(Outcome::InjectedFault));
+        assert_eq!(pencil.next_move((0.22, -0.04)), PencilMove::By("right"));
+        // Put down elsewhere by a recovery: back home.
+        assert_eq!(pencil.next_move((0.25, -0.002)), PencilMove::Home);
+        pencil.moved(PencilMove::Home, Some(Outcome::Ok));
+        assert_eq!(pencil.next_move(home), PencilMove::By("left"));
+        // A refused move (another object in the way): back home, not the same move again.
+        pencil.moved(PencilMove::By("left"), Some(Outcome::ToolError));
+        assert_eq!(pencil.next_move(home), PencilMove::Home);
+    }
+
+    #[test]
+    fn a_pencil_that_cannot_be_picked_is_pushed_toward_home() {
+        let mut pencil = PencilTrack::new();
+        assert_eq!(pencil.next_move((0.22, -0.05)), PencilMove::By("left"));
+        pencil.moved(PencilMove::By("left"), Some(Outcome::Ok));
+        // Left at [0.249, 0.001] next to the red cube; picking it is refused.
+        let stuck = (0.249, 0.001);
+        assert_eq!(pencil.next_move(stuck), PencilMove::Home);
+        pencil.moved(PencilMove::Home, Some(Outcome::ToolError));
+        assert_eq!(pencil.next_move(stuck), PencilMove::Push("right"));
+        pencil.moved(PencilMove::Push("right"), Some(Outcome::ToolError));
+        assert_eq!(pencil.next_move(stuck), PencilMove::Push("right"));
+        pencil.moved(PencilMove::Push("right"), Some(Outcome::Ok));
+        // Pushed closer: picked up and put home again.
+        assert_eq!(pencil.next_move((0.249, -0.019)), PencilMove::Home);
+        // Mostly off in x: pushed along x.
+        pencil.moved(PencilMove::Home, Some(Outcome::ToolError));
+        assert_eq!(pencil.next_move((0.30, -0.05)), PencilMove::Push("down"));
     }
 
     #[test]
