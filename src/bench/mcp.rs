@@ -8,8 +8,10 @@
 //!    model at once) over legacy SSE and streamable HTTP, one call at a time;
 //! 2. the same two tools called directly on the tool registry over the bus (no MCP, no HTTP):
 //!    the baseline the MCP edge adds to;
-//! 3. calls per second with 8 and 64 concurrent streamable-HTTP clients;
-//! 4. the service's resident memory (VmRSS) after the load.
+//! 3. the first tool over streamable HTTP again with the leanest client ([`super::mcp_raw`]):
+//!    how much of the per-call cost is the server's;
+//! 4. calls per second with 8 and 64 concurrent streamable-HTTP clients;
+//! 5. the service's resident memory (VmRSS) after the load, and after the clients left.
 
 use super::{Latency, Served};
 use anyhow::{bail, Context, Result};
@@ -44,6 +46,9 @@ pub struct McpFigures {
     pub objects_http_us_p50: f64,
     /// 99th percentile of the same, µs.
     pub objects_http_us_p99: f64,
+    /// `get_workspace_coordinate_from_point` over streamable HTTP with the leanest client
+    /// (plain HTTP requests, no MCP client library), µs.
+    pub coordinate_http_raw_us_p50: f64,
     /// Baseline: `get_workspace_coordinate_from_point` on the registry directly, µs.
     pub coordinate_direct_us_p50: f64,
     /// Baseline: `get_detected_objects` on the registry directly, µs.
@@ -69,6 +74,7 @@ impl McpFigures {
             "measure                                             p50 / p99 µs        target\n\
              get_workspace_coordinate_from_point, SSE           {:>7.0} / {:>7.0}   p50 ≤ 500\n\
              get_workspace_coordinate_from_point, HTTP          {:>7.0} / {:>7.0}   p50 ≤ 500\n\
+             get_workspace_coordinate_from_point, HTTP, raw     {:>7.0}           (lean client)\n\
              get_workspace_coordinate_from_point, direct        {:>7.0}\n\
              get_detected_objects at obs. pose, SSE             {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
              get_detected_objects at obs. pose, HTTP            {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
@@ -81,6 +87,7 @@ impl McpFigures {
             self.coordinate_sse_us_p99,
             self.coordinate_http_us_p50,
             self.coordinate_http_us_p99,
+            self.coordinate_http_raw_us_p50,
             self.coordinate_direct_us_p50,
             self.objects_sse_us_p50,
             self.objects_sse_us_p99,
@@ -269,6 +276,13 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
         .await?;
         let objects_sse = mcp_latency(&sse, "get_detected_objects", &objects, calls).await?;
         let objects_http = mcp_latency(&http, "get_detected_objects", &objects, calls).await?;
+        let coordinate_http_raw = super::mcp_raw::latency(
+            &http_url,
+            "get_workspace_coordinate_from_point",
+            &coordinate,
+            calls,
+        )
+        .await?;
 
         let bus = Bus::open(BusOptions::new(&namespace, "bench-mcp"))?;
         let workspaces = vec![WorkspaceInfo {
@@ -313,6 +327,7 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
             objects_sse_us_p99: objects_sse.p99_us,
             objects_http_us_p50: objects_http.p50_us,
             objects_http_us_p99: objects_http.p99_us,
+            coordinate_http_raw_us_p50: coordinate_http_raw.p50_us,
             coordinate_direct_us_p50: coordinate_direct.p50_us,
             objects_direct_us_p50: objects_direct.p50_us,
             calls_per_s_8_clients: calls_8,

@@ -7,6 +7,7 @@
 
 pub mod jpeg;
 pub mod mcp;
+pub mod mcp_raw;
 pub mod niryo;
 pub mod perception;
 pub mod ping;

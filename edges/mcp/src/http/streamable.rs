@@ -39,6 +39,30 @@ fn json_rpc_refusal(code: i32, message: String) -> Response {
     (StatusCode::BAD_REQUEST, axum::Json(body)).into_response()
 }
 
+/// The answer to a POST body that is not a JSON-RPC message of an MCP client.
+fn refusal_of(bytes: &[u8], error: serde_json::Error) -> Response {
+    let value = match serde_json::from_slice::<serde_json::Value>(bytes) {
+        Ok(value) => value,
+        Err(error) => {
+            return json_rpc_refusal(
+                -32700,
+                format!("Parse error: the body is not JSON: {error}"),
+            )
+        }
+    };
+    // A request to an MCP method whose params are not even an object (`[1, 2]`).
+    let method = value["method"].as_str().filter(|m| is_mcp_method(m));
+    if let (Some(method), Some(id)) = (method, value.get("id")) {
+        let error = invalid_params(method);
+        let body = serde_json::json!({"jsonrpc": "2.0", "id": id, "error": error});
+        return axum::Json(body).into_response();
+    }
+    json_rpc_refusal(
+        -32600,
+        format!("Invalid Request: not a JSON-RPC message of an MCP client: {error}"),
+    )
+}
+
 /// Around rmcp's streamable-HTTP service: reads each POST body once to answer what is not
 /// JSON-RPC per the spec, refuses requests naming another client's session, and binds new
 /// sessions to their client.
@@ -85,27 +109,10 @@ pub(super) async fn streamable_checks(
                     .into_response()
             }
         };
-        let value = match serde_json::from_slice::<serde_json::Value>(&bytes) {
-            Ok(value) => value,
-            Err(error) => {
-                return json_rpc_refusal(
-                    -32700,
-                    format!("Parse error: the body is not JSON: {error}"),
-                )
-            }
-        };
-        if let Err(error) = serde_json::from_value::<ClientJsonRpcMessage>(value.clone()) {
-            // A request to an MCP method whose params are not even an object (`[1, 2]`).
-            let method = value["method"].as_str().filter(|m| is_mcp_method(m));
-            if let (Some(method), Some(id)) = (method, value.get("id")) {
-                let error = invalid_params(method);
-                let body = serde_json::json!({"jsonrpc": "2.0", "id": id, "error": error});
-                return axum::Json(body).into_response();
-            }
-            return json_rpc_refusal(
-                -32600,
-                format!("Invalid Request: not a JSON-RPC message of an MCP client: {error}"),
-            );
+        // The happy path parses once; a body that is not a client message is parsed again
+        // only to say what is wrong with it.
+        if let Err(error) = serde_json::from_slice::<ClientJsonRpcMessage>(&bytes) {
+            return refusal_of(&bytes, error);
         }
         Request::from_parts(parts, axum::body::Body::from(bytes))
     } else {
