@@ -41,6 +41,33 @@ async fn requests_get_their_own_replies() {
     }
 }
 
+/// The `robotd_bus_latency_seconds_count` of `topic` in the process's metrics.
+fn latency_count(topic: &str) -> f64 {
+    let text = robotd_runtime::metrics::Metrics::global().render();
+    text.lines()
+        .filter(|line| {
+            line.starts_with("robotd_bus_latency_seconds_count")
+                && line.contains(&format!("topic=\"{topic}\""))
+        })
+        .filter_map(|line| line.rsplit(' ').next()?.parse::<f64>().ok())
+        .sum()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_time_a_request_waited_for_its_server_is_measured() {
+    const TIMED: Service<Ping, Pong> = Service::new("timed_echo");
+    let bus = common::fresh_bus("rpc");
+    let mut server = bus.server(&TIMED).unwrap();
+    tokio::spawn(async move { server.serve(|p| async move { Ok(pong(p)) }).await });
+    let client = bus.client(&TIMED).unwrap();
+    let before = latency_count("timed_echo/requests");
+    for seq in 0..5 {
+        client.request(&ping(seq), SECOND).await.unwrap();
+    }
+    assert_eq!(latency_count("timed_echo/requests") - before, 5.0);
+    assert!(latency_count("timed_echo/round_trip") >= 5.0);
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn concurrent_clients_are_all_answered() {
     let bus = common::fresh_bus("rpc");

@@ -569,6 +569,11 @@ impl<T: Message> std::fmt::Debug for Subscriber<T> {
 }
 
 impl<T: Message> Subscriber<T> {
+    /// The topic's label in metrics.
+    pub(crate) fn label(&self) -> &str {
+        &self.topic.label
+    }
+
     /// Waits for the next message.
     ///
     /// A message that cannot be decoded (another schema version, corrupt bytes) is returned as

@@ -532,6 +532,12 @@ impl<Req: Message, Resp: Message> Server<Req, Resp> {
             };
             match received {
                 Received::Request(envelope) => {
+                    // How long the request waited for this server (`<service>/requests`):
+                    // the round trip minus this is the handling and the reply's way back.
+                    let waited_ns =
+                        envelope::unix_now_ns().saturating_sub(envelope.sent_at_unix_ns);
+                    crate::metrics::Metrics::global()
+                        .bus_latency(self.requests.label(), waited_ns as f64 / 1e9);
                     let frame = envelope.body;
                     if frame.deadline_unix_ns != 0
                         && envelope::unix_now_ns() > frame.deadline_unix_ns
