@@ -216,14 +216,7 @@ async fn full_queues_of_largest_messages_fit_in_shared_memory() {
 }
 
 fn dropped_count(topic: &str) -> f64 {
-    let text = robotd_runtime::metrics::Metrics::global().render();
-    text.lines()
-        .filter(|line| {
-            line.starts_with("robotd_bus_dropped_total")
-                && line.contains(&format!("topic=\"{topic}\""))
-        })
-        .filter_map(|line| line.rsplit(' ').next()?.parse::<f64>().ok())
-        .sum()
+    common::metric_sum("robotd_bus_dropped_total", topic)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -43,14 +43,7 @@ async fn requests_get_their_own_replies() {
 
 /// The `robotd_bus_latency_seconds_count` of `topic` in the process's metrics.
 fn latency_count(topic: &str) -> f64 {
-    let text = robotd_runtime::metrics::Metrics::global().render();
-    text.lines()
-        .filter(|line| {
-            line.starts_with("robotd_bus_latency_seconds_count")
-                && line.contains(&format!("topic=\"{topic}\""))
-        })
-        .filter_map(|line| line.rsplit(' ').next()?.parse::<f64>().ok())
-        .sum()
+    common::metric_sum("robotd_bus_latency_seconds_count", topic)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

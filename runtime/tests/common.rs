@@ -14,3 +14,13 @@ pub fn fresh_bus(node: &str) -> Bus {
     );
     Bus::open(BusOptions::new(&namespace, node)).expect("open bus")
 }
+
+/// The sum of `metric`'s series for bus topic `topic` in this process's metrics
+/// (`robotd_bus_dropped_total` adds up its reasons).
+pub fn metric_sum(metric: &str, topic: &str) -> f64 {
+    let text = robotd_runtime::metrics::Metrics::global().render();
+    text.lines()
+        .filter(|line| line.starts_with(metric) && line.contains(&format!("topic=\"{topic}\"")))
+        .filter_map(|line| line.rsplit(' ').next()?.parse::<f64>().ok())
+        .sum()
+}
