@@ -167,9 +167,38 @@ impl Wake {
     }
 
     /// Consumes pending notifications without waiting.
+    ///
+    /// iceoryx2 0.10 reads a single datagram per call however many wait in the socket. The
+    /// rest would pile up until the kernel's queue limit (`net.unix.max_dgram_qlen`, 10 by
+    /// default); then a notifier's send fails, iceoryx2 still marks the listener notified, no
+    /// datagram raises a readiness edge, and this listener never wakes again: a busy server
+    /// went deaf that way (answering only when another event woke its task). So the socket is
+    /// emptied first, and only then does iceoryx2 reset its notification state: a notifier
+    /// racing with this sends a fresh datagram, which raises a fresh edge.
     pub(crate) fn drain(&self) {
+        discard_datagrams(self.fd.get_ref().0);
         if let Err(e) = self.listener.try_wait(|_| {}) {
             tracing::warn!(event = %self.name, error = ?e, "draining bus notifications failed");
+        }
+    }
+}
+
+/// Reads and drops every datagram waiting on `fd`, without blocking. Notification datagrams
+/// carry no data (iceoryx2 keeps the events in shared memory); a flood stops at 4,096.
+fn discard_datagrams(fd: RawFd) {
+    let mut buffer = [0u8; 64];
+    for _ in 0..4_096 {
+        // SAFETY: `fd` is the listener's open socket and `buffer` is writable for its length.
+        let read = unsafe {
+            libc::recv(
+                fd,
+                buffer.as_mut_ptr().cast(),
+                buffer.len(),
+                libc::MSG_DONTWAIT,
+            )
+        };
+        if read < 0 && std::io::Error::last_os_error().kind() != std::io::ErrorKind::Interrupted {
+            return; // empty (EAGAIN), or an error the next wait reports
         }
     }
 }
@@ -211,6 +240,77 @@ impl Notify {
     pub(crate) fn notify(&self) {
         if let Err(e) = self.notifier.notify() {
             tracing::warn!(error = ?e, "bus notification failed");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bus::BusOptions;
+    use std::os::unix::net::UnixDatagram;
+
+    /// The filesystem path the socket `fd` is bound to.
+    fn bound_path(fd: RawFd) -> std::path::PathBuf {
+        // SAFETY: `address` is a zeroed sockaddr_un of the size passed; getsockname fills it.
+        let mut address: libc::sockaddr_un = unsafe { std::mem::zeroed() };
+        let mut length = std::mem::size_of::<libc::sockaddr_un>() as libc::socklen_t;
+        let result = unsafe { libc::getsockname(fd, (&raw mut address).cast(), &raw mut length) };
+        assert_eq!(
+            result,
+            0,
+            "getsockname: {}",
+            std::io::Error::last_os_error()
+        );
+        let path: Vec<u8> = address
+            .sun_path
+            .iter()
+            .take_while(|c| **c != 0)
+            .map(|c| *c as u8)
+            .collect();
+        std::path::PathBuf::from(
+            <std::ffi::OsString as std::os::unix::ffi::OsStringExt>::from_vec(path),
+        )
+    }
+
+    /// Takes the datagrams waiting on `fd` out and counts them (up to 100).
+    fn take_waiting_datagrams(fd: RawFd) -> usize {
+        let mut buffer = [0u8; 64];
+        // SAFETY: `fd` is an open socket and `buffer` is writable for its length.
+        let mut read_one =
+            || unsafe { libc::recv(fd, buffer.as_mut_ptr().cast(), 64, libc::MSG_DONTWAIT) >= 0 };
+        (0..100).take_while(|_| read_one()).count()
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_wake_up_leaves_no_notification_behind_and_the_next_one_still_wakes() {
+        let namespace = format!("test-wake-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "wake")).unwrap();
+        let wake = Wake::new(&bus, "topic/ready").unwrap();
+        let notify = Notify::new(&bus, "topic/ready").unwrap();
+        // Leftover datagrams, as several notifiers racing one drain leave them.
+        let fd = wake.fd.get_ref().0;
+        let sender = UnixDatagram::unbound().unwrap();
+        let path = bound_path(fd);
+        for _ in 0..5 {
+            sender.send_to(&[0], &path).unwrap();
+        }
+        notify.notify();
+        tokio::time::timeout(Duration::from_secs(1), wake.wait())
+            .await
+            .expect("woken")
+            .unwrap();
+        assert_eq!(
+            take_waiting_datagrams(fd),
+            0,
+            "left in the listener's socket"
+        );
+        for round in 0..20 {
+            notify.notify();
+            tokio::time::timeout(Duration::from_secs(1), wake.wait())
+                .await
+                .unwrap_or_else(|_| panic!("notification {round} did not wake the listener"))
+                .unwrap();
         }
     }
 }
