@@ -3,33 +3,58 @@
 //! glibc's allocator keeps what a burst of work freed (64 MCP clients' sessions, buffers and
 //! replies) inside its per-thread arenas for reuse, so a service's resident memory stays at
 //! its peak long after the clients left: `robotd bench mcp` measured ~25 MB held this way.
-//! [`release_soon`] asks for that memory to be returned (`malloc_trim`) one second later,
-//! coalescing a burst of requests (64 sessions closing together) into one trim. Callers
-//! are the places where a burst ends, such as an MCP session closing.
+//! [`release_soon`] asks for that memory to be returned (`malloc_trim`) once a second has
+//! passed without another request, so a burst (64 sessions closing together, thousands of
+//! tool calls) makes one trim after its end and none while it lasts. Callers are the places
+//! a burst is made of: an MCP tool call, an MCP session closing.
 //!
 //! On other C libraries this does nothing: their allocators have their own policies.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::OnceLock;
 use std::time::Duration;
+use tokio::time::Instant;
 
-/// How long after the first request the trim runs, so a burst of requests makes one trim.
-const COALESCE: Duration = Duration::from_secs(1);
+/// How long without a request before the trim runs: the burst is over.
+const QUIET: Duration = Duration::from_secs(1);
 
 static PENDING: AtomicBool = AtomicBool::new(false);
 static TRIMS: AtomicU64 = AtomicU64::new(0);
+/// When the last request came, in microseconds after [`clock_base`].
+static LAST_REQUEST_US: AtomicU64 = AtomicU64::new(0);
 
-/// Returns freed heap memory to the system about a second from now (once for a burst of
-/// calls). Does nothing outside a tokio runtime.
+fn clock_base() -> Instant {
+    static BASE: OnceLock<Instant> = OnceLock::new();
+    *BASE.get_or_init(Instant::now)
+}
+
+fn now_us() -> u64 {
+    u64::try_from(clock_base().elapsed().as_micros()).unwrap_or(u64::MAX)
+}
+
+/// Returns freed heap memory to the system once a second has passed without another call
+/// (one trim per burst, after it). Costs a clock read and two atomics; does nothing outside a
+/// tokio runtime.
 pub fn release_soon() {
     let Ok(runtime) = tokio::runtime::Handle::try_current() else {
         return;
     };
+    LAST_REQUEST_US.store(now_us(), Ordering::Release);
     if PENDING.swap(true, Ordering::AcqRel) {
         return;
     }
     runtime.spawn(async {
-        tokio::time::sleep(COALESCE).await;
-        // Cleared before trimming: a request arriving during the trim schedules another.
+        loop {
+            let quiet_from = LAST_REQUEST_US
+                .load(Ordering::Acquire)
+                .saturating_add(QUIET.as_micros() as u64);
+            let now = now_us();
+            if now >= quiet_from {
+                break;
+            }
+            tokio::time::sleep(Duration::from_micros(quiet_from - now)).await;
+        }
+        // Cleared before trimming: a request from here on schedules another trim.
         PENDING.store(false, Ordering::Release);
         let _ = tokio::task::spawn_blocking(release_now).await;
     });
@@ -62,13 +87,16 @@ mod tests {
     use super::*;
 
     #[tokio::test(start_paused = true)]
-    async fn a_burst_of_requests_makes_one_trim_a_second_later() {
+    async fn a_burst_of_requests_makes_one_trim_a_second_after_its_end() {
         let before = trims();
-        for _ in 0..64 {
+        // A burst of 3 s: a request every 100 ms.
+        for _ in 0..30 {
             release_soon();
+            tokio::time::sleep(Duration::from_millis(100)).await;
         }
-        tokio::time::sleep(Duration::from_millis(900)).await;
-        assert_eq!(trims(), before, "no trim before the coalescing delay");
+        assert_eq!(trims(), before, "no trim while the burst lasts");
+        tokio::time::sleep(Duration::from_millis(800)).await;
+        assert_eq!(trims(), before, "no trim before a quiet second");
         tokio::time::sleep(Duration::from_millis(200)).await;
         // The trim runs on the blocking pool: wait for it without a fixed sleep.
         while trims() == before {

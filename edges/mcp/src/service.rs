@@ -169,6 +169,8 @@ impl ServerHandler for McpService {
         request: CallToolRequestParams,
         context: RequestContext<RoleServer>,
     ) -> Result<CallToolResponse, McpError> {
+        // Once the calls stop for a second, the memory a burst of them used goes back.
+        robotd_runtime::heap::release_soon();
         let name = request.name.to_string();
         let span = tracing::info_span!(
             "mcp.tool_call",
