@@ -433,6 +433,7 @@ fn run() -> Result<std::process::ExitCode> {
             let config = load_config(&cli.config)?;
             let _telemetry = telemetry::init(&config.telemetry, Mode::Service)?;
             let runtime = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(config.service.worker_threads)
                 .enable_all()
                 .build()
                 .context("starting the tokio runtime")?;
@@ -443,6 +444,7 @@ fn run() -> Result<std::process::ExitCode> {
             let config = load_config(&cli.config)?;
             let _telemetry = telemetry::init(&config.telemetry, Mode::Stdio)?;
             let runtime = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(config.service.worker_threads)
                 .enable_all()
                 .build()
                 .context("starting the tokio runtime")?;

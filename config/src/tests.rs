@@ -72,6 +72,7 @@ fn defaults_load() {
     let config = Config::load_with_env(LoadOptions::default(), no_env()).unwrap();
     assert_eq!(config, Config::default());
     assert_eq!(config.service.name, "robotd");
+    assert_eq!(config.service.worker_threads, 2);
     assert_eq!(config.http.bind, "127.0.0.1:8000".parse().unwrap());
     assert_eq!(config.bus.namespace, "robotd");
     assert_eq!(config.bus.request_timeout(), Duration::from_secs(30));
@@ -230,6 +231,18 @@ fn invalid_values_are_refused_naming_key_and_reason() {
         .expect(&message);
     assert!(restarts.reason.contains("-1"), "{message}");
     assert!(restarts.reason.contains("at least 1"), "{message}");
+}
+
+#[test]
+fn the_runtime_needs_at_least_one_thread_and_at_most_64() {
+    assert_refused(
+        "[service]\nworker_threads = 0\n",
+        &[("service.worker_threads", "must be from 1 to 64, got 0")],
+    );
+    assert_refused(
+        "[service]\nworker_threads = 65\n",
+        &[("service.worker_threads", "got 65")],
+    );
 }
 
 #[test]

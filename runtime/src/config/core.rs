@@ -23,6 +23,18 @@ pub struct ServiceConfig {
     /// Name of this instance, shown in logs, health and the dashboard.
     #[serde(deserialize_with = "lenient::string")]
     pub name: String,
+    /// Threads of the async runtime that runs the edges and the light actors (1 to
+    /// [`MAX_WORKER_THREADS`]); perception, the writers and the live views have threads of
+    /// their own. See `config/default.toml` for the trade-off.
+    #[serde(default = "two_workers")]
+    pub worker_threads: usize,
+}
+
+/// Largest accepted [`ServiceConfig::worker_threads`].
+pub const MAX_WORKER_THREADS: usize = 64;
+
+fn two_workers() -> usize {
+    2
 }
 
 /// `[bus]`
@@ -267,6 +279,15 @@ impl Section for ServiceConfig {
             checks.problem("name", "must not be empty");
         } else if self.name.chars().any(char::is_control) {
             checks.problem("name", "must not contain control characters");
+        }
+        if !(1..=MAX_WORKER_THREADS).contains(&self.worker_threads) {
+            checks.problem(
+                "worker_threads",
+                format!(
+                    "must be from 1 to {MAX_WORKER_THREADS}, got {}",
+                    self.worker_threads
+                ),
+            );
         }
     }
 }
