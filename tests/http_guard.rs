@@ -457,3 +457,32 @@ fn connections_over_the_cap_get_a_503_that_names_the_setting() {
         std::thread::yield_now();
     }
 }
+
+#[test]
+fn a_body_that_trickles_in_is_refused_at_the_idle_timeout() {
+    let namespace = common::fresh_namespace("slowbody");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &["--set", "http.idle_timeout_s=2"]);
+    let session = open_streamable(Ipv4Addr::LOCALHOST, port);
+    let mut stream = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    // A complete head announcing 100 bytes, then 10 of them, then nothing.
+    write!(
+        stream,
+        "POST /mcp HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\ncontent-type: application/json\r\n\
+         accept: application/json, text/event-stream\r\nmcp-session-id: {session}\r\n\
+         content-length: 100\r\n\r\n{{\"jsonrpc\""
+    )
+    .unwrap();
+    let sent = std::time::Instant::now();
+    let answer = read_until_closed(&mut stream);
+    let waited = sent.elapsed();
+    assert!(
+        waited >= Duration::from_millis(1500) && waited < Duration::from_secs(8),
+        "answered after {waited:?}, the idle timeout is 2 s"
+    );
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+    assert!(answer.contains("did not arrive within 2 s"), "{answer}");
+}

@@ -11,11 +11,14 @@
 //!   send a complete request head within it — a kept-alive connection left unused, or a
 //!   client that trickles its headers — is closed. A response in progress (a long tool call,
 //!   an SSE stream) is not cut: the timeout runs only while the server waits for a request.
+//!   A request's body must arrive within the same time after its head
+//!   ([`crate::body_deadline`]).
 //!
 //! Each connection is served by hyper's HTTP/1 server with TCP_NODELAY (without it a response
 //! written in two pieces waits for the client's delayed ACK: a ~40 ms floor per call), and
 //! handlers read the client's address as `ConnectInfo<SocketAddr>`, as with `axum::serve`.
 
+use crate::body_deadline::DeadlineBody;
 use axum::extract::ConnectInfo;
 use axum::Router;
 use hyper_util::rt::{TokioIo, TokioTimer};
@@ -199,7 +202,10 @@ async fn serve_connection(
     idle_timeout: Duration,
     mut stopping: watch::Receiver<bool>,
 ) {
-    let service = hyper::service::service_fn(move |mut request| {
+    let service = hyper::service::service_fn(move |request: hyper::Request<_>| {
+        let mut request = request.map(|body| {
+            axum::body::Body::new(DeadlineBody::new(axum::body::Body::new(body), idle_timeout))
+        });
         request.extensions_mut().insert(ConnectInfo(peer));
         tower_service::Service::call(&mut app.clone(), request)
     });

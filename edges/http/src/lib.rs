@@ -15,6 +15,7 @@
 //! # }
 //! ```
 
+pub mod body_deadline;
 pub mod config;
 pub mod connections;
 pub mod guard;
