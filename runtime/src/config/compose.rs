@@ -183,7 +183,7 @@ fn deserialization_problems<C: Composed>(figment: &Figment, first: figment::Erro
 /// ```
 /// use robotd_runtime::config::{BusConfig, ServiceConfig};
 ///
-/// const DEFAULTS: &str = "[service]\nname = \"demo\"\n[bus]\nnamespace = \"demo\"\n\
+/// const DEFAULTS: &str = "[service]\nname = \"demo\"\nworker_threads = 1\n[bus]\nnamespace = \"demo\"\n\
 ///                         request_timeout_ms = 1000\nframe_subscriber_buffer = 2\n";
 ///
 /// robotd_runtime::compose_config! {

@@ -25,17 +25,12 @@ pub struct ServiceConfig {
     pub name: String,
     /// Threads of the async runtime that runs the edges and the light actors (1 to
     /// [`MAX_WORKER_THREADS`]); perception, the writers and the live views have threads of
-    /// their own. See `config/default.toml` for the trade-off.
-    #[serde(default = "two_workers")]
+    /// their own. See `config/default.toml` for the default and the trade-off.
     pub worker_threads: usize,
 }
 
 /// Largest accepted [`ServiceConfig::worker_threads`].
 pub const MAX_WORKER_THREADS: usize = 64;
-
-fn two_workers() -> usize {
-    2
-}
 
 /// `[bus]`
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
