@@ -385,7 +385,25 @@ fn the_dashboard_shows_the_robot_chats_and_stops_it() {
                     .unwrap()
             }
         });
-        common::wait_until_the_arm_moves(&mut states).await;
+        // The arm moves, or the call ended first: then its answer says why.
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let state = tokio::time::timeout(Duration::from_millis(200), states.recv()).await;
+            if let Ok(Ok(state)) = state {
+                if state.body.moving {
+                    break;
+                }
+            }
+            if motion.is_finished() {
+                let answer = motion.join().unwrap();
+                panic!(
+                    "pick_object ended before the arm moved: {}{}",
+                    String::from_utf8_lossy(&answer.stdout),
+                    String::from_utf8_lossy(&answer.stderr)
+                );
+            }
+            assert!(Instant::now() < deadline, "the arm never moved within 30 s");
+        }
         browser.click("#estop").await;
         let engaged_at = Instant::now();
         browser
