@@ -65,6 +65,8 @@ fn text_value() -> impl Strategy<Value = String> {
         "[ -~]{0,40}",
         "\\PC{0,20}",
         "[\\x00-\\x1f]{1,5}",
+        // A quoted string with an escape after any text (figment 0.10 panicked on "é\\n").
+        ("\\PC{1,8}", "\\PC{0,8}").prop_map(|(a, b)| format!("\"{a}\\{b}\"")),
     ]
 }
 

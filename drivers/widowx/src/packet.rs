@@ -49,6 +49,13 @@ pub enum FrameError {
         /// The length field.
         length: usize,
     },
+    /// The body holds a header (`FF FF FD`) without the stuffing byte a sender always adds:
+    /// the length field or the bytes are wrong even though the CRC matches.
+    #[error("an unstuffed header inside a packet for ID {id}")]
+    Stuffing {
+        /// Target ID.
+        id: u8,
+    },
 }
 
 /// Reassembles instruction packets from a byte stream.
@@ -91,7 +98,9 @@ impl Deframer {
             if calculate_checksum(0, &packet[..total - 2]) != crc {
                 return Some(Err(FrameError::Crc { id }));
             }
-            let body = unstuff(&packet[7..total - 2]);
+            let Some(body) = unstuff(&packet[7..total - 2]) else {
+                return Some(Err(FrameError::Stuffing { id }));
+            };
             let (instruction, params) = match body.split_first() {
                 Some((i, p)) => (*i, p.to_vec()),
                 None => continue,
@@ -112,18 +121,22 @@ fn find_header(buffer: &[u8]) -> Option<usize> {
         .position(|w| w[0] == 0xFF && w[1] == 0xFF && w[2] == 0xFD && w[3] != 0xFD)
 }
 
-/// Removes the `FD` inserted after every `FF FF FD`.
-pub fn unstuff(body: &[u8]) -> Vec<u8> {
+/// Removes the `FD` inserted after every `FF FF FD`; `None` when one is missing (a sender
+/// stuffs every such run, so its absence means the packet was cut or corrupted).
+pub fn unstuff(body: &[u8]) -> Option<Vec<u8>> {
     let mut out = Vec::with_capacity(body.len());
     let mut i = 0;
     while i < body.len() {
         out.push(body[i]);
-        if i >= 2 && body[i - 2..=i] == [0xFF, 0xFF, 0xFD] && body.get(i + 1) == Some(&0xFD) {
+        if i >= 2 && body[i - 2..=i] == [0xFF, 0xFF, 0xFD] {
+            if body.get(i + 1) != Some(&0xFD) {
+                return None;
+            }
             i += 1;
         }
         i += 1;
     }
-    out
+    Some(out)
 }
 
 /// Inserts an `FD` after every `FF FF FD`.
@@ -172,7 +185,9 @@ mod tests {
         let raw = [0x03, 0xFF, 0xFF, 0xFD, 0xFF, 0x01];
         let stuffed = stuff(&raw);
         assert_eq!(stuffed, vec![0x03, 0xFF, 0xFF, 0xFD, 0xFD, 0xFF, 0x01]);
-        assert_eq!(unstuff(&stuffed), raw);
+        assert_eq!(unstuff(&stuffed), Some(raw.to_vec()));
+        let raw = [0xFF, 0xFF, 0xFD, 0xFD, 0xFF, 0xFF, 0xFD];
+        assert_eq!(unstuff(&stuff(&raw)), Some(raw.to_vec()));
     }
 
     #[test]
@@ -195,5 +210,19 @@ mod tests {
         d.push(&[0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x01, 0x00]);
         assert_eq!(d.next_packet(), Some(Err(FrameError::Length { length: 1 })));
         assert_eq!(d.next_packet(), None);
+    }
+
+    #[test]
+    fn a_header_without_its_stuffing_byte_is_refused_even_with_a_good_crc() {
+        // A status whose position ends in FF FF FD, its stuffing byte cut off and the CRC
+        // recomputed: the length field says 8, as for an unstuffed reply.
+        let mut packet = vec![0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x08, 0x00];
+        packet.extend_from_slice(&[STATUS, 0x00, 0x00, 0xFF, 0xFF, 0xFD]);
+        let crc = calculate_checksum(0, &packet);
+        packet.extend_from_slice(&crc.to_le_bytes());
+        let mut d = Deframer::default();
+        d.push(&packet);
+        assert_eq!(d.next_packet(), Some(Err(FrameError::Stuffing { id: 1 })));
+        assert_eq!(unstuff(&[0xFF, 0xFF, 0xFD, 0x01]), None);
     }
 }

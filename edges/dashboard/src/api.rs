@@ -5,7 +5,7 @@
 //! | `GET /api/status` | health (actors, restarts, e-stop, Redis edge), the arm, camera figures, recent overlays and restarts, the tool calls of the last 5 minutes with their durations, whether the agent is available (and why not), the workspaces, the geofence, the largest free space |
 //! | `GET /api/objects` | `{"objects": [...]}`: the workspace model's tracked objects (id, label, position, size, …) |
 //! | `GET /api/rates` | `{"interval_s": 1, "samples": [...]}`: the last 5 minutes of page frame rate, detections per second and actor restarts, one sample a second (`at_unix_s`, `page_fps`, `detections_per_s`, `restarts`) |
-//! | `GET /api/camera.jpg` | the newest annotated camera frame; `X-Frame-Id`, `X-Frame-Timestamp-Ns` headers; 503 before the first frame |
+//! | `GET /api/camera.jpg` | the newest annotated camera frame; `X-Frame-Id`, `X-Frame-Timestamp-Ns` headers. When nobody watched, it waits (up to [`FIRST_FRAME_WAIT`]) for a frame to be encoded; 503 when none comes |
 //! | `GET /api/camera.mjpg` | the same as an MJPEG stream (`multipart/x-mixed-replace`) an `<img>` shows; a slow viewer skips frames |
 //! | `GET /api/events` | Server-Sent Events: `status` (the snapshot, twice a second), `agent`, `overlay`, `restart` as they happen |
 //! | `POST /api/chat` | `{"text": "…"}` → Server-Sent Events of that request: `request` (`{"request_id"}`) first, then its `agent` events (plan, tool calls and results, answer), closed after the answer, an error or a cancellation; 503 with the reason when no agent runs |
@@ -116,12 +116,36 @@ async fn rates(State(api): State<DashboardApi>) -> Json<Value> {
     Json(json!({"interval_s": 1.0, "samples": api.live.rates()}))
 }
 
+/// How long `/api/camera.jpg` waits for a frame when none is encoded (nobody was watching,
+/// or the camera has not sent one yet).
+pub const FIRST_FRAME_WAIT: std::time::Duration = std::time::Duration::from_secs(3);
+
 async fn camera_jpeg(State(api): State<DashboardApi>) -> Response {
-    let frame = api.live.camera().borrow().clone();
+    api.live.ask_for_frames();
+    // Holding a receiver also keeps the live view encoding while this request waits.
+    let mut frames = api.live.camera();
+    let mut frame = frames.borrow_and_update().clone();
+    if frame.is_none() {
+        let next = async {
+            while frames.changed().await.is_ok() {
+                if let Some(frame) = frames.borrow_and_update().clone() {
+                    return Some(frame);
+                }
+            }
+            None
+        };
+        frame = tokio::time::timeout(FIRST_FRAME_WAIT, next)
+            .await
+            .ok()
+            .flatten();
+    }
     match frame {
         None => refuse(
             StatusCode::SERVICE_UNAVAILABLE,
-            "no camera frame yet (is the camera actor running?)",
+            format!(
+                "no camera frame came within {} s (is the camera actor running?)",
+                FIRST_FRAME_WAIT.as_secs()
+            ),
         ),
         Some(frame) => (
             [

@@ -4,9 +4,12 @@
 //! them) and keeps:
 //!
 //! - the **camera**: at most `camera_fps` times a second the newest frame, with the newest
-//!   detections drawn on it (with the workspace model's stable ids), encoded as JPEG into a `watch` cell — each viewer takes the
-//!   newest frame when it is ready for one, so a slow browser skips frames and the camera
-//!   never waits (drop, don't queue);
+//!   detections drawn on it (with the workspace model's stable ids), encoded as JPEG into a
+//!   `watch` cell — each viewer takes the newest frame when it is ready for one, so a slow
+//!   browser skips frames and the camera never waits (drop, don't queue). Frames are encoded
+//!   only while someone watches: an open `/api/camera.mjpg` stream, or a `/api/camera.jpg`
+//!   asked for in the last [`KEEP_ENCODING_AFTER_ASK`]. With no viewer the cell is emptied, so
+//!   no stale frame is ever served, and a service nobody looks at spends no CPU on JPEGs;
 //! - a **snapshot** (arm, objects, recent overlays and restarts, camera and detection rates),
 //! - the **rates of the last five minutes**, one sample a second, so a page that opens or
 //!   reloads plots the recent past at once,
@@ -35,6 +38,9 @@ use tokio::sync::{broadcast, watch};
 const RECENT: usize = 20;
 /// Encode times kept for the median.
 const ENCODE_SAMPLES: usize = 64;
+/// How long frames keep being encoded after a `/api/camera.jpg` request, so a script polling
+/// snapshots gets each one at once.
+pub const KEEP_ENCODING_AFTER_ASK: Duration = Duration::from_secs(5);
 
 /// One encoded camera frame.
 #[derive(Debug, Clone)]
@@ -116,6 +122,8 @@ pub struct Live {
     rates: Mutex<VecDeque<RateSample>>,
     events: broadcast::Sender<LiveEvent>,
     camera: watch::Sender<Option<CameraJpeg>>,
+    /// When a single frame was last asked for (`/api/camera.jpg`).
+    frame_asked_at: Mutex<Option<Instant>>,
     stop: AtomicBool,
 }
 
@@ -147,9 +155,29 @@ impl Live {
         self.events.subscribe()
     }
 
-    /// The newest camera frame, and changes from now on.
+    /// The newest camera frame, and changes from now on. Frames are encoded while a receiver
+    /// is held.
     pub fn camera(&self) -> watch::Receiver<Option<CameraJpeg>> {
         self.camera.subscribe()
+    }
+
+    /// Someone wants single frames: keep encoding for [`KEEP_ENCODING_AFTER_ASK`].
+    pub fn ask_for_frames(&self) {
+        *self
+            .frame_asked_at
+            .lock()
+            .unwrap_or_else(|e| e.into_inner()) = Some(Instant::now());
+    }
+
+    /// Whether anyone watches the camera: a receiver is held (an MJPEG stream, a request
+    /// waiting for its frame), or a frame was asked for lately.
+    fn camera_watched(&self) -> bool {
+        self.camera.receiver_count() > 0
+            || self
+                .frame_asked_at
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .is_some_and(|at| at.elapsed() < KEEP_ENCODING_AFTER_ASK)
     }
 
     fn update(&self, change: impl FnOnce(&mut Snapshot)) {
@@ -172,6 +200,7 @@ pub fn start(bus: Bus, camera_fps: f64, jpeg_quality: u8) -> std::io::Result<Arc
         rates: Mutex::default(),
         events,
         camera,
+        frame_asked_at: Mutex::new(None),
         stop: AtomicBool::new(false),
     });
     let shared = live.clone();
@@ -311,7 +340,12 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
             let bytes = w * h * 3;
             let due = last_encoded.is_none_or(|t| t.elapsed() >= every);
             let rgb8 = header.channels == 3 && header.encoding == 0;
-            if due && rgb8 && sample.pixels().len() >= bytes {
+            let watched = live.camera_watched();
+            if !watched && live.camera.borrow().is_some() {
+                // Nobody watches: no frame is kept to go stale.
+                live.camera.send_replace(None);
+            }
+            if watched && due && rgb8 && sample.pixels().len() >= bytes {
                 last_encoded = Some(Instant::now());
                 let mut rgb = sample.pixels()[..bytes].to_vec();
                 drop(sample);

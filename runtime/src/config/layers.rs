@@ -111,11 +111,27 @@ impl Provider for OverrideLayer {
 
 /// Reads an environment/override value like a TOML value (number, bool, list, table), else
 /// as text.
+///
+/// figment 0.10's value parser slices a quoted string at a character count instead of a byte
+/// offset, and panics when a backslash follows a non-ASCII character (`"é\n"`). Such a value
+/// goes to the `toml` parser instead, and is text when that refuses it.
 fn parse_value(value: &str) -> Value {
+    if value.contains('\\') && !value.is_ascii() {
+        return parse_with_toml(value).unwrap_or_else(|| Value::from(value.to_owned()));
+    }
     match value.parse::<Value>() {
         Ok(value) => value,
         Err(never) => match never {},
     }
+}
+
+/// `value` as the right-hand side of a TOML `key = value` line, when it is exactly one value.
+fn parse_with_toml(value: &str) -> Option<Value> {
+    if value.contains(['\n', '\r']) {
+        return None;
+    }
+    let mut table: toml::Table = format!("value = {value}").parse().ok()?;
+    Value::serialize(table.remove("value")?).ok()
 }
 
 /// Sets `segments` (a key path) in `dict` to `value`, merging with what is already there.
@@ -136,5 +152,37 @@ fn insert(dict: &mut Dict, segments: &[String], value: Value) {
                 insert(child, rest, value);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_backslash_after_non_ascii_text_is_read_without_panicking() {
+        // figment alone panics on each of these.
+        assert_eq!(parse_value("\"é\\n\"").as_str(), Some("é\n"));
+        assert_eq!(
+            parse_value("\"\u{10511}\\\u{1cc4}").as_str(),
+            Some("\"\u{10511}\\\u{1cc4}")
+        );
+        let list = parse_value("[\"é\\t\", 2]");
+        let items = list.as_array().expect("a list");
+        assert_eq!(items[0].as_str(), Some("é\t"));
+        assert_eq!(items[1].to_i128(), Some(2));
+        assert_eq!(parse_value("C:\\Users\\é").as_str(), Some("C:\\Users\\é"));
+        assert_eq!(
+            parse_value("\"é\\\"\nx = 1").as_str(),
+            Some("\"é\\\"\nx = 1")
+        );
+    }
+
+    #[test]
+    fn plain_values_still_read_as_toml() {
+        assert_eq!(parse_value("42").to_u128(), Some(42));
+        assert_eq!(parse_value("true").to_bool(), Some(true));
+        assert_eq!(parse_value("\"a\\nb\"").as_str(), Some("a\nb"));
+        assert_eq!(parse_value("héllo").as_str(), Some("héllo"));
     }
 }
