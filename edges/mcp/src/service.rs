@@ -98,20 +98,18 @@ impl McpService {
             .map(str::to_owned)
     }
 
-    /// A token cancelled when the call is cancelled (`notifications/cancelled`), its session
-    /// closes or its connection drops; and the watcher task to abort once the call is over.
-    fn call_cancel(
+    /// What cancels a call: the client (`notifications/cancelled`), its session closing, or
+    /// its connection dropping. The future resolves when one of them happens.
+    fn cancellation(
         &self,
         context: &RequestContext<RoleServer>,
         session: Option<&str>,
         request: &str,
-    ) -> (CancellationToken, tokio::task::JoinHandle<()>) {
-        let cancel = CancellationToken::new();
+    ) -> impl std::future::Future<Output = ()> + Send + 'static {
         let by_client = context.ct.clone();
         let by_session = session.and_then(|s| self.scopes.find_session(s));
         let by_connection = session.and_then(|s| self.scopes.find_request(s, request));
-        let fire = cancel.clone();
-        let watcher = tokio::spawn(async move {
+        async move {
             let session_closed = async {
                 match by_session {
                     Some(t) => t.cancelled().await,
@@ -129,9 +127,7 @@ impl McpService {
                 _ = session_closed => tracing::info!("the MCP session closed: cancelling its call"),
                 _ = connection_dropped => {}
             }
-            fire.cancel();
-        });
-        (cancel, watcher)
+        }
     }
 
     /// The same service, naming `transport` (`sse`, `streamable_http`, `stdio`) in spans and
@@ -201,8 +197,15 @@ impl ServerHandler for McpService {
         });
         let session = self.session_of(&context);
         let request_id = context.id.to_string();
-        let (cancel, watcher) = self.call_cancel(&context, session.as_deref(), &request_id);
-        let hooks = CallHooks { progress, cancel };
+        let cancelled = self.cancellation(&context, session.as_deref(), &request_id);
+        let cancel = CancellationToken::new();
+        // Fires when this handler is dropped before its end (rmcp dropped it): the call's
+        // motion stops as for any cancellation.
+        let dropped_early = cancel.clone().drop_guard();
+        let hooks = CallHooks {
+            progress,
+            cancel: cancel.clone(),
+        };
         let origin = Origin::new(OriginKind::Mcp)
             .session(session.unwrap_or_else(|| self.transport.to_owned()))
             .request(request_id);
@@ -213,14 +216,14 @@ impl ServerHandler for McpService {
             .traceparent
             .and_then(|tp| tp.split('-').nth(1).map(str::to_owned));
         let started = Instant::now();
-        let outcome = with_origin(
+        let call = with_origin(
             origin,
             self.registry
                 .call(&name, arguments.clone(), hooks)
                 .instrument(span.clone()),
-        )
-        .await;
-        watcher.abort();
+        );
+        let outcome = until_done(call, cancelled, &cancel).await;
+        dropped_early.disarm();
         let elapsed = started.elapsed();
         match outcome {
             Ok(output) => {
@@ -258,5 +261,54 @@ impl ServerHandler for McpService {
                 ))
             }
         }
+    }
+}
+
+/// Runs `call` to its end. When `cancelled` resolves first, `cancel` fires (the call sees it,
+/// stops its motion and answers) and the call is still awaited. Both are polled by the
+/// caller's task: a call costs no task of its own for watching.
+async fn until_done<T>(
+    call: impl std::future::Future<Output = T>,
+    cancelled: impl std::future::Future<Output = ()>,
+    cancel: &CancellationToken,
+) -> T {
+    tokio::pin!(call);
+    tokio::select! {
+        biased;
+        outcome = &mut call => return outcome,
+        () = cancelled => cancel.cancel(),
+    }
+    call.await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::sync::oneshot;
+
+    #[tokio::test]
+    async fn a_call_that_ends_first_is_not_cancelled() {
+        let cancel = CancellationToken::new();
+        let outcome = until_done(async { 7 }, std::future::pending(), &cancel).await;
+        assert_eq!(outcome, 7);
+        assert!(!cancel.is_cancelled());
+    }
+
+    #[tokio::test]
+    async fn a_cancellation_fires_the_token_and_the_call_still_answers() {
+        let cancel = CancellationToken::new();
+        let (cancel_now, cancelled) = oneshot::channel::<()>();
+        let seen = cancel.clone();
+        // The call answers only once it has seen the token fire, as a stopped motion does.
+        let call = async move {
+            seen.cancelled().await;
+            "stopped"
+        };
+        cancel_now.send(()).unwrap();
+        let cancelled = async {
+            let _ = cancelled.await;
+        };
+        assert_eq!(until_done(call, cancelled, &cancel).await, "stopped");
+        assert!(cancel.is_cancelled());
     }
 }
