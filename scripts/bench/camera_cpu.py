@@ -16,19 +16,12 @@ Prints one JSON object. Linux only (/proc).
 import argparse
 import json
 import os
-import signal
 import socket
-import subprocess
-import tempfile
 import threading
 import time
 import urllib.request
 
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from served import Served
 
 
 def cpu_seconds(pid):
@@ -82,36 +75,18 @@ def main():
     parser.add_argument("binary")
     parser.add_argument("--seconds", type=float, default=20)
     args = parser.parse_args()
-    port = free_port()
-    logs = tempfile.mkdtemp(prefix="robotd-camera-cpu-")
-    service = subprocess.Popen(
-        [args.binary, "serve", "--namespace", f"camcpu{os.getpid()}",
-         "--http", f"127.0.0.1:{port}", "--set", f"telemetry.log_dir={logs}"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=1).read()
-                break
-            except OSError:
-                if time.monotonic() > deadline or service.poll() is not None:
-                    raise SystemExit("robotd serve did not come up")
-                time.sleep(0.2)
+    with Served(args.binary, "camcpu") as robotd:
+        port = robotd.port
         time.sleep(5)
-        result = {"nobody_watching": measure(service.pid, port, args.seconds)}
+        result = {"nobody_watching": measure(robotd.pid, port, args.seconds)}
         viewer = Viewer(port)
         time.sleep(3)
-        result["one_mjpeg_viewer"] = measure(service.pid, port, args.seconds)
+        result["one_mjpeg_viewer"] = measure(robotd.pid, port, args.seconds)
         result["one_mjpeg_viewer"]["viewer_mb_read"] = round(viewer.bytes / 1e6, 1)
         viewer.close()
         time.sleep(8)
-        result["nobody_watching_again"] = measure(service.pid, port, args.seconds)
+        result["nobody_watching_again"] = measure(robotd.pid, port, args.seconds)
         print(json.dumps(result))
-    finally:
-        service.send_signal(signal.SIGTERM)
-        service.wait(timeout=30)
 
 
 if __name__ == "__main__":

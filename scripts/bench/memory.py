@@ -15,19 +15,11 @@ Prints one JSON object. Linux only (/proc).
 import argparse
 import json
 import os
-import signal
-import socket
-import subprocess
-import sys
-import tempfile
 import time
+import urllib.error
 import urllib.request
 
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from served import Served
 
 
 def figures(pid):
@@ -80,30 +72,12 @@ def main():
     parser.add_argument("--wait", type=float, default=0.0)
     args = parser.parse_args()
 
-    port = free_port()
-    namespace = f"mem{os.getpid()}"
-    logs = tempfile.mkdtemp(prefix="robotd-memory-")
-    robotd = subprocess.Popen(
-        [args.binary, "serve", "--namespace", namespace, "--http", f"127.0.0.1:{port}",
-         "--set", f"telemetry.log_dir={logs}"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        deadline = time.time() + 60
-        while True:
-            try:
-                urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=1).read()
-                break
-            except Exception:
-                if time.time() > deadline or robotd.poll() is not None:
-                    sys.exit("robotd serve did not answer /health")
-                time.sleep(0.2)
+    with Served(args.binary, "mem") as robotd:
         time.sleep(8)
         result = {"idle": figures(robotd.pid)}
         statuses = {}
         for _ in range(args.sessions):
-            status = open_session(port)
+            status = open_session(robotd.port)
             statuses[status] = statuses.get(status, 0) + 1
         result["sessions_opened"] = args.sessions
         result["answers"] = {str(k): v for k, v in sorted(statuses.items())}
@@ -112,9 +86,6 @@ def main():
             time.sleep(args.wait)
             result[f"after_{args.wait:g}_s"] = figures(robotd.pid)
         print(json.dumps(result))
-    finally:
-        robotd.send_signal(signal.SIGTERM)
-        robotd.wait(timeout=30)
 
 
 if __name__ == "__main__":
