@@ -100,6 +100,42 @@ fn bench_bus_json_reports_every_figure() {
 }
 
 #[test]
+fn bench_mcp_json_reports_every_figure() {
+    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args([
+            "bench",
+            "mcp",
+            "--json",
+            "--calls",
+            "20",
+            "--seconds",
+            "0.5",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let figures: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    for key in [
+        "coordinate_sse_us_p50",
+        "coordinate_http_us_p50",
+        "coordinate_http_raw_us_p50",
+        "ping_http_raw_us_p50",
+        "http_floor_us_p50",
+        "tcp_echo_us_p50",
+        "coordinate_direct_us_p50",
+        "objects_http_us_p50",
+        "calls_per_s_8_clients",
+        "calls_per_s_64_clients",
+        "service_rss_mb",
+        "service_rss_after_clients_left_mb",
+    ] {
+        let value = figures[key].as_f64().unwrap_or(f64::NAN);
+        assert!(value.is_finite() && value > 0.0, "{key} = {}", figures[key]);
+    }
+}
+
+#[test]
 fn bench_jpeg_json_reports_every_figure() {
     let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
         .args(["bench", "jpeg", "--json", "--frames", "20"])

@@ -9,7 +9,10 @@
 //! 2. the same two tools called directly on the tool registry over the bus (no MCP, no HTTP):
 //!    the baseline the MCP edge adds to;
 //! 3. the first tool over streamable HTTP again with the leanest client ([`super::mcp_raw`]):
-//!    how much of the per-call cost is the server's;
+//!    how much of the per-call cost is the server's, interleaved with an MCP `ping` (rmcp's
+//!    session pipeline without a tool) and a `GET /health` (the HTTP floor) on the same
+//!    connection, so the server's share splits into layers; and a loopback TCP round trip
+//!    between two threads ([`super::tcp_echo`]): the raw floor under all of them;
 //! 4. calls per second with 8 and 64 concurrent streamable-HTTP clients;
 //! 5. the service's resident memory (VmRSS) after the load, and after the clients left.
 
@@ -49,6 +52,15 @@ pub struct McpFigures {
     /// `get_workspace_coordinate_from_point` over streamable HTTP with the leanest client
     /// (plain HTTP requests, no MCP client library), µs.
     pub coordinate_http_raw_us_p50: f64,
+    /// MCP `ping` over streamable HTTP with the leanest client (rmcp's session pipeline, no
+    /// tool), µs; timed interleaved with the call above.
+    pub ping_http_raw_us_p50: f64,
+    /// `GET /health` on the same connection (TCP, HTTP and the port's guard: the floor of any
+    /// HTTP call), µs; timed interleaved with the two above.
+    pub http_floor_us_p50: f64,
+    /// Raw baseline: a loopback TCP round trip between two threads of this process
+    /// ([`super::tcp_echo`]), µs, right after the three above.
+    pub tcp_echo_us_p50: f64,
     /// Baseline: `get_workspace_coordinate_from_point` on the registry directly, µs.
     pub coordinate_direct_us_p50: f64,
     /// Baseline: `get_detected_objects` on the registry directly, µs.
@@ -78,6 +90,9 @@ impl McpFigures {
              get_workspace_coordinate_from_point, SSE           {:>7.0} / {:>7.0}   p50 ≤ 500\n\
              get_workspace_coordinate_from_point, HTTP          {:>7.0} / {:>7.0}   p50 ≤ 500\n\
              get_workspace_coordinate_from_point, HTTP, raw     {:>7.0}           (lean client)\n\
+             MCP ping, HTTP, raw                                {:>7.0}           (lean client)\n\
+             GET /health (HTTP floor)                           {:>7.0}           (lean client)\n\
+             loopback TCP round trip (raw baseline)             {:>7.0}\n\
              get_workspace_coordinate_from_point, direct        {:>7.0}\n\
              get_detected_objects at obs. pose, SSE             {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
              get_detected_objects at obs. pose, HTTP            {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
@@ -92,6 +107,9 @@ impl McpFigures {
             self.coordinate_http_us_p50,
             self.coordinate_http_us_p99,
             self.coordinate_http_raw_us_p50,
+            self.ping_http_raw_us_p50,
+            self.http_floor_us_p50,
+            self.tcp_echo_us_p50,
             self.coordinate_direct_us_p50,
             self.objects_sse_us_p50,
             self.objects_sse_us_p99,
@@ -281,13 +299,16 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
         .await?;
         let objects_sse = mcp_latency(&sse, "get_detected_objects", &objects, calls).await?;
         let objects_http = mcp_latency(&http, "get_detected_objects", &objects, calls).await?;
-        let coordinate_http_raw = super::mcp_raw::latency(
+        let raw = super::mcp_raw::layers(
             &http_url,
             "get_workspace_coordinate_from_point",
             &coordinate,
             calls,
         )
         .await?;
+        let tcp_echo = tokio::task::spawn_blocking(move || super::tcp_echo::latency(calls))
+            .await
+            .context("the TCP echo baseline")??;
 
         let bus = Bus::open(BusOptions::new(&namespace, "bench-mcp"))?;
         let workspaces = vec![WorkspaceInfo {
@@ -335,7 +356,10 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
             objects_sse_us_p99: objects_sse.p99_us,
             objects_http_us_p50: objects_http.p50_us,
             objects_http_us_p99: objects_http.p99_us,
-            coordinate_http_raw_us_p50: coordinate_http_raw.p50_us,
+            coordinate_http_raw_us_p50: raw.call.p50_us,
+            ping_http_raw_us_p50: raw.ping.p50_us,
+            http_floor_us_p50: raw.http.p50_us,
+            tcp_echo_us_p50: tcp_echo.p50_us,
             coordinate_direct_us_p50: coordinate_direct.p50_us,
             objects_direct_us_p50: objects_direct.p50_us,
             calls_per_s_8_clients: calls_8,

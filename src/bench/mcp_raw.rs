@@ -104,6 +104,31 @@ impl RawSession {
         Ok(())
     }
 
+    /// A JSON-RPC `ping` through the session: the MCP layer's path without a tool.
+    pub async fn ping(&mut self) -> Result<()> {
+        let id = self.next_id;
+        self.next_id += 1;
+        let body = json!({"jsonrpc": "2.0", "id": id, "method": "ping"});
+        let text = self.post(body.to_string()).await?.text().await?;
+        let reply = json_rpc_reply(&text, id)?;
+        if reply["result"] != json!({}) {
+            bail!("ping answered {reply}");
+        }
+        Ok(())
+    }
+
+    /// `GET /health` on the same port and connection: the HTTP floor, no MCP at all.
+    pub async fn health(&self) -> Result<()> {
+        let url = self.url.trim_end_matches("/mcp").to_owned() + "/health";
+        let response = self.http.get(&url).send().await?;
+        let status = response.status();
+        let body = response.bytes().await?;
+        if !status.is_success() || body.is_empty() {
+            bail!("GET /health answered {status}");
+        }
+        Ok(())
+    }
+
     /// Ends the session (`DELETE`).
     pub async fn close(self) {
         let _ = self
@@ -130,22 +155,45 @@ fn json_rpc_reply(body: &str, id: u64) -> Result<Value> {
         .with_context(|| format!("no answer to request {id} in the reply {body:?}"))
 }
 
-/// Latency of `calls` calls of `tool` on a fresh raw session on `url`.
-pub async fn latency(
+/// Where a streamable-HTTP call's time goes, layer by layer, on one kept-alive connection.
+pub struct Layers {
+    /// `GET /health`: TCP, HTTP and the port's guard.
+    pub http: Latency,
+    /// MCP `ping`: the above plus rmcp's session pipeline.
+    pub ping: Latency,
+    /// `tool`: the above plus the tool and its bus round trip.
+    pub call: Latency,
+}
+
+/// `calls` rounds of a `GET /health`, a `ping` and a call of `tool` on a fresh raw session on
+/// `url`, interleaved so that all three see the same machine.
+pub async fn layers(
     url: &str,
     tool: &str,
     arguments: &Map<String, Value>,
     calls: usize,
-) -> Result<Latency> {
+) -> Result<Layers> {
     let mut session = RawSession::open(url).await?;
-    let mut samples = Vec::with_capacity(calls);
+    let mut http = Vec::with_capacity(calls);
+    let mut ping = Vec::with_capacity(calls);
+    let mut call = Vec::with_capacity(calls);
     for _ in 0..calls {
         let started = Instant::now();
+        session.health().await?;
+        http.push(started.elapsed());
+        let started = Instant::now();
+        session.ping().await?;
+        ping.push(started.elapsed());
+        let started = Instant::now();
         session.call(tool, arguments).await?;
-        samples.push(started.elapsed());
+        call.push(started.elapsed());
     }
     session.close().await;
-    Ok(Latency::of(&mut samples))
+    Ok(Layers {
+        http: Latency::of(&mut http),
+        ping: Latency::of(&mut ping),
+        call: Latency::of(&mut call),
+    })
 }
 
 #[cfg(test)]

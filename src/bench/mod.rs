@@ -15,6 +15,7 @@ pub mod redis;
 pub mod safety;
 pub mod sim;
 pub mod soak;
+pub mod tcp_echo;
 pub mod widowx;
 
 pub use robotd_bench::bus;

@@ -140,7 +140,9 @@ impl CallLog {
             trace_id,
         } = *call;
         robotd_runtime::metrics::Metrics::global().tool_call(transport, status);
-        tracing::info!(
+        // Debug, not info: this file is the record of every call. An info line per call in
+        // the service log repeated it and woke the log writer's thread on every call.
+        tracing::debug!(
             target: "robotd::mcp::calls",
             transport,
             tool,
