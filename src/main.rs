@@ -668,6 +668,10 @@ fn run() -> Result<std::process::ExitCode> {
             count,
             cpu,
         } => {
+            if role == bench::tcp_echo::PEER_ROLE {
+                bench::tcp_echo::serve_peer()?;
+                return Ok(std::process::ExitCode::SUCCESS);
+            }
             bench::bus::run_peer(&role, &peer_namespace, count, cpu)?;
             Ok(std::process::ExitCode::SUCCESS)
         }

@@ -11,8 +11,8 @@
 //! 3. the first tool over streamable HTTP again with the leanest client ([`super::mcp_raw`]):
 //!    how much of the per-call cost is the server's, interleaved with an MCP `ping` (rmcp's
 //!    session pipeline without a tool) and a `GET /health` (the HTTP floor) on the same
-//!    connection, so the server's share splits into layers; and a loopback TCP round trip
-//!    between two threads ([`super::tcp_echo`]): the raw floor under all of them;
+//!    connection, so the server's share splits into layers; and a loopback TCP round trip to
+//!    a peer process ([`super::tcp_echo`]): the raw floor under all of them;
 //! 4. calls per second with 8 and 64 concurrent streamable-HTTP clients;
 //! 5. the service's resident memory (VmRSS) after the load, and after the clients left.
 
@@ -58,7 +58,7 @@ pub struct McpFigures {
     /// `GET /health` on the same connection (TCP, HTTP and the port's guard: the floor of any
     /// HTTP call), µs; timed interleaved with the two above.
     pub http_floor_us_p50: f64,
-    /// Raw baseline: a loopback TCP round trip between two threads of this process
+    /// Raw baseline: a loopback TCP round trip between this process and a peer process
     /// ([`super::tcp_echo`]), µs, right after the three above.
     pub tcp_echo_us_p50: f64,
     /// Baseline: `get_workspace_coordinate_from_point` on the registry directly, µs.
@@ -306,9 +306,11 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
             calls,
         )
         .await?;
-        let tcp_echo = tokio::task::spawn_blocking(move || super::tcp_echo::latency(calls))
-            .await
-            .context("the TCP echo baseline")??;
+        let echo_exe = exe.to_owned();
+        let tcp_echo =
+            tokio::task::spawn_blocking(move || super::tcp_echo::latency(&echo_exe, calls))
+                .await
+                .context("the TCP echo baseline")??;
 
         let bus = Bus::open(BusOptions::new(&namespace, "bench-mcp"))?;
         let workspaces = vec![WorkspaceInfo {

@@ -1,17 +1,22 @@
-//! The raw baseline under every HTTP figure: a loopback TCP round trip.
+//! The raw baseline under every HTTP figure: a loopback TCP round trip between two processes.
 //!
-//! An echo server on its own thread answers each message with the same bytes; the caller
-//! times write-then-read round trips of a message about the size of an MCP request, with
-//! `TCP_NODELAY` on both ends as robotd's HTTP port has. Two threads handing a message back
-//! and forth through the kernel cost two wake-ups per round trip, which is the floor of any
-//! HTTP call on the machine of the run: what remains above it is the HTTP stack's, MCP's and
-//! the tool's.
+//! An echo server in a peer process (`robotd bench-peer tcp-echo`, this binary again) answers
+//! each message with the same bytes; the caller times write-then-read round trips of a
+//! message about the size of an MCP request, with `TCP_NODELAY` on both ends as robotd's HTTP
+//! port has. That is what any call from a client process to the service costs at least on the
+//! machine of the run (two wake-ups across processes); what remains above it is the HTTP
+//! stack's, MCP's and the tool's.
 
 use super::Latency;
 use anyhow::{bail, Context, Result};
-use std::io::{Read, Write};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
+use std::path::Path;
+use std::process::{Command, Stdio};
 use std::time::Instant;
+
+/// The `bench-peer` role of the echo server.
+pub const PEER_ROLE: &str = "tcp-echo";
 
 /// Bytes per message: about an MCP `tools/call` request with its headers.
 const MESSAGE_BYTES: usize = 400;
@@ -19,25 +24,41 @@ const MESSAGE_BYTES: usize = 400;
 /// Round trips made before timing starts.
 const WARM_UP: usize = 100;
 
-/// `round_trips` loopback TCP round trips, timed.
-pub fn latency(round_trips: usize) -> Result<Latency> {
-    let listener = TcpListener::bind("127.0.0.1:0").context("binding the echo server")?;
-    let address = listener.local_addr()?;
-    let server = std::thread::Builder::new()
-        .name("bench-echo".into())
-        .spawn(move || -> std::io::Result<()> {
-            let (mut peer, _) = listener.accept()?;
-            peer.set_nodelay(true)?;
-            let mut buffer = [0u8; MESSAGE_BYTES];
-            loop {
-                let read = peer.read(&mut buffer)?;
-                if read == 0 {
-                    return Ok(());
-                }
-                peer.write_all(&buffer[..read])?;
-            }
-        })?;
-    let mut client = TcpStream::connect(address).context("connecting to the echo server")?;
+/// `round_trips` loopback TCP round trips to an echo server in a peer process of `exe`, timed.
+pub fn latency(exe: &Path, round_trips: usize) -> Result<Latency> {
+    let mut peer = Command::new(exe)
+        .args([
+            "bench-peer",
+            PEER_ROLE,
+            "--peer-namespace",
+            "-",
+            "--count",
+            "0",
+        ])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .spawn()
+        .context("starting the TCP echo peer")?;
+    let timed = (|| {
+        let stdout = peer.stdout.take().context("the echo peer's stdout")?;
+        let mut line = String::new();
+        BufReader::new(stdout).read_line(&mut line)?;
+        let port: u16 = line
+            .trim()
+            .strip_prefix("listening ")
+            .and_then(|p| p.parse().ok())
+            .with_context(|| format!("the echo peer said {line:?}, not its port"))?;
+        time_round_trips(port, round_trips)
+    })();
+    // The peer ends when the connection closes; kill it in case it never got one.
+    let _ = peer.kill();
+    let _ = peer.wait();
+    timed
+}
+
+fn time_round_trips(port: u16, round_trips: usize) -> Result<Latency> {
+    let mut client =
+        TcpStream::connect(("127.0.0.1", port)).context("connecting to the echo peer")?;
     client.set_nodelay(true)?;
     let message = [b'x'; MESSAGE_BYTES];
     let mut reply = [0u8; MESSAGE_BYTES];
@@ -50,23 +71,25 @@ pub fn latency(round_trips: usize) -> Result<Latency> {
             samples.push(started.elapsed());
         }
     }
-    drop(client);
-    match server.join() {
-        Ok(Ok(())) => {}
-        Ok(Err(error)) => bail!("the echo server failed: {error}"),
-        Err(_) => bail!("the echo server panicked"),
+    if reply != message {
+        bail!("the echo peer answered other bytes than it was sent");
     }
     Ok(Latency::of(&mut samples))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn round_trips_are_timed_and_the_server_ends_with_the_client() {
-        let latency = latency(50).unwrap();
-        assert!(latency.p50_us > 0.0, "{}", latency.p50_us);
-        assert!(latency.p99_us >= latency.p50_us);
+/// Entry of `robotd bench-peer tcp-echo`: prints `listening <port>`, echoes one connection.
+pub fn serve_peer() -> Result<()> {
+    let listener = TcpListener::bind("127.0.0.1:0").context("binding the echo server")?;
+    println!("listening {}", listener.local_addr()?.port());
+    std::io::stdout().flush()?;
+    let (mut peer, _) = listener.accept()?;
+    peer.set_nodelay(true)?;
+    let mut buffer = [0u8; MESSAGE_BYTES];
+    loop {
+        let read = peer.read(&mut buffer)?;
+        if read == 0 {
+            return Ok(());
+        }
+        peer.write_all(&buffer[..read])?;
     }
 }
