@@ -1,5 +1,5 @@
 //! The command line as a user meets it: bad configuration is refused with the place and the
-//! reason, logs land in date-stamped files, and `robotd bench bus --json` reports every figure.
+//! reason, logs land in date-stamped files, and `robotd bench bus|mcp|jpeg --json` report every figure.
 
 mod common;
 
@@ -62,100 +62,101 @@ fn the_service_writes_a_date_stamped_log_file() {
     let _ = std::fs::remove_dir_all(&log_dir);
 }
 
-#[test]
-fn bench_bus_json_reports_every_figure() {
+/// Runs `robotd <args>` (a `bench … --json`) and returns its figures.
+fn bench_figures(args: &[&str]) -> serde_json::Value {
     let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
-        .args([
-            "bench",
-            "bus",
-            "--json",
-            "--round-trips",
-            "200",
-            "--frames",
-            "200",
-            "--restarts",
-            "20",
-        ])
+        .args(args)
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{stderr}");
-    let figures: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
-    for key in [
-        "raw_rtt_p50_us",
-        "raw_rtt_p99_us",
-        "bus_rtt_p50_us",
-        "bus_rtt_p99_us",
-        "bus_inproc_rtt_p50_us",
-        "raw_frames_per_s",
-        "bus_frames_per_s",
-        "restart_p50_us",
-        "restart_p99_us",
-    ] {
+    serde_json::from_slice(&output.stdout).unwrap()
+}
+
+/// Every figure named in `keys` is a positive, finite number.
+fn assert_all_positive(figures: &serde_json::Value, keys: &[&str]) {
+    for key in keys {
         let value = figures[key].as_f64().unwrap_or(f64::NAN);
         assert!(value.is_finite() && value > 0.0, "{key} = {}", figures[key]);
     }
+}
+
+#[test]
+fn bench_bus_json_reports_every_figure() {
+    let figures = bench_figures(&[
+        "bench",
+        "bus",
+        "--json",
+        "--round-trips",
+        "200",
+        "--frames",
+        "200",
+        "--restarts",
+        "20",
+    ]);
+    assert_all_positive(
+        &figures,
+        &[
+            "raw_rtt_p50_us",
+            "raw_rtt_p99_us",
+            "bus_rtt_p50_us",
+            "bus_rtt_p99_us",
+            "bus_inproc_rtt_p50_us",
+            "raw_frames_per_s",
+            "bus_frames_per_s",
+            "restart_p50_us",
+            "restart_p99_us",
+        ],
+    );
     assert_eq!(figures["bus_frames_lost"], 0);
     assert_eq!(figures["raw_frames_lost"], 0);
 }
 
 #[test]
 fn bench_mcp_json_reports_every_figure() {
-    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
-        .args([
-            "bench",
-            "mcp",
-            "--json",
-            "--calls",
-            "20",
-            "--seconds",
-            "0.5",
-        ])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "{stderr}");
-    let figures: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
-    for key in [
-        "coordinate_sse_us_p50",
-        "coordinate_http_us_p50",
-        "coordinate_http_raw_us_p50",
-        "ping_http_raw_us_p50",
-        "http_floor_us_p50",
-        "tcp_echo_us_p50",
-        "coordinate_direct_us_p50",
-        "objects_http_us_p50",
-        "calls_per_s_8_clients",
-        "calls_per_s_64_clients",
-        "service_rss_mb",
-        "service_rss_after_clients_left_mb",
-    ] {
-        let value = figures[key].as_f64().unwrap_or(f64::NAN);
-        assert!(value.is_finite() && value > 0.0, "{key} = {}", figures[key]);
-    }
+    let figures = bench_figures(&[
+        "bench",
+        "mcp",
+        "--json",
+        "--calls",
+        "20",
+        "--seconds",
+        "0.5",
+    ]);
+    assert_all_positive(
+        &figures,
+        &[
+            "coordinate_sse_us_p50",
+            "coordinate_http_us_p50",
+            "coordinate_http_raw_us_p50",
+            "ping_http_raw_us_p50",
+            "http_floor_us_p50",
+            "tcp_echo_us_p50",
+            "coordinate_direct_us_p50",
+            "objects_http_us_p50",
+            "calls_per_s_8_clients",
+            "calls_per_s_64_clients",
+            "service_rss_mb",
+            "service_rss_after_clients_left_mb",
+        ],
+    );
 }
 
 #[test]
 fn bench_jpeg_json_reports_every_figure() {
-    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
-        .args(["bench", "jpeg", "--json", "--frames", "20"])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "{stderr}");
-    let figures: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
-    for key in [
-        "encode_q85_ms_p50",
-        "encode_q85_ms_p99",
-        "image_crate_q85_ms_p50",
-        "encode_q80_ms_p50",
-        "copy_ms_p50",
-        "q85_bytes",
-        "image_crate_q85_bytes",
-    ] {
-        let value = figures[key].as_f64().unwrap_or(f64::NAN);
-        assert!(value.is_finite() && value > 0.0, "{key} = {}", figures[key]);
-    }
+    let figures = bench_figures(&["bench", "jpeg", "--json", "--frames", "20"]);
+    assert_all_positive(
+        &figures,
+        &[
+            "encode_q85_ms_p50",
+            "encode_q85_ms_p99",
+            "image_crate_q85_ms_p50",
+            "encode_q80_ms_p50",
+            "copy_ms_p50",
+            "q85_bytes",
+            "image_crate_q85_bytes",
+        ],
+    );
     // The encoder robotd uses is the faster one (≈ 3× here; the margin allows a noisy run).
     let ours = figures["encode_q85_ms_p50"].as_f64().unwrap();
     let old = figures["image_crate_q85_ms_p50"].as_f64().unwrap();
