@@ -1,5 +1,6 @@
 //! The command line as a user meets it: bad configuration is refused with the place and the
-//! reason, logs land in date-stamped files, and `robotd bench bus|mcp|jpeg --json` report every figure.
+//! reason, logs land in date-stamped files, and `robotd bench bus|mcp|jpeg --json` report
+//! every figure.
 
 mod common;
 
