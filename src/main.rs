@@ -339,6 +339,10 @@ struct BenchMcpArgs {
     /// Seconds of each throughput run.
     #[arg(long, default_value_t = 3.0)]
     seconds: f64,
+    /// Run the service and the benchmark pinned to CPU 0, without the cross-CPU wake-ups
+    /// (slow on VMs) in every figure.
+    #[arg(long)]
+    one_core: bool,
 }
 
 #[derive(Debug, Args)]
@@ -659,7 +663,12 @@ fn run() -> Result<std::process::ExitCode> {
             what: BenchCommand::Mcp(args),
         } => {
             let exe = std::env::current_exe().context("finding the robotd binary")?;
-            let figures = bench::mcp::run(&exe, args.calls.max(10), args.seconds.max(0.5))?;
+            let figures = bench::mcp::run(
+                &exe,
+                args.calls.max(10),
+                args.seconds.max(0.5),
+                args.one_core,
+            )?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::BenchPeer {

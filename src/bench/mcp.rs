@@ -15,6 +15,12 @@
 //!    a peer process ([`super::tcp_echo`]): the raw floor under all of them;
 //! 4. calls per second with 8 and 64 concurrent streamable-HTTP clients;
 //! 5. the service's resident memory (VmRSS) after the load, and after the clients left.
+//!
+//! With `--one-core`, this process pins itself to CPU 0 before it starts anything, so the
+//! service, the peers and every thread of both run on that one CPU. On a VM where waking a
+//! thread on another CPU is slow (the 2-vCPU CI machine: ~55 µs, `robotd bench bus`'s
+//! "pinned to two cores"), the default figures are mostly those cross-CPU wake-ups; pinned,
+//! they show what robotd's own code costs per call.
 
 use super::{Latency, Served};
 use anyhow::{bail, Context, Result};
@@ -80,6 +86,8 @@ pub struct McpFigures {
     pub calls: usize,
     /// Seconds of each throughput run.
     pub throughput_s: f64,
+    /// Whether the service and this benchmark ran pinned to one CPU (`--one-core`).
+    pub one_core: bool,
 }
 
 impl McpFigures {
@@ -94,6 +102,7 @@ impl McpFigures {
              GET /health (HTTP floor)                           {:>7.0}           (lean client)\n\
              loopback TCP round trip (raw baseline)             {:>7.0}\n\
              get_workspace_coordinate_from_point, direct        {:>7.0}\n\
+             MCP overhead (p50 − direct): SSE / HTTP / raw      {:>7.0} / {:>7.0} / {:>5.0} ≤ 150\n\
              get_detected_objects at obs. pose, SSE             {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
              get_detected_objects at obs. pose, HTTP            {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
              get_detected_objects at obs. pose, direct          {:>7.0}\n\
@@ -101,7 +110,8 @@ impl McpFigures {
              calls/s, 64 clients (HTTP)                         {:>9.0}           ≥ 5,000\n\
              service RSS right after load                       {:>9.1} MB        ≤ 80 MB\n\
              service RSS 3 s after load, sessions open          {:>9.1} MB        ≤ 80 MB\n\
-             service RSS 3 s after the clients left             {:>9.1} MB        near idle\n",
+             service RSS 3 s after the clients left             {:>9.1} MB        near idle\n\
+             {}\n",
             self.coordinate_sse_us_p50,
             self.coordinate_sse_us_p99,
             self.coordinate_http_us_p50,
@@ -111,6 +121,9 @@ impl McpFigures {
             self.http_floor_us_p50,
             self.tcp_echo_us_p50,
             self.coordinate_direct_us_p50,
+            self.coordinate_sse_us_p50 - self.coordinate_direct_us_p50,
+            self.coordinate_http_us_p50 - self.coordinate_direct_us_p50,
+            self.coordinate_http_raw_us_p50 - self.coordinate_direct_us_p50,
             self.objects_sse_us_p50,
             self.objects_sse_us_p99,
             self.objects_http_us_p50,
@@ -121,6 +134,11 @@ impl McpFigures {
             self.service_rss_mb,
             self.service_rss_quiet_mb,
             self.service_rss_after_clients_left_mb,
+            if self.one_core {
+                "service and benchmark pinned to CPU 0 (--one-core)"
+            } else {
+                "threads on any CPU (--one-core pins everything to CPU 0)"
+            },
         )
     }
 }
@@ -267,7 +285,12 @@ fn rss_mb(pid: u32) -> Result<f64> {
 }
 
 /// Runs the benchmark against a robotd this function starts.
-pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
+/// With `one_core`, everything runs on CPU 0 (see the module's documentation).
+pub fn run(exe: &Path, calls: usize, throughput_s: f64, one_core: bool) -> Result<McpFigures> {
+    if one_core {
+        // Threads and child processes inherit the affinity: pin before starting any.
+        super::bus::pin_current_thread(0).context("--one-core")?;
+    }
     let namespace = format!("bench-mcp-{}", std::process::id());
     let port = free_port()?;
     let served = start_service(exe, &namespace, port)?;
@@ -300,7 +323,7 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
         let objects_sse = mcp_latency(&sse, "get_detected_objects", &objects, calls).await?;
         let objects_http = mcp_latency(&http, "get_detected_objects", &objects, calls).await?;
         let raw = super::mcp_raw::layers(
-            &http_url,
+            std::net::SocketAddr::from(([127, 0, 0, 1], port)),
             "get_workspace_coordinate_from_point",
             &coordinate,
             calls,
@@ -371,6 +394,7 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64) -> Result<McpFigures> {
             service_rss_after_clients_left_mb,
             calls,
             throughput_s,
+            one_core,
         })
     })?;
     drop(served);
