@@ -303,20 +303,27 @@ impl Bus {
             what: format!("subscriber on '{}'", topic.name),
             reason: format!("cannot connect to the publishers: {e:?}"),
         })?;
-        let consumed = match topic.overflow {
+        // On a back-pressure topic a new publisher waits for each subscriber to connect and
+        // acknowledge, so a task listens for new publishers. On a latest-wins topic nobody
+        // waits: the subscriber connects to a new publisher at its next receive (iceoryx2's
+        // `receive` updates the connections first), which the publisher's first message wakes
+        // it for. That spares a listener (a socket, a port, a shared-memory segment) and a task
+        // per subscriber; frame subscribers have always worked this way.
+        let (consumed, connector) = match topic.overflow {
             Overflow::BackPressure { .. } => {
-                Some(Arc::new(Notify::new(self, &consumed_event(&topic.name))?))
+                let consumed = Arc::new(Notify::new(self, &consumed_event(&topic.name))?);
+                let joined = Wake::new(self, &joined_event(&topic.name))?;
+                let connector = tokio::spawn(connect_new_publishers(
+                    joined,
+                    port.clone(),
+                    consumed.clone(),
+                ));
+                (Some(consumed), Some(connector))
             }
-            Overflow::LatestWins { .. } => None,
+            Overflow::LatestWins { .. } => (None, None),
         };
-        let joined = Wake::new(self, &joined_event(&topic.name))?;
         // Tell whoever waits for a subscriber (a client waiting for its server) that one is here.
         Notify::new(self, &subscribed_event(&topic.name))?.notify();
-        let connector = tokio::spawn(connect_new_publishers(
-            joined,
-            port.clone(),
-            consumed.clone(),
-        ));
         Ok(Subscriber {
             port,
             _service: service,
@@ -335,15 +342,13 @@ impl Bus {
 async fn connect_new_publishers(
     joined: Wake,
     port: Arc<iceoryx2::port::subscriber::Subscriber<Ipc, [u8], MessageHeader>>,
-    ack: Option<Arc<Notify>>,
+    ack: Arc<Notify>,
 ) {
     while joined.wait().await.is_ok() {
         if let Err(e) = port.update_connections() {
             tracing::warn!(error = ?e, "subscriber could not connect to a new publisher");
         }
-        if let Some(ack) = &ack {
-            ack.notify();
-        }
+        ack.notify();
     }
 }
 
@@ -395,9 +400,10 @@ impl ConsumedWaiter {
 }
 
 impl<T: Message> Publisher<T> {
-    /// Handshake, publisher side: announce this publisher so existing subscribers connect to it
-    /// now rather than at their next receive; on back-pressure topics wait (bounded) for their
-    /// acknowledgements, so the first messages cannot overflow an unconnected subscriber.
+    /// Handshake, publisher side: connect to the existing subscribers; on a back-pressure topic
+    /// also announce this publisher so they connect to it now rather than at their next
+    /// receive, and wait (bounded) for their acknowledgements, so the first messages cannot
+    /// overflow an unconnected subscriber.
     fn handshake(&self, bus: &Bus, consumed: Option<&ConsumedWaiter>) -> Result<(), BusError> {
         self.port
             .update_connections()
@@ -405,11 +411,12 @@ impl<T: Message> Publisher<T> {
                 what: format!("publisher on '{}'", self.topic.name),
                 reason: format!("cannot connect to the subscribers: {e:?}"),
             })?;
-        let subscribers = self.factory.dynamic_config().number_of_subscribers() as u64;
-        Notify::new(bus, &joined_event(&self.topic.name))?.notify();
+        // Only back-pressure subscribers listen for new publishers (see `subscriber_for`).
         let Some(consumed) = consumed else {
             return Ok(());
         };
+        let subscribers = self.factory.dynamic_config().number_of_subscribers() as u64;
+        Notify::new(bus, &joined_event(&self.topic.name))?.notify();
         if !self.topic.handshake || subscribers == 0 {
             return Ok(());
         }
@@ -550,13 +557,16 @@ pub struct Subscriber<T: Message> {
     consumed: Option<Arc<Notify>>,
     topic: TopicSpec,
     last_seq: HashMap<u128, u64>,
-    connector: tokio::task::JoinHandle<()>,
+    /// Listens for new publishers (back-pressure topics only).
+    connector: Option<tokio::task::JoinHandle<()>>,
     _message: PhantomData<fn() -> T>,
 }
 
 impl<T: Message> Drop for Subscriber<T> {
     fn drop(&mut self) {
-        self.connector.abort();
+        if let Some(connector) = &self.connector {
+            connector.abort();
+        }
     }
 }
 
@@ -649,5 +659,51 @@ impl<T: Message> Subscriber<T> {
         }
         metrics.bus_message(label, Direction::Received);
         Ok(Some(result))
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::bus::BusOptions;
+    use robotd_protocol::diagnostics::Ping;
+
+    /// Listeners attached to event service `event` right now.
+    pub(crate) fn listeners(bus: &Bus, event: &str) -> usize {
+        super::super::wake::event_service(bus, event)
+            .unwrap()
+            .dynamic_config()
+            .number_of_listeners()
+    }
+
+    fn ping(seq: u64) -> Ping {
+        Ping {
+            seq,
+            payload: vec![],
+        }
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn only_back_pressure_subscribers_listen_for_new_publishers() {
+        const LATEST: Topic<Ping> = Topic::new("latest", Overflow::latest_wins(4));
+        const LOSSLESS: Topic<Ping> = Topic::new("lossless", Overflow::back_pressure(4));
+        let namespace = format!("test-joined-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "joined")).unwrap();
+        let mut latest = bus.subscriber(&LATEST).unwrap();
+        let mut lossless = bus.subscriber(&LOSSLESS).unwrap();
+        assert_eq!(listeners(&bus, &joined_event("latest")), 0);
+        assert_eq!(listeners(&bus, &joined_event("lossless")), 1);
+
+        // Without that listener, a publisher created later still reaches the subscriber
+        // from its first message on: the message wakes it and its receive connects.
+        let latest_publisher = bus.publisher(&LATEST).unwrap();
+        let lossless_publisher = bus.publisher(&LOSSLESS).unwrap();
+        latest_publisher.publish(&ping(1)).unwrap();
+        lossless_publisher.publish(&ping(2)).unwrap();
+        let second = Duration::from_secs(1);
+        let first = tokio::time::timeout(second, latest.recv()).await.unwrap();
+        assert_eq!(first.unwrap().body.seq, 1);
+        let first = tokio::time::timeout(second, lossless.recv()).await.unwrap();
+        assert_eq!(first.unwrap().body.seq, 2);
     }
 }

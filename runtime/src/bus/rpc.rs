@@ -207,7 +207,6 @@ pub struct Client<Req: Message, Resp: Message> {
     next_request: AtomicU64,
     service: Service<Req, Resp>,
     round_trip_label: String,
-    server_attached: Wake,
     bus: Bus,
 }
 
@@ -237,7 +236,6 @@ impl Bus {
             next_request: AtomicU64::new(1),
             service: *service,
             round_trip_label: format!("{}/round_trip", service.name),
-            server_attached: Wake::new(self, &subscribed_event(&service.requests().name))?,
             bus: self.clone(),
         })
     }
@@ -280,9 +278,23 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
 
     /// Waits until a server is attached, up to `timeout`. Returns whether one is.
     ///
-    /// Woken by the event a server raises when it attaches; no polling.
+    /// Woken by the event a server raises when it attaches; no polling. The listener for that
+    /// event exists only while a caller waits (a client holds none otherwise: one socket and
+    /// one port fewer per client for the service's lifetime); it is made before the next
+    /// check, so a server attaching in between still wakes it.
     pub async fn wait_for_server(&self, timeout: Duration) -> bool {
+        if self.has_server() {
+            return true;
+        }
         let deadline = Instant::now() + timeout;
+        let attached = match Wake::new(&self.bus, &subscribed_event(&self.service.requests().name))
+        {
+            Ok(attached) => attached,
+            Err(error) => {
+                tracing::warn!(service = self.service.name, %error, "waiting for a server");
+                return self.has_server();
+            }
+        };
         loop {
             if self.has_server() {
                 return true;
@@ -291,7 +303,7 @@ impl<Req: Message, Resp: Message> Client<Req, Resp> {
             if now >= deadline {
                 return false;
             }
-            match self.server_attached.wait_timeout(deadline - now).await {
+            match attached.wait_timeout(deadline - now).await {
                 Ok(_) => {}
                 Err(error) => {
                     tracing::warn!(service = self.service.name, %error, "waiting for a server");
@@ -737,5 +749,47 @@ fn panic_message(error: tokio::task::JoinError) -> String {
         text.clone()
     } else {
         "panic".into()
+    }
+}
+
+#[cfg(test)]
+mod listener_tests {
+    use crate::bus::wake::subscribed_event;
+    use crate::bus::{Bus, BusOptions, Service};
+    use robotd_protocol::diagnostics::{Ping, Pong};
+    use std::time::Duration;
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_client_listens_for_its_server_only_while_it_waits() {
+        const ECHO: Service<Ping, Pong> = Service::new("listening-echo");
+        let namespace = format!("test-attached-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "attached")).unwrap();
+        let event = subscribed_event(&ECHO.requests().name);
+        let listeners = || crate::bus::pubsub::tests::listeners(&bus, &event);
+        let client = bus.client(&ECHO).unwrap();
+        assert_eq!(
+            listeners(),
+            0,
+            "a client that does not wait holds no listener"
+        );
+        let waiting = client.wait_for_server(Duration::from_secs(5));
+        tokio::pin!(waiting);
+        // Poll the wait once: it finds no server and starts listening.
+        assert!(futures_poll_once(waiting.as_mut()).await.is_none());
+        assert_eq!(listeners(), 1);
+        let _server = bus.server(&ECHO).unwrap();
+        assert!(waiting.await, "woken when the server attached");
+        assert_eq!(listeners(), 0, "the listener is gone once the wait ends");
+    }
+
+    /// Polls `future` once; `Some` if it finished.
+    async fn futures_poll_once<F: std::future::Future + Unpin>(mut future: F) -> Option<F::Output> {
+        std::future::poll_fn(|context| {
+            std::task::Poll::Ready(match std::pin::Pin::new(&mut future).poll(context) {
+                std::task::Poll::Ready(output) => Some(output),
+                std::task::Poll::Pending => None,
+            })
+        })
+        .await
     }
 }

@@ -90,7 +90,7 @@ pub(crate) const EVENT_LIMITS: EventLimits = EventLimits {
 };
 
 /// The event service `name`: the handle this process already holds, or a new one.
-fn event_service(bus: &Bus, name: &str) -> Result<Arc<EventFactory>, BusError> {
+pub(crate) fn event_service(bus: &Bus, name: &str) -> Result<Arc<EventFactory>, BusError> {
     bus.inner
         .events
         .get_or_open(name, || open_event_service(bus, name))
