@@ -149,8 +149,9 @@ fn free_port() -> Result<u16> {
         .port())
 }
 
-fn start_service(exe: &Path, namespace: &str, port: u16) -> Result<Served> {
-    let log_dir = std::env::temp_dir().join(format!("robotd-bench-mcp-{}", std::process::id()));
+/// Starts `robotd serve` writing its logs (the MCP call log grows by ~20 MB per run) into
+/// `log_dir`.
+fn start_service(exe: &Path, namespace: &str, port: u16, log_dir: &Path) -> Result<Served> {
     let child = Command::new(exe)
         .args(["serve", "--namespace", namespace, "--http"])
         .arg(format!("127.0.0.1:{port}"))
@@ -293,7 +294,12 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64, one_core: bool) -> Resul
     }
     let namespace = format!("bench-mcp-{}", std::process::id());
     let port = free_port()?;
-    let served = start_service(exe, &namespace, port)?;
+    // Removed when the run ends (each run used to leave its logs in the temp directory).
+    let logs = tempfile::Builder::new()
+        .prefix("robotd-bench-mcp-")
+        .tempdir()
+        .context("a temporary directory for the service's logs")?;
+    let served = start_service(exe, &namespace, port, logs.path())?;
     let pid = served.0.id();
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
@@ -398,5 +404,6 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64, one_core: bool) -> Resul
         })
     })?;
     drop(served);
+    drop(logs);
     Ok(figures)
 }

@@ -248,7 +248,7 @@ impl Bus {
         let service = open_frames(self, topic)?;
         let mut builder = service.publisher_builder().max_loaned_samples(2);
         if let Overflow::BackPressure { max_wait, .. } = topic.overflow {
-            let waiter = ConsumedWaiter::new(self, &consumed_event(topic.name))?;
+            let waiter = ConsumedWaiter::new(self, &consumed_event(topic.name));
             builder = builder
                 .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
                 .set_backpressure_handler(move |info: &BackpressureInfo| {
