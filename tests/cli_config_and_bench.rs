@@ -124,6 +124,7 @@ fn bench_mcp_json_reports_every_figure() {
         "--seconds",
         "0.5",
     ]);
+    assert_eq!(figures["one_core"], false);
     assert_all_positive(
         &figures,
         &[
@@ -139,6 +140,30 @@ fn bench_mcp_json_reports_every_figure() {
             "calls_per_s_64_clients",
             "service_rss_mb",
             "service_rss_after_clients_left_mb",
+        ],
+    );
+}
+
+#[test]
+fn bench_mcp_one_core_pins_the_service_and_says_so() {
+    let figures = bench_figures(&[
+        "bench",
+        "mcp",
+        "--json",
+        "--calls",
+        "20",
+        "--seconds",
+        "0.5",
+        "--one-core",
+    ]);
+    // The benchmark itself refuses to report when the service was not pinned.
+    assert_eq!(figures["one_core"], true);
+    assert_all_positive(
+        &figures,
+        &[
+            "coordinate_sse_us_p50",
+            "coordinate_http_raw_us_p50",
+            "coordinate_direct_us_p50",
         ],
     );
 }

@@ -285,6 +285,16 @@ fn rss_mb(pid: u32) -> Result<f64> {
     Ok(kb / 1024.0)
 }
 
+/// The CPUs process `pid` may run on, as Linux lists them (`0`, `0-1`, ...).
+fn cpus_allowed(pid: u32) -> Result<String> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status"))?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+        .map(|v| v.trim().to_owned())
+        .context("Cpus_allowed_list in /proc/<pid>/status")
+}
+
 /// Runs the benchmark against a robotd this function starts.
 /// With `one_core`, everything runs on CPU 0 (see the module's documentation).
 pub fn run(exe: &Path, calls: usize, throughput_s: f64, one_core: bool) -> Result<McpFigures> {
@@ -301,6 +311,13 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64, one_core: bool) -> Resul
         .context("a temporary directory for the service's logs")?;
     let served = start_service(exe, &namespace, port, logs.path())?;
     let pid = served.0.id();
+    if one_core {
+        // Figures labelled "one core" must come from a pinned service.
+        let allowed = cpus_allowed(pid)?;
+        if allowed != "0" {
+            bail!("--one-core: the service may run on CPUs {allowed}, not only on CPU 0");
+        }
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;
