@@ -113,17 +113,20 @@ fn bench_bus_json_reports_every_figure() {
     assert_eq!(figures["raw_frames_lost"], 0);
 }
 
+/// A short `robotd bench mcp` run (about 15 s).
+const BENCH_MCP_QUICK: [&str; 7] = [
+    "bench",
+    "mcp",
+    "--json",
+    "--calls",
+    "20",
+    "--seconds",
+    "0.5",
+];
+
 #[test]
 fn bench_mcp_json_reports_every_figure() {
-    let figures = bench_figures(&[
-        "bench",
-        "mcp",
-        "--json",
-        "--calls",
-        "20",
-        "--seconds",
-        "0.5",
-    ]);
+    let figures = bench_figures(&BENCH_MCP_QUICK);
     assert_eq!(figures["one_core"], false);
     assert_all_positive(
         &figures,
@@ -146,16 +149,7 @@ fn bench_mcp_json_reports_every_figure() {
 
 #[test]
 fn bench_mcp_one_core_pins_the_service_and_says_so() {
-    let figures = bench_figures(&[
-        "bench",
-        "mcp",
-        "--json",
-        "--calls",
-        "20",
-        "--seconds",
-        "0.5",
-        "--one-core",
-    ]);
+    let figures = bench_figures(&[&BENCH_MCP_QUICK[..], &["--one-core"]].concat());
     // The benchmark itself refuses to report when the service was not pinned.
     assert_eq!(figures["one_core"], true);
     assert_all_positive(
