@@ -18,7 +18,7 @@
 //! # Ok(()) }
 //! ```
 
-use super::pubsub::ConsumedWaiter;
+use super::consumed::ConsumedWaiter;
 use super::pubsub::Overflow;
 use super::wake::{consumed_event, data_event, Notify, Wake};
 use super::{Bus, BusError, Ipc};

@@ -47,6 +47,7 @@
 //! # Ok(()) }
 //! ```
 
+mod consumed;
 mod describe;
 mod error;
 mod frame;
