@@ -32,15 +32,15 @@ fn serve_runs_the_agent_on_the_bus() {
         .unwrap();
         let namespace = common::fresh_namespace("agent-serve");
         let port = common::free_port();
-        let dir = std::env::temp_dir().join(format!("robotd-agent-serve-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let temp = tempfile::tempdir().unwrap();
+        let dir = temp.path();
         let mut command = Command::new(env!("CARGO_BIN_EXE_robotd"));
         command
             .args(["serve", "--namespace", &namespace, "--http"])
             .arg(format!("127.0.0.1:{port}"))
             .args(["--set", "robot.time_scale=0.05", "--set"])
             .arg(format!("telemetry.log_dir={}", dir.display()))
-            .current_dir(&dir)
+            .current_dir(dir)
             .env("OPENAI_API_KEY", "sk-test-agent-serve")
             .env("OPENAI_BASE_URL", mock.openai_base_url())
             .stdout(Stdio::null())
@@ -49,10 +49,7 @@ fn serve_runs_the_agent_on_the_bus() {
             command.env_remove(v);
         }
         let child = command.spawn().expect("start robotd serve");
-        let mut robotd = common::Running {
-            child,
-            name: "robotd",
-        };
+        let mut robotd = common::Running::new(child, "robotd");
         let stderr = robotd.child.stderr.take().unwrap();
         let mut lines = BufReader::new(stderr).lines();
         loop {

@@ -42,10 +42,7 @@ impl Browser {
             .stderr(Stdio::null())
             .spawn()
             .expect("chromedriver (apt install chromium-driver; ./scripts/test.sh does)");
-        let driver = common::Running {
-            child,
-            name: "chromedriver",
-        };
+        let driver = common::Running::new(child, "chromedriver");
         robotd_runtime::telemetry::install_tls_provider();
         let http = reqwest::Client::new();
         let root = format!("http://127.0.0.1:{port}");
@@ -205,10 +202,7 @@ fn start_robotd(
     ] {
         command.env_remove(v);
     }
-    let mut robotd = common::Running {
-        child: command.spawn().expect("start robotd serve"),
-        name: "robotd",
-    };
+    let mut robotd = common::Running::new(command.spawn().expect("start robotd serve"), "robotd");
     let stderr = robotd.child.stderr.take().unwrap();
     let mut lines = BufReader::new(stderr).lines();
     assert!(

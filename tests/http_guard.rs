@@ -104,10 +104,7 @@ fn off_loopback_every_route_needs_the_token_even_without_mcp() {
         lines.any(|l| l.is_ok_and(|l| l.contains("robotd: serving on"))),
         "robotd did not start"
     );
-    let _robotd = common::Running {
-        child,
-        name: "robotd",
-    };
+    let _robotd = common::Running::new(child, "robotd");
     for path in ["/health", "/metrics"] {
         let (status, _) = common::http_get(port, path);
         assert_eq!(status, 401, "{path} without the token");

@@ -39,10 +39,7 @@ fn start_redis_with(port: u16, options: &[&str]) -> common::Running {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    common::Running {
-        child,
-        name: "redis-server",
-    }
+    common::Running::new(child, "redis-server")
 }
 
 fn redis_conn(port: u16) -> redis::Connection {

@@ -147,10 +147,7 @@ fn serve_raises_the_soft_open_files_limit() {
     let stderr = child.stderr.take().unwrap();
     let served = std::io::BufRead::lines(std::io::BufReader::new(stderr))
         .any(|l| l.is_ok_and(|l| l.contains("robotd: serving on")));
-    let robotd = common::Running {
-        child,
-        name: "robotd",
-    };
+    let robotd = common::Running::new(child, "robotd");
     assert!(served, "robotd did not start");
     let limits = std::fs::read_to_string(format!("/proc/{}/limits", robotd.pid())).unwrap();
     let line = limits

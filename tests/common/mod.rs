@@ -44,16 +44,35 @@ pub fn external_actor_binary() -> PathBuf {
     path
 }
 
-/// A child process killed when dropped.
+/// A child process killed when dropped, with the temporary directory of its logs (removed
+/// after the process is gone, so test runs leave nothing behind).
 pub struct Running {
     pub child: Child,
     pub name: &'static str,
+    logs: Option<tempfile::TempDir>,
 }
 
 impl Running {
+    /// A running `child`, called `name` in failure messages.
+    pub fn new(child: Child, name: &'static str) -> Self {
+        Self {
+            child,
+            name,
+            logs: None,
+        }
+    }
+
     pub fn pid(&self) -> u32 {
         self.child.id()
     }
+}
+
+/// A fresh temporary directory for a child's logs.
+fn log_dir() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("robotd-test-logs-")
+        .tempdir()
+        .expect("a temporary log directory")
 }
 
 impl Drop for Running {
@@ -109,13 +128,13 @@ pub fn start_robotd_with_env(
     extra: &[&str],
     env: &[(&str, &str)],
 ) -> Running {
-    let log_dir = std::env::temp_dir().join(format!("robotd-test-logs-{}", std::process::id()));
+    let logs = log_dir();
     let mut child = Command::new(env!("CARGO_BIN_EXE_robotd"))
         .envs(env.iter().copied())
         .args(["serve", "--namespace", namespace, "--http"])
         .arg(format!("127.0.0.1:{port}"))
         .arg("--set")
-        .arg(format!("telemetry.log_dir={}", log_dir.display()))
+        .arg(format!("telemetry.log_dir={}", logs.path().display()))
         .args(extra)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -125,6 +144,7 @@ pub fn start_robotd_with_env(
     let running = Running {
         child,
         name: "robotd",
+        logs: Some(logs),
     };
     wait_for_line(stderr, "robotd: serving on", "robotd serve");
     running
@@ -134,10 +154,10 @@ pub fn start_robotd_with_env(
 /// loopback port (unless `args` has its own `--listen`) with the global `settings` (e.g. `--set robot.scene=…`) and `args`; returns
 /// it and its port.
 pub fn start_fake_niryo(settings: &[&str], args: &[&str]) -> (Running, u16) {
-    let log_dir = std::env::temp_dir().join(format!("robotd-test-logs-{}", std::process::id()));
+    let logs = log_dir();
     let mut child = Command::new(env!("CARGO_BIN_EXE_robotd"))
         .arg("--set")
-        .arg(format!("telemetry.log_dir={}", log_dir.display()))
+        .arg(format!("telemetry.log_dir={}", logs.path().display()))
         .args(settings)
         .arg("fake-niryo")
         .args(if args.contains(&"--listen") {
@@ -154,6 +174,7 @@ pub fn start_fake_niryo(settings: &[&str], args: &[&str]) -> (Running, u16) {
     let running = Running {
         child,
         name: "fake-niryo",
+        logs: Some(logs),
     };
     let mut first = String::new();
     std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut first)
@@ -175,10 +196,10 @@ pub fn start_fake_widowx(
     device: &std::path::Path,
     args: &[&str],
 ) -> (Running, String) {
-    let log_dir = std::env::temp_dir().join(format!("robotd-test-logs-{}", std::process::id()));
+    let logs = log_dir();
     let mut child = Command::new(env!("CARGO_BIN_EXE_robotd"))
         .arg("--set")
-        .arg(format!("telemetry.log_dir={}", log_dir.display()))
+        .arg(format!("telemetry.log_dir={}", logs.path().display()))
         .args(settings)
         .arg("fake-widowx")
         .arg("--device")
@@ -193,6 +214,7 @@ pub fn start_fake_widowx(
     let running = Running {
         child,
         name: "fake-widowx",
+        logs: Some(logs),
     };
     let mut first = String::new();
     std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut first)
@@ -215,10 +237,7 @@ pub fn start_external_actor(namespace: &str) -> Running {
         .spawn()
         .expect("start the example actor");
     let stdout = child.stdout.take().expect("stdout");
-    let running = Running {
-        child,
-        name: "external_actor",
-    };
+    let running = Running::new(child, "external_actor");
     wait_for_line(stdout, "ready", "the example actor");
     running
 }
