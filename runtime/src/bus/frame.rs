@@ -401,7 +401,11 @@ impl FrameSubscriber {
             if let Some(frame) = self.try_recv()? {
                 return Ok(frame);
             }
-            self.wake.wait().await?;
+            self.wake.rearm();
+            if let Some(frame) = self.try_recv()? {
+                return Ok(frame);
+            }
+            self.wake.sleep().await?;
         }
     }
 

@@ -345,7 +345,9 @@ async fn connect_new_publishers(
     port: Arc<iceoryx2::port::subscriber::Subscriber<Ipc, [u8], MessageHeader>>,
     ack: Arc<Notify>,
 ) {
-    while joined.wait().await.is_ok() {
+    while joined.sleep().await.is_ok() {
+        // Rearmed before connecting: a publisher announced later wakes the next sleep.
+        joined.rearm();
         if let Err(e) = port.update_connections() {
             tracing::warn!(error = ?e, "subscriber could not connect to a new publisher");
         }
@@ -555,7 +557,11 @@ impl<T: Message> Subscriber<T> {
             if let Some(message) = self.try_recv()? {
                 return Ok(message);
             }
-            self.wake.wait().await?;
+            self.wake.rearm();
+            if let Some(message) = self.try_recv()? {
+                return Ok(message);
+            }
+            self.wake.sleep().await?;
         }
     }
 
@@ -581,13 +587,24 @@ impl<T: Message> Subscriber<T> {
             if let Some(result) = self.try_recv_with(&mut read)? {
                 return Ok(result);
             }
-            self.wake.wait().await?;
+            self.wake.rearm();
+            if let Some(result) = self.try_recv_with(&mut read)? {
+                return Ok(result);
+            }
+            self.wake.sleep().await?;
         }
     }
 
-    /// Waits up to `timeout`; `Ok(false)` when nothing arrived.
-    pub(crate) async fn wait_timeout(&self, timeout: Duration) -> Result<bool, BusError> {
-        self.wake.wait_timeout(timeout).await
+    /// Makes the next message wake [`sleep_timeout`](Self::sleep_timeout); check for
+    /// messages again before sleeping (see [`Wake::rearm`]).
+    pub(crate) fn rearm(&self) {
+        self.wake.rearm();
+    }
+
+    /// Sleeps up to `timeout` for a message announced since the last
+    /// [`rearm`](Self::rearm); `Ok(false)` when none was.
+    pub(crate) async fn sleep_timeout(&self, timeout: Duration) -> Result<bool, BusError> {
+        self.wake.sleep_timeout(timeout).await
     }
 
     /// Takes the next sample if one is waiting and hands its bytes to `read`; counts it, and
@@ -636,6 +653,15 @@ pub(crate) mod tests {
             .unwrap()
             .dynamic_config()
             .number_of_listeners()
+    }
+
+    /// Loses a wake-up of `subscriber`, as a consume racing a notifier can: the topic is
+    /// notified and the datagram read before tokio's reactor sees it.
+    pub(crate) fn lose_a_wake_up<T: Message>(bus: &Bus, subscriber: &Subscriber<T>) {
+        Notify::new(bus, &data_event(&subscriber.topic.name))
+            .unwrap()
+            .notify();
+        assert_eq!(subscriber.wake.swallow_datagrams(), 1);
     }
 
     pub(crate) fn ping(seq: u64) -> Ping {

@@ -141,50 +141,79 @@ impl Wake {
         })
     }
 
-    /// Waits until at least one notification arrived since the last wait, then consumes them.
+    /// Makes the next notification wake [`sleep`](Self::sleep): consumes the notifications
+    /// pending now. Call it after a check for data found nothing, then check again before
+    /// sleeping; every waiting loop here is *check, rearm, check, sleep*.
     ///
-    /// Callers check for data *before* waiting and again after; because senders write the data
-    /// before they notify, a notification may wake a caller needlessly but is never missed.
-    pub(crate) async fn wait(&self) -> Result<(), BusError> {
+    /// Why the second check and why here: iceoryx2 sends a notification's datagram only when
+    /// the listener is not already marked notified, and only consuming resets that mark. A
+    /// notifier that completes while a listener consumes leaves the mark set and its datagram
+    /// read, perhaps before tokio's reactor saw it: no edge, and no later notifier sends one.
+    /// A listener that then slept without consuming again slept until its timeout, and every
+    /// wait after that did too (a busy RPC client fell to one reply per 250 ms liveness check).
+    /// Consuming right before the last check clears that state, and whatever its notifiers
+    /// announced is found by that check.
+    ///
+    /// A notifier racing the consume marks the listener again; so consuming repeats until a
+    /// round finds no notification (bounded: under a flood the notifiers' data is there to
+    /// be read anyway).
+    pub(crate) fn rearm(&self) {
+        for _ in 0..8 {
+            discard_datagrams(self.fd.get_ref().0);
+            match self.listener.try_wait(|_| {}) {
+                Ok(0) => return,
+                Ok(_) => {}
+                Err(e) => {
+                    tracing::warn!(event = %self.name, error = ?e, "consuming bus notifications failed");
+                    return;
+                }
+            }
+        }
+    }
+
+    /// Sleeps until a notification arrived since the last [`rearm`](Self::rearm) (or one
+    /// before it that tokio already saw: a needless wake, never a missed one).
+    pub(crate) async fn sleep(&self) -> Result<(), BusError> {
         let mut guard = self.fd.readable().await.map_err(|source| BusError::Wait {
             topic: self.name.clone(),
             source,
         })?;
-        // Clear tokio's readiness *before* draining: a notification that lands after the
-        // clear raises a fresh edge. (Draining first could swallow the last edge while iceoryx2
-        // still considers the listener notified and sends no further datagrams: a lost wake-up.)
+        // Cleared now; a datagram that lands later raises a fresh edge.
         guard.clear_ready();
-        self.drain();
         Ok(())
     }
 
-    /// Like [`wait`](Self::wait) with a deadline; `Ok(false)` when it passed.
-    pub(crate) async fn wait_timeout(&self, timeout: Duration) -> Result<bool, BusError> {
-        match tokio::time::timeout(timeout, self.wait()).await {
+    /// Like [`sleep`](Self::sleep) with a deadline; `Ok(false)` when it passed.
+    pub(crate) async fn sleep_timeout(&self, timeout: Duration) -> Result<bool, BusError> {
+        match tokio::time::timeout(timeout, self.sleep()).await {
             Ok(result) => result.map(|()| true),
             Err(_) => Ok(false),
         }
     }
+}
 
-    /// Consumes pending notifications without waiting.
-    ///
-    /// iceoryx2 0.10 reads a single datagram per call however many wait in the socket. The
-    /// rest would pile up until the kernel's queue limit (`net.unix.max_dgram_qlen`, 10 by
-    /// default); then a notifier's send fails, iceoryx2 still marks the listener notified, no
-    /// datagram raises a readiness edge, and this listener never wakes again: a busy server
-    /// went deaf that way (answering only when another event woke its task). So the socket is
-    /// emptied first, and only then does iceoryx2 reset its notification state: a notifier
-    /// racing with this sends a fresh datagram, which raises a fresh edge.
-    pub(crate) fn drain(&self) {
-        discard_datagrams(self.fd.get_ref().0);
-        if let Err(e) = self.listener.try_wait(|_| {}) {
-            tracing::warn!(event = %self.name, error = ?e, "draining bus notifications failed");
-        }
+#[cfg(test)]
+impl Wake {
+    /// Reads the notification datagrams waiting now, as a racing consume can, without telling
+    /// iceoryx2; returns how many there were.
+    pub(crate) fn swallow_datagrams(&self) -> usize {
+        let fd = self.fd.get_ref().0;
+        let mut buffer = [0u8; 64];
+        // SAFETY: `fd` is the listener's open socket and `buffer` is writable for its length.
+        let mut read_one =
+            || unsafe { libc::recv(fd, buffer.as_mut_ptr().cast(), 64, libc::MSG_DONTWAIT) >= 0 };
+        (0..100).take_while(|_| read_one()).count()
     }
 }
 
 /// Reads and drops every datagram waiting on `fd`, without blocking. Notification datagrams
 /// carry no data (iceoryx2 keeps the events in shared memory); a flood stops at 4,096.
+///
+/// iceoryx2 0.10 reads a single datagram per consume when the listener is not marked
+/// notified, however many wait. The rest would pile up to the kernel's queue limit
+/// (`net.unix.max_dgram_qlen`, 10 by default); then a notifier's send fails, iceoryx2 still
+/// marks the listener notified, and no datagram raises an edge: a busy server went deaf that
+/// way. So [`Wake::rearm`] empties the socket itself first.
 fn discard_datagrams(fd: RawFd) {
     let mut buffer = [0u8; 64];
     for _ in 0..4_096 {
@@ -273,15 +302,6 @@ mod tests {
         )
     }
 
-    /// Takes the datagrams waiting on `fd` out and counts them (up to 100).
-    fn take_waiting_datagrams(fd: RawFd) -> usize {
-        let mut buffer = [0u8; 64];
-        // SAFETY: `fd` is an open socket and `buffer` is writable for its length.
-        let mut read_one =
-            || unsafe { libc::recv(fd, buffer.as_mut_ptr().cast(), 64, libc::MSG_DONTWAIT) >= 0 };
-        (0..100).take_while(|_| read_one()).count()
-    }
-
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_wake_up_leaves_no_notification_behind_and_the_next_one_still_wakes() {
         let namespace = format!("test-wake-{}", std::process::id());
@@ -296,21 +316,40 @@ mod tests {
             sender.send_to(&[0], &path).unwrap();
         }
         notify.notify();
-        tokio::time::timeout(Duration::from_secs(1), wake.wait())
+        tokio::time::timeout(Duration::from_secs(1), wake.sleep())
             .await
             .expect("woken")
             .unwrap();
-        assert_eq!(
-            take_waiting_datagrams(fd),
-            0,
-            "left in the listener's socket"
-        );
+        wake.rearm();
+        assert_eq!(wake.swallow_datagrams(), 0, "left in the listener's socket");
         for round in 0..20 {
             notify.notify();
-            tokio::time::timeout(Duration::from_secs(1), wake.wait())
+            tokio::time::timeout(Duration::from_secs(1), wake.sleep())
                 .await
                 .unwrap_or_else(|_| panic!("notification {round} did not wake the listener"))
                 .unwrap();
+            wake.rearm();
         }
+    }
+
+    /// The lost wake-up [`Wake::rearm`] prevents: a notification whose datagram another
+    /// consume read before tokio's reactor saw it leaves the listener marked notified, so no
+    /// later notifier sends a datagram. A current-thread runtime keeps the reactor from
+    /// running in between, as a busy runtime does.
+    #[tokio::test(flavor = "current_thread")]
+    async fn a_notification_read_before_the_reactor_saw_it_does_not_silence_the_listener() {
+        let namespace = format!("test-wake-lost-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "wake")).unwrap();
+        let wake = Wake::new(&bus, "topic/ready").unwrap();
+        let notify = Notify::new(&bus, "topic/ready").unwrap();
+        notify.notify();
+        assert_eq!(wake.swallow_datagrams(), 1);
+        // A waiting loop found no data: it rearms, checks again, sleeps.
+        wake.rearm();
+        notify.notify();
+        tokio::time::timeout(Duration::from_secs(2), wake.sleep())
+            .await
+            .expect("the notification after the rearm wakes the listener")
+            .unwrap();
     }
 }
