@@ -13,6 +13,7 @@
 use super::{Check, Status};
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
+use robotd_runtime::bus::stale;
 
 /// Same rule as the runtime's bus: 1-64 characters from A-Z, a-z, 0-9, '_' and '-'.
 fn valid_namespace(namespace: &str) -> bool {
@@ -43,6 +44,12 @@ pub(super) fn check_bus(config: &Config, namespace: &str, clean: bool) -> Check 
         );
     }
 
+    // iceoryx2 waits forever on a segment a killed process left half-created; such a segment
+    // made listing the services below hang.
+    let half_created = stale::remove_half_created(
+        std::path::Path::new(stale::SHARED_MEMORY_DIR),
+        stale::HALF_CREATED_AFTER,
+    );
     let mut alive = 0usize;
     let mut dead = Vec::new();
     let mut inaccessible = 0usize;
@@ -151,6 +158,13 @@ pub(super) fn check_bus(config: &Config, namespace: &str, clean: bool) -> Check 
         ));
     }
     notes.push(services_text);
+    if !half_created.is_empty() {
+        notes.push(format!(
+            "removed {} half-created segments a killed process left in {} (they made iceoryx2 hang)",
+            half_created.len(),
+            stale::SHARED_MEMORY_DIR
+        ));
+    }
 
     Check {
         name: NAME,

@@ -54,6 +54,7 @@ mod frame;
 mod handles;
 mod pubsub;
 mod rpc;
+pub mod stale;
 mod thread;
 mod wake;
 
@@ -158,6 +159,11 @@ impl Bus {
     /// behind by processes that died.
     pub fn open(options: BusOptions) -> Result<Self, BusError> {
         validate_namespace(&options.namespace)?;
+        // Before anything opens a service: iceoryx2 would wait forever on such a segment.
+        stale::remove_half_created(
+            std::path::Path::new(stale::SHARED_MEMORY_DIR),
+            stale::HALF_CREATED_AFTER,
+        );
         let node_name = NodeName::new(&options.node_name).map_err(|e| BusError::Setup {
             what: format!("node name '{}'", options.node_name),
             reason: format!("{e:?}"),

@@ -1,0 +1,112 @@
+//! Shared-memory segments left half-created by a killed process, removed before they hang us.
+//!
+//! iceoryx2 creates a segment in `/dev/shm` in steps: the file appears write-only and empty,
+//! then gets its size, is initialised, and only then becomes readable. A process killed between
+//! the first two steps (`kill -9`, the OOM killer, a test harness's timeout) leaves an empty,
+//! write-only `iox2_…` file behind. iceoryx2 0.10 opens such a file by waiting for it to grow,
+//! and for an empty one it never checks its own timeout: listing services, cleaning up dead
+//! nodes or opening that service then spins for good, in every process that tries. One such
+//! file made every `robotd serve` and `robotd doctor` on a machine hang at start.
+//!
+//! A creator that is alive finishes those steps within microseconds, so an empty, write-only
+//! segment older than [`HALF_CREATED_AFTER`] is a corpse: [`remove_half_created`] deletes it
+//! (processes that already hold it keep their mapping; nobody can open it anyway).
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, SystemTime};
+
+/// Age after which an empty, write-only iceoryx2 segment counts as abandoned.
+pub const HALF_CREATED_AFTER: Duration = Duration::from_secs(5);
+
+/// Where iceoryx2 keeps its shared-memory segments on Linux.
+pub const SHARED_MEMORY_DIR: &str = "/dev/shm";
+
+/// Deletes the empty, write-only `iox2_*` files in `dir` last changed more than `older_than`
+/// ago; returns the paths removed. Errors reading `dir` or a file are skipped (a directory we
+/// cannot read holds nothing we could remove).
+pub fn remove_half_created(dir: &Path, older_than: Duration) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let now = SystemTime::now();
+    let mut removed = Vec::new();
+    for entry in entries.flatten() {
+        if !entry.file_name().to_string_lossy().starts_with("iox2_") {
+            continue;
+        }
+        let Ok(meta) = entry.metadata() else {
+            continue;
+        };
+        let readable = std::os::unix::fs::PermissionsExt::mode(&meta.permissions()) & 0o444 != 0;
+        let age = meta
+            .modified()
+            .ok()
+            .and_then(|m| now.duration_since(m).ok())
+            .unwrap_or_default();
+        if !meta.is_file() || meta.len() != 0 || readable || age < older_than {
+            continue;
+        }
+        let path = entry.path();
+        match std::fs::remove_file(&path) {
+            Ok(()) => {
+                tracing::debug!(path = %path.display(), age_s = age.as_secs(), "removed a half-created bus segment");
+                removed.push(path);
+            }
+            Err(error) => tracing::warn!(
+                path = %path.display(),
+                %error,
+                "a half-created bus segment could not be removed; robotd may hang opening it (remove it by hand)"
+            ),
+        }
+    }
+    if let Some(first) = removed.first() {
+        tracing::warn!(
+            count = removed.len(),
+            first = %first.display(),
+            "removed bus segments killed processes left half-created (iceoryx2 would wait for them forever)"
+        );
+    }
+    removed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::PermissionsExt;
+
+    fn file(dir: &Path, name: &str, bytes: usize, mode: u32, age: Duration) -> PathBuf {
+        let path = dir.join(name);
+        std::fs::write(&path, vec![0u8; bytes]).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
+        // The owner may write a write-only file, so it can set its time.
+        let times = std::fs::FileTimes::new().set_modified(SystemTime::now() - age);
+        std::fs::File::options()
+            .write(true)
+            .open(&path)
+            .and_then(|f| f.set_times(times))
+            .unwrap();
+        path
+    }
+
+    #[test]
+    fn only_old_empty_write_only_iceoryx2_segments_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let old = Duration::from_secs(60);
+        let corpse = file(dir.path(), "iox2_abc_1.dynamic", 0, 0o200, old);
+        let young = file(dir.path(), "iox2_abc_2.dynamic", 0, 0o200, Duration::ZERO);
+        let readable = file(dir.path(), "iox2_abc_3.dynamic", 0, 0o600, old);
+        let sized = file(dir.path(), "iox2_abc_4.dynamic", 64, 0o200, old);
+        let foreign = file(dir.path(), "other_5", 0, 0o200, old);
+        let removed = remove_half_created(dir.path(), HALF_CREATED_AFTER);
+        assert_eq!(removed, vec![corpse.clone()]);
+        assert!(!corpse.exists());
+        for kept in [young, readable, sized, foreign] {
+            assert!(kept.exists(), "{} was removed", kept.display());
+        }
+    }
+
+    #[test]
+    fn a_missing_directory_removes_nothing() {
+        assert!(remove_half_created(Path::new("/nonexistent/robotd"), Duration::ZERO).is_empty());
+    }
+}
