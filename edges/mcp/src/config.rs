@@ -36,6 +36,10 @@ pub struct McpConfig {
     pub call_log_max_file_bytes: u64,
     /// Rotated call logs kept (0 … 1,000).
     pub call_log_keep_files: u32,
+    /// Run streamable-HTTP `tools/call` requests of initialized sessions without rmcp's
+    /// session pipeline (`crate::http::direct_call`): ~100 µs less per call on a small PC.
+    /// `false` sends every call through rmcp.
+    pub direct_tool_calls: bool,
 }
 
 impl Default for McpConfig {
@@ -52,6 +56,7 @@ impl Default for McpConfig {
             call_log_max_field_bytes: 16 * 1024,
             call_log_max_file_bytes: 64 * 1024 * 1024,
             call_log_keep_files: 5,
+            direct_tool_calls: true,
         }
     }
 }
@@ -144,6 +149,7 @@ impl McpConfig {
             max_body_bytes: self.max_body_bytes,
             max_sessions: self.max_sessions,
             idle_timeout: std::time::Duration::from_secs(self.session_idle_timeout_s),
+            direct_tool_calls: self.direct_tool_calls,
         }
     }
 }

@@ -15,7 +15,11 @@
 //!   unknown custom method and answer `-32601`) is answered `-32602` (Invalid params), naming
 //!   the method.
 //!
-//! Every transport (legacy SSE, streamable HTTP, stdio) serves through this gate.
+//! Every transport (legacy SSE, streamable HTTP, stdio) serves through this gate. The
+//! session's "initialized" state is shared ([`InitGate::initialized_flag`]) so the direct
+//! streamable-HTTP path (`crate::http::direct_call`) applies the same rule. A
+//! [`TOUCH_METHOD`] notification (the direct path's way of keeping rmcp's idle timer of the
+//! session running) is dropped here and never reaches the server.
 
 use rmcp::model::{
     ClientJsonRpcMessage, ClientNotification, ClientRequest, EmptyResult, ErrorCode, ErrorData,
@@ -24,6 +28,12 @@ use rmcp::model::{
 use rmcp::transport::{IntoTransport, Transport};
 use rmcp::RoleServer;
 use std::future::Future;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// A notification robotd sends into a streamable-HTTP session itself, only to tell rmcp's
+/// session worker the session is in use; the gate drops it.
+pub const TOUCH_METHOD: &str = "notifications/robotd/session_in_use";
 
 /// Methods MCP defines for a client to call; a message naming one whose params rmcp could
 /// not read is a params error, not an unknown method.
@@ -64,7 +74,7 @@ pub fn invalid_params(method: &str) -> ErrorData {
 pub struct InitGate<T> {
     inner: T,
     initialize_seen: bool,
-    initialized: bool,
+    initialized: Arc<AtomicBool>,
 }
 
 impl<T> InitGate<T> {
@@ -73,8 +83,14 @@ impl<T> InitGate<T> {
         Self {
             inner,
             initialize_seen: false,
-            initialized: false,
+            initialized: Arc::default(),
         }
+    }
+
+    /// True once the client sent `notifications/initialized` (after `initialize`); shared
+    /// with whoever else answers this session's requests.
+    pub fn initialized_flag(&self) -> Arc<AtomicBool> {
+        self.initialized.clone()
     }
 }
 
@@ -101,6 +117,13 @@ where
 impl<T> InitGate<T> {
     /// What to do with `message`.
     fn verdict(&mut self, message: &ClientJsonRpcMessage) -> Verdict {
+        if let JsonRpcMessage::Notification(n) = message {
+            if let ClientNotification::CustomNotification(custom) = &n.notification {
+                if custom.method == TOUCH_METHOD {
+                    return Verdict::Drop;
+                }
+            }
+        }
         if !self.initialize_seen {
             return match message {
                 JsonRpcMessage::Request(r) => match &r.request {
@@ -144,7 +167,7 @@ impl<T> InitGate<T> {
                     n.notification,
                     ClientNotification::InitializedNotification(_)
                 ) {
-                    self.initialized = true;
+                    self.initialized.store(true, Ordering::Release);
                 }
                 None
             }
@@ -156,7 +179,7 @@ impl<T> InitGate<T> {
                     ClientRequest::InitializeRequest(_) | ClientRequest::PingRequest(_) => {
                         return None
                     }
-                    request if !self.initialized => ErrorData::new(
+                    request if !self.initialized.load(Ordering::Acquire) => ErrorData::new(
                         ErrorCode::INVALID_REQUEST,
                         format!(
                             "{} before the session is initialized: send \
@@ -189,7 +212,7 @@ impl<T: Transport<RoleServer>> Transport<RoleServer> for InitGate<T> {
             let message = self.inner.receive().await?;
             match self.verdict(&message) {
                 Verdict::Pass => return Some(message),
-                Verdict::Drop => tracing::debug!("MCP message before initialize dropped"),
+                Verdict::Drop => tracing::trace!("MCP message dropped by the session gate"),
                 Verdict::Answer(answer) => {
                     tracing::info!(?answer, "MCP request answered by the session gate");
                     if self.inner.send(*answer).await.is_err() {
@@ -254,5 +277,32 @@ mod tests {
         assert_eq!(answer(&mut gate, call), None);
         let bad = serde_json::json!({"jsonrpc": "2.0", "id": 4, "method": "tools/call", "params": {"x": 1}});
         assert_eq!(answer(&mut gate, bad).unwrap()["error"]["code"], -32602);
+    }
+
+    #[test]
+    fn the_flag_follows_the_session_and_a_touch_never_reaches_the_server() {
+        let mut gate = InitGate::new(());
+        let flag = gate.initialized_flag();
+        let touch = serde_json::json!({"jsonrpc": "2.0", "method": TOUCH_METHOD});
+        assert_eq!(
+            answer(&mut gate, touch.clone()),
+            Some(serde_json::json!("dropped"))
+        );
+        let init = serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
+            "protocolVersion": "2025-06-18", "capabilities": {}, "clientInfo": {"name": "t", "version": "1"}}});
+        assert_eq!(answer(&mut gate, init), None);
+        assert!(
+            !flag.load(Ordering::Acquire),
+            "initialize alone does not initialize"
+        );
+        let initialized =
+            serde_json::json!({"jsonrpc": "2.0", "method": "notifications/initialized"});
+        assert_eq!(answer(&mut gate, initialized), None);
+        assert!(flag.load(Ordering::Acquire));
+        assert_eq!(
+            answer(&mut gate, touch),
+            Some(serde_json::json!("dropped")),
+            "dropped after initialization too"
+        );
     }
 }

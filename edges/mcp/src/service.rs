@@ -11,8 +11,8 @@ use crate::call_log::{CallLog, CallRecord};
 use crate::sessions::CallScopes;
 use rmcp::model::{
     CallToolRequestParams, CallToolResponse, CallToolResult, ContentBlock, Implementation,
-    ListToolsResult, PaginatedRequestParams, ProgressNotificationParam, ServerCapabilities,
-    ServerConfig, Tool,
+    ListToolsResult, PaginatedRequestParams, ProgressNotificationParam, ProgressToken,
+    ServerCapabilities, ServerConfig, Tool,
 };
 use rmcp::service::RequestContext;
 use rmcp::{ErrorData as McpError, RoleServer, ServerHandler};
@@ -102,11 +102,10 @@ impl McpService {
     /// its connection dropping. The future resolves when one of them happens.
     fn cancellation(
         &self,
-        context: &RequestContext<RoleServer>,
+        by_client: CancellationToken,
         session: Option<&str>,
         request: &str,
     ) -> impl std::future::Future<Output = ()> + Send + 'static {
-        let by_client = context.ct.clone();
         let by_session = session.and_then(|s| self.scopes.find_session(s));
         let by_connection = session.and_then(|s| self.scopes.find_request(s, request));
         async move {
@@ -165,15 +164,6 @@ impl ServerHandler for McpService {
         request: CallToolRequestParams,
         context: RequestContext<RoleServer>,
     ) -> Result<CallToolResponse, McpError> {
-        // Once the calls stop for a second, the memory a burst of them used goes back.
-        robotd_runtime::heap::release_soon();
-        let name = request.name.to_string();
-        let span = tracing::info_span!(
-            "mcp.tool_call",
-            tool = %name,
-            transport = self.transport,
-            status = tracing::field::Empty
-        );
         let token = context.meta.get_progress_token().or_else(|| {
             request
                 .meta
@@ -184,9 +174,7 @@ impl ServerHandler for McpService {
             let peer = context.peer.clone();
             let report = move |p: Progress| {
                 let peer = peer.clone();
-                let mut param = ProgressNotificationParam::new(token.clone(), f64::from(p.step));
-                param.total = Some(f64::from(p.total));
-                param.message = Some(p.message);
+                let param = progress_param(&token, p);
                 tokio::spawn(async move {
                     if let Err(error) = peer.notify_progress(param).await {
                         tracing::debug!(%error, "progress notification not delivered");
@@ -195,11 +183,63 @@ impl ServerHandler for McpService {
             };
             Box::new(report) as Box<dyn Fn(Progress) + Send + Sync>
         });
-        let session = self.session_of(&context);
-        let request_id = context.id.to_string();
-        let cancelled = self.cancellation(&context, session.as_deref(), &request_id);
+        let call = CallContext {
+            session: self.session_of(&context),
+            request_id: context.id.to_string(),
+            by_client: context.ct.clone(),
+            progress,
+        };
+        self.serve_call(request, call).await.map(Into::into)
+    }
+}
+
+/// The `notifications/progress` params of a skill's step `p`, for the client's `token`.
+pub(crate) fn progress_param(token: &ProgressToken, p: Progress) -> ProgressNotificationParam {
+    let mut param = ProgressNotificationParam::new(token.clone(), f64::from(p.step));
+    param.total = Some(f64::from(p.total));
+    param.message = Some(p.message);
+    param
+}
+
+/// Who made a tool call and what can stop it, whichever way it arrived.
+pub(crate) struct CallContext {
+    /// The session the call belongs to (legacy SSE or streamable HTTP).
+    pub(crate) session: Option<String>,
+    /// The JSON-RPC id of the request, as text.
+    pub(crate) request_id: String,
+    /// Cancelled by the client's `notifications/cancelled`.
+    pub(crate) by_client: CancellationToken,
+    /// Reports the skill's steps as `notifications/progress`, when the client asked for them.
+    pub(crate) progress: Option<Box<dyn Fn(Progress) + Send + Sync>>,
+}
+
+impl McpService {
+    /// Runs one `tools/call` and writes it to the call log. Both rmcp's handler
+    /// ([`ServerHandler::call_tool`]) and the direct streamable-HTTP path
+    /// (`crate::http::direct_call`) end here, so a call is the same call either way.
+    pub(crate) async fn serve_call(
+        &self,
+        request: CallToolRequestParams,
+        call: CallContext,
+    ) -> Result<CallToolResult, McpError> {
+        // Once the calls stop for a second, the memory a burst of them used goes back.
+        robotd_runtime::heap::release_soon();
+        let CallContext {
+            session,
+            request_id,
+            by_client,
+            progress,
+        } = call;
+        let name = request.name.to_string();
+        let span = tracing::info_span!(
+            "mcp.tool_call",
+            tool = %name,
+            transport = self.transport,
+            status = tracing::field::Empty
+        );
+        let cancelled = self.cancellation(by_client, session.as_deref(), &request_id);
         let cancel = CancellationToken::new();
-        // Fires when this handler is dropped before its end (rmcp dropped it): the call's
+        // Fires when this future is dropped before its end (its caller went away): the call's
         // motion stops as for any cancellation.
         let dropped_early = cancel.clone().drop_guard();
         let hooks = CallHooks {
@@ -209,7 +249,7 @@ impl ServerHandler for McpService {
         let origin = Origin::new(OriginKind::Mcp)
             .session(session.unwrap_or_else(|| self.transport.to_owned()))
             .request(request_id);
-        let arguments = request.arguments.clone();
+        let arguments = request.arguments;
         // The call's trace id, for the call log: the actors' spans of this call share it.
         let trace_id = span
             .in_scope(robotd_runtime::telemetry::current_trace_context)
@@ -242,7 +282,7 @@ impl ServerHandler for McpService {
                     CallToolResult::success(vec![ContentBlock::text(output.text.clone())]);
                 result.structured_content = Some(output.structured());
                 result.is_error = Some(self.strict_errors && output.is_failure);
-                Ok(result.into())
+                Ok(result)
             }
             Err(CallError::UnknownTool { name }) => {
                 span.record("status", "unknown_tool");

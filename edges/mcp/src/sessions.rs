@@ -13,17 +13,22 @@
 //! in-memory session manager to fire them for streamable HTTP; the SSE transport fires its
 //! session's token when its event stream is dropped.
 
-use crate::gate::InitGate;
+use crate::gate::{InitGate, TOUCH_METHOD};
 use crate::owner::SessionOwner;
 use futures::Stream;
-use rmcp::model::{ClientJsonRpcMessage, JsonRpcMessage, ServerJsonRpcMessage};
+use rmcp::model::{
+    ClientJsonRpcMessage, ClientNotification, CustomNotification, JsonRpcMessage,
+    ServerJsonRpcMessage,
+};
 use rmcp::transport::streamable_http_server::session::local::LocalSessionManager;
 use rmcp::transport::streamable_http_server::session::ServerSseMessage;
 use rmcp::transport::streamable_http_server::{SessionId, SessionManager};
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll};
+use std::time::{Duration, Instant};
 use tokio_util::sync::CancellationToken;
 
 /// Cancellation tokens of open sessions and running requests.
@@ -93,7 +98,7 @@ impl CallScopes {
     }
 
     /// `request` was answered (or abandoned, with `cancel`): forget its token.
-    fn end_request(&self, session: &str, request: &str, cancel: bool) {
+    pub(crate) fn end_request(&self, session: &str, request: &str, cancel: bool) {
         if let Some(token) = lock(&self.requests).remove(&(session.to_owned(), request.to_owned()))
         {
             if cancel {
@@ -118,18 +123,65 @@ pub struct ClosingSessions {
     inner: LocalSessionManager,
     scopes: Arc<CallScopes>,
     /// The streamable-HTTP sessions this manager opened (`scopes` also holds SSE sessions).
-    opened: Mutex<HashSet<String>>,
+    opened: Mutex<HashMap<String, OpenSession>>,
+    idle_timeout: Duration,
+}
+
+/// What the direct call path needs to know of an open streamable-HTTP session.
+struct OpenSession {
+    /// Set by the session's [`InitGate`] at `notifications/initialized`.
+    initialized: Arc<AtomicBool>,
+    /// When the direct path last told rmcp's worker the session is in use.
+    touched: Instant,
 }
 
 impl ClosingSessions {
     /// Sessions tracked in `scopes`, closed after `idle_timeout` without a request.
-    pub fn new(scopes: Arc<CallScopes>, idle_timeout: std::time::Duration) -> Self {
+    pub fn new(scopes: Arc<CallScopes>, idle_timeout: Duration) -> Self {
         let mut inner = LocalSessionManager::default();
         inner.session_config.keep_alive = Some(idle_timeout);
         Self {
             inner,
             scopes,
             opened: Mutex::default(),
+            idle_timeout,
+        }
+    }
+
+    /// Whether session `id` is open and initialized, so a `tools/call` in it may be answered
+    /// without rmcp's session worker. False for a session rmcp already ended (idle).
+    pub(crate) async fn takes_direct_calls(&self, id: &str) -> bool {
+        let initialized = lock(&self.opened)
+            .get(id)
+            .is_some_and(|s| s.initialized.load(Ordering::Acquire));
+        initialized
+            && self
+                .inner
+                .has_session(&SessionId::from(id))
+                .await
+                .unwrap_or(false)
+    }
+
+    /// A direct call was served in session `id`: keeps rmcp's idle timer of the session from
+    /// closing it, as a request through rmcp would. rmcp's worker restarts its timer at any
+    /// message, so this sends it a [`TOUCH_METHOD`] notification (dropped by the session's
+    /// gate), at most once per eighth of the idle timeout.
+    pub(crate) async fn keep_open(&self, id: &str) {
+        let now = Instant::now();
+        let due = match lock(&self.opened).get_mut(id) {
+            Some(session) if now.duration_since(session.touched) >= self.idle_timeout / 8 => {
+                session.touched = now;
+                true
+            }
+            _ => false,
+        };
+        if due {
+            let touch = ClientJsonRpcMessage::notification(ClientNotification::CustomNotification(
+                CustomNotification::new(TOUCH_METHOD, None),
+            ));
+            if let Err(error) = self.inner.accept_message(&SessionId::from(id), touch).await {
+                tracing::debug!(session = %id, %error, "MCP session not kept open: it ended");
+            }
         }
     }
 
@@ -141,7 +193,7 @@ impl ClosingSessions {
     /// Closes the tokens of this manager's sessions that rmcp ended without a `DELETE`
     /// (idle timeout). SSE sessions in the same scopes are not this manager's to judge.
     async fn forget_ended(&self) -> Result<(), <LocalSessionManager as SessionManager>::Error> {
-        let opened: Vec<String> = lock(&self.opened).iter().cloned().collect();
+        let opened: Vec<String> = lock(&self.opened).keys().cloned().collect();
         for id in opened {
             if !self
                 .inner
@@ -165,8 +217,13 @@ impl SessionManager for ClosingSessions {
         self.forget_ended().await?;
         let (id, transport) = self.inner.create_session().await?;
         self.scopes.session(&id);
-        lock(&self.opened).insert(id.to_string());
-        Ok((id, InitGate::new(transport)))
+        let gate = InitGate::new(transport);
+        let session = OpenSession {
+            initialized: gate.initialized_flag(),
+            touched: Instant::now(),
+        };
+        lock(&self.opened).insert(id.to_string(), session);
+        Ok((id, gate))
     }
 
     async fn initialize_session(

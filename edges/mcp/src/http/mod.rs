@@ -8,6 +8,7 @@
 //! its calls cancelled. The port's guard (token, Host, Origin, body size) is the HTTP edge's:
 //! `robotd_http::guard`, around every route.
 
+mod direct_call;
 mod sse;
 mod streamable;
 
@@ -33,6 +34,8 @@ pub struct RouterOptions {
     pub max_sessions: usize,
     /// A streamable-HTTP session without a request for this long is closed.
     pub idle_timeout: Duration,
+    /// Run streamable-HTTP tool calls without rmcp's session pipeline ([`direct_call`]).
+    pub direct_tool_calls: bool,
 }
 
 impl Default for RouterOptions {
@@ -41,6 +44,7 @@ impl Default for RouterOptions {
             max_body_bytes: 1024 * 1024,
             max_sessions: 100,
             idle_timeout: Duration::from_secs(300),
+            direct_tool_calls: true,
         }
     }
 }
@@ -96,12 +100,21 @@ pub fn router(service: McpService, options: RouterOptions, shutdown: Cancellatio
         streamable: sessions.clone(),
         sse: sse::SessionMap::default(),
     };
-    let streamable =
-        StreamableHttpService::new(move || Ok(streamable_service.clone()), sessions, config);
+    let streamable = StreamableHttpService::new(
+        move || Ok(streamable_service.clone()),
+        sessions.clone(),
+        config,
+    );
+    let direct = options.direct_tool_calls.then(|| direct_call::DirectCalls {
+        service: service.for_transport("streamable_http"),
+        sessions: sessions.clone(),
+        scopes: service.scopes(),
+    });
     let checks = streamable::StreamableChecks {
         scopes: service.scopes(),
         max_body_bytes: options.max_body_bytes,
         cap: cap.clone(),
+        direct,
     };
     let state = sse::SseState {
         service,

@@ -8,8 +8,12 @@
 //!   `-32602`;
 //! - a request naming another client's session is answered 404, like an unknown session;
 //! - a new session is refused with 503 when `mcp.max_sessions` are open, and otherwise bound
-//!   to its client once rmcp names it in `Mcp-Session-Id`.
+//!   to its client once rmcp names it in `Mcp-Session-Id`;
+//! - a `tools/call` in an initialized session is run here, without rmcp's session pipeline
+//!   ([`super::direct_call`]), and a `notifications/cancelled` cancels the call it names on
+//!   either path.
 
+use super::direct_call::{cancel_named, DirectCall, DirectCalls};
 use super::SessionCap;
 use crate::gate::{invalid_params, is_mcp_method};
 use crate::owner::SessionOwner;
@@ -27,6 +31,8 @@ pub(super) struct StreamableChecks {
     pub(super) scopes: Arc<CallScopes>,
     pub(super) max_body_bytes: usize,
     pub(super) cap: SessionCap,
+    /// Answers plain tool calls without rmcp's session pipeline; `None` sends all to rmcp.
+    pub(super) direct: Option<DirectCalls>,
 }
 
 /// A JSON-RPC error reply with no id (the request's could not be read), as HTTP 400.
@@ -75,6 +81,7 @@ pub(super) async fn streamable_checks(
         scopes,
         max_body_bytes,
         cap,
+        direct,
     } = checks;
     let owner = SessionOwner::of(
         request.headers(),
@@ -118,8 +125,19 @@ pub(super) async fn streamable_checks(
         };
         // The happy path parses once; a body that is not a client message is parsed again
         // only to say what is wrong with it.
-        if let Err(error) = serde_json::from_slice::<ClientJsonRpcMessage>(&bytes) {
-            return refusal_of(&bytes, error);
+        let message = match serde_json::from_slice::<ClientJsonRpcMessage>(&bytes) {
+            Ok(message) => message,
+            Err(error) => return refusal_of(&bytes, error),
+        };
+        if let Some(session) = &session {
+            cancel_named(&scopes, session, &message);
+            if let Some(direct) = &direct {
+                if let Some(call) = DirectCall::of(&parts.headers, message) {
+                    if direct.sessions.takes_direct_calls(session).await {
+                        return direct.answer(session, call).await;
+                    }
+                }
+            }
         }
         Request::from_parts(parts, axum::body::Body::from(bytes))
     } else {

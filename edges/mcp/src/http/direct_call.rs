@@ -1,0 +1,413 @@
+//! Streamable-HTTP `tools/call` answered without rmcp's session pipeline.
+//!
+//! rmcp hands every request of a streamable-HTTP session to the session's worker task, which
+//! passes it to the service loop, which runs it on a task of its own and sends the answer back
+//! through the worker onto an event stream. On a two-CPU machine those hand-overs cost a cheap
+//! tool call about 100 µs (BENCHMARKS.md). The common case is answered here instead: a
+//! `tools/call` in an open, initialized session, whose `_meta` holds at most a progress token,
+//! from a client of a protocol revision whose requests rmcp checks no further than their
+//! session. The call runs through the same [`McpService::serve_call`] as rmcp's handler (same
+//! registry call, call log, trace id, cancellation), on a task of its own. A call that ends
+//! within [`STREAM_AFTER`] without reporting progress (every cheap tool) is answered as one
+//! `application/json` body; otherwise the answer is an event stream with keep-alives: the
+//! `notifications/progress` events (when the client gave a progress token), then the result.
+//! The MCP spec lets a server answer a request either way.
+//!
+//! What the direct path keeps of rmcp's pipeline, each in its own place:
+//! - **the session order**: only a session whose gate ([`crate::gate`]) saw
+//!   `notifications/initialized` and that rmcp still holds takes direct calls
+//!   ([`ClosingSessions::takes_direct_calls`]);
+//! - **the idle timeout**: a direct call restarts rmcp's idle timer of its session
+//!   ([`ClosingSessions::keep_open`]);
+//! - **cancellation**: a `notifications/cancelled` naming the call, the session closing and
+//!   the client's connection dropping each cancel it ([`cancel_named`], [`CallScopes`]); the
+//!   call runs on a task of its own, so a dropped connection stops the motion and the call
+//!   still ends and is logged;
+//! - **rmcp's checks**: a request with anything rmcp would look at more closely (an `Accept`
+//!   with weights, a protocol-version header of the 2026-07-28 revision or unknown, `_meta`
+//!   beyond a progress token, input responses) is left to rmcp, which answers it as before.
+//!
+//! `mcp.direct_tool_calls = false` sends every call through rmcp.
+
+use crate::service::{progress_param, CallContext, McpService};
+use crate::sessions::{CallScopes, ClosingSessions};
+use axum::http::{header, HeaderMap, StatusCode};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use rmcp::model::{
+    CallToolRequestParams, ClientJsonRpcMessage, ClientNotification, ClientRequest, ErrorData,
+    GetMeta, JsonRpcMessage, ProgressNotification, ProgressToken, ProtocolVersion, RequestId,
+    ServerJsonRpcMessage, ServerNotification, ServerResult,
+};
+use robotd_tools::Progress;
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+
+/// A call still running after this is answered as an event stream, whose keep-alives hold
+/// the client's read timeout off (a motion can take minutes; an HTTP client waiting for a
+/// JSON body may give up after 30 s).
+const STREAM_AFTER: Duration = Duration::from_millis(500);
+
+/// Keep-alive comment interval of an answer's event stream (rmcp's default).
+const KEEP_ALIVE: Duration = Duration::from_secs(15);
+
+/// What answers direct calls.
+#[derive(Clone)]
+pub(super) struct DirectCalls {
+    pub(super) service: McpService,
+    pub(super) sessions: Arc<ClosingSessions>,
+    pub(super) scopes: Arc<CallScopes>,
+}
+
+/// A `tools/call` that may be answered directly, as far as its headers and body tell.
+pub(super) struct DirectCall {
+    id: RequestId,
+    params: CallToolRequestParams,
+    /// The client's progress token: its skill's steps become `notifications/progress`.
+    progress: Option<ProgressToken>,
+}
+
+impl DirectCall {
+    /// The call in `message`, when nothing in it or in `headers` needs rmcp's own handling.
+    pub(super) fn of(headers: &HeaderMap, message: ClientJsonRpcMessage) -> Option<Self> {
+        if !plain_headers(headers) {
+            return None;
+        }
+        let JsonRpcMessage::Request(request) = message else {
+            return None;
+        };
+        let request_meta = request.request.get_meta().clone();
+        let ClientRequest::CallToolRequest(call) = request.request else {
+            return None;
+        };
+        let params = call.params;
+        let only_progress =
+            |meta: &rmcp::model::RequestMetaObject| meta.keys().all(|key| key == "progressToken");
+        let plain = only_progress(&request_meta)
+            && params.meta.as_ref().is_none_or(only_progress)
+            && params.input_responses.is_none()
+            && params.request_state.is_none();
+        let progress = request_meta.get_progress_token().or_else(|| {
+            params
+                .meta
+                .as_ref()
+                .and_then(|meta| meta.get_progress_token())
+        });
+        plain.then_some(Self {
+            id: request.id,
+            params,
+            progress,
+        })
+    }
+}
+
+/// Whether rmcp would check nothing in `headers` beyond what the direct path does: both
+/// media types accepted without weights, a JSON body, and no protocol version, or a known
+/// one older than the revision whose requests carry further headers.
+fn plain_headers(headers: &HeaderMap) -> bool {
+    let accept = headers
+        .get_all(header::ACCEPT)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .collect::<Vec<_>>()
+        .join(",");
+    let accepts = |essence: &str| {
+        accept
+            .split(',')
+            .any(|part| part.trim().eq_ignore_ascii_case(essence))
+    };
+    if !accepts("application/json") || !accepts("text/event-stream") {
+        return false;
+    }
+    let json_body = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| {
+            let essence = v.split_once(';').map_or(v, |(essence, _)| essence);
+            essence.trim().eq_ignore_ascii_case("application/json")
+        });
+    let version_ok = match headers.get("mcp-protocol-version") {
+        None => true,
+        Some(value) => value.to_str().is_ok_and(|version| {
+            version < ProtocolVersion::STANDARD_HEADERS.as_str()
+                && ProtocolVersion::KNOWN_VERSIONS
+                    .iter()
+                    .any(|known| known.as_str() == version)
+        }),
+    };
+    json_body && version_ok
+}
+
+/// A `notifications/cancelled` in `session` cancels the call it names, whichever path runs
+/// it (rmcp cancels its own calls too; a call sees the first of the two).
+pub(super) fn cancel_named(scopes: &CallScopes, session: &str, message: &ClientJsonRpcMessage) {
+    if let JsonRpcMessage::Notification(n) = message {
+        if let ClientNotification::CancelledNotification(cancelled) = &n.notification {
+            let Some(request) = cancelled
+                .params
+                .request_id
+                .as_ref()
+                .map(|id| id.to_string())
+            else {
+                return;
+            };
+            if let Some(token) = scopes.find_request(session, &request) {
+                tracing::info!(%session, %request, "MCP client cancelled its call");
+                token.cancel();
+            }
+        }
+    }
+}
+
+/// What a direct call's task sends its answer with.
+enum Outgoing {
+    /// A `notifications/progress` for the client.
+    Progress(ServerJsonRpcMessage),
+    /// The call's response; nothing follows.
+    Answer(ServerJsonRpcMessage),
+}
+
+impl DirectCalls {
+    /// Runs `call` in `session`; answers it as one JSON body, or as an event stream once the
+    /// call reports progress.
+    pub(super) async fn answer(&self, session: &str, call: DirectCall) -> Response {
+        self.sessions.keep_open(session).await;
+        let DirectCall {
+            id,
+            params,
+            progress,
+        } = call;
+        let request = id.to_string();
+        // Looked up by the call as "its connection": dropping this answer (the client went
+        // away) or a `notifications/cancelled` fires it.
+        self.scopes.request(session, &request);
+        let mut scope = RequestScope {
+            scopes: self.scopes.clone(),
+            session: session.to_owned(),
+            request: request.clone(),
+            answered: false,
+        };
+        let (outgoing, mut incoming) = mpsc::unbounded_channel();
+        let report = progress.map(|token| {
+            let outgoing = outgoing.clone();
+            Box::new(move |step: Progress| {
+                let notification = ServerNotification::ProgressNotification(
+                    ProgressNotification::new(progress_param(&token, step)),
+                );
+                let message = ServerJsonRpcMessage::notification(notification);
+                // The receiver is gone only when the client went away; the call is cancelled.
+                let _ = outgoing.send(Outgoing::Progress(message));
+            }) as Box<dyn Fn(Progress) + Send + Sync>
+        });
+        let context = CallContext {
+            session: Some(session.to_owned()),
+            request_id: request,
+            by_client: CancellationToken::new(),
+            progress: report,
+        };
+        let service = self.service.clone();
+        let call = tokio::spawn(async move { service.serve_call(params, context).await });
+        tokio::spawn(async move {
+            let answer = response_to(id, call.await);
+            let _ = outgoing.send(Outgoing::Answer(answer));
+        });
+        let first = match tokio::time::timeout(STREAM_AFTER, incoming.recv()).await {
+            Ok(Some(Outgoing::Answer(answer))) => {
+                scope.answered = true;
+                return json_body(&answer);
+            }
+            Ok(Some(progress)) => Some(progress),
+            Ok(None) => {
+                return (
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    "Internal Server Error: the tool call ended without an answer",
+                )
+                    .into_response()
+            }
+            Err(_still_running) => None,
+        };
+        // From here the stream owns the scope: dropped unanswered, it cancels the call.
+        let events = futures::stream::unfold(
+            (first, incoming, scope),
+            |(first, mut incoming, mut scope)| async move {
+                if scope.answered {
+                    return None;
+                }
+                let message = match first {
+                    Some(first) => first,
+                    None => incoming.recv().await?,
+                };
+                let message = match message {
+                    Outgoing::Progress(message) => message,
+                    Outgoing::Answer(message) => {
+                        scope.answered = true;
+                        message
+                    }
+                };
+                Some((event(&message), (None, incoming, scope)))
+            },
+        );
+        Sse::new(events)
+            .keep_alive(KeepAlive::new().interval(KEEP_ALIVE))
+            .into_response()
+    }
+}
+
+/// The JSON-RPC response to request `id` from the call's outcome.
+fn response_to(
+    id: RequestId,
+    outcome: Result<Result<rmcp::model::CallToolResult, ErrorData>, tokio::task::JoinError>,
+) -> ServerJsonRpcMessage {
+    match outcome {
+        Ok(Ok(result)) => {
+            let mut result = ServerResult::CallToolResult(result);
+            // A session opened with `initialize` is on a revision before 2026-07-28: rmcp
+            // gives such peers this shape.
+            result.strip_result_type_for_legacy_peer();
+            result.strip_non_object_output_for_legacy_peer();
+            ServerJsonRpcMessage::response(result, id)
+        }
+        Ok(Err(error)) => ServerJsonRpcMessage::error(error, Some(id)),
+        Err(error) => {
+            tracing::error!(%error, "MCP tool call task failed");
+            let error = ErrorData::internal_error(
+                format!("the tool call failed inside robotd: {error}"),
+                None,
+            );
+            ServerJsonRpcMessage::error(error, Some(id))
+        }
+    }
+}
+
+/// `message` as the whole body of the answer.
+fn json_body(message: &ServerJsonRpcMessage) -> Response {
+    match serde_json::to_vec(message) {
+        Ok(body) => (
+            StatusCode::OK,
+            [(header::CONTENT_TYPE, "application/json")],
+            body,
+        )
+            .into_response(),
+        Err(error) => (
+            StatusCode::INTERNAL_SERVER_ERROR,
+            format!("Internal Server Error: the answer could not be written as JSON: {error}"),
+        )
+            .into_response(),
+    }
+}
+
+/// `message` as one event of an answer's event stream.
+fn event(message: &ServerJsonRpcMessage) -> Result<Event, Infallible> {
+    let data = serde_json::to_string(message).unwrap_or_else(|error| {
+        tracing::error!(%error, "an MCP message could not be written as JSON");
+        String::from("{}")
+    });
+    Ok(Event::default().event("message").data(data))
+}
+
+/// The request's cancellation token while its answer is pending: dropped unanswered (the
+/// client's connection went away), it cancels the call; either way it is forgotten.
+struct RequestScope {
+    scopes: Arc<CallScopes>,
+    session: String,
+    request: String,
+    answered: bool,
+}
+
+impl Drop for RequestScope {
+    fn drop(&mut self) {
+        if !self.answered {
+            tracing::info!(session = %self.session, request = %self.request, "MCP client dropped the connection before the answer: cancelling the call");
+        }
+        self.scopes
+            .end_request(&self.session, &self.request, !self.answered);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn headers(pairs: &[(&'static str, &'static str)]) -> HeaderMap {
+        let mut map = HeaderMap::new();
+        for (name, value) in pairs {
+            map.append(*name, value.parse().unwrap());
+        }
+        map
+    }
+
+    fn message(value: serde_json::Value) -> ClientJsonRpcMessage {
+        serde_json::from_value(value).unwrap()
+    }
+
+    const PLAIN: &[(&str, &str)] = &[
+        ("accept", "application/json, text/event-stream"),
+        ("content-type", "application/json"),
+        ("mcp-protocol-version", "2025-06-18"),
+    ];
+
+    fn call() -> serde_json::Value {
+        serde_json::json!({"jsonrpc": "2.0", "id": 7, "method": "tools/call",
+            "params": {"name": "get_workspace_coordinate_from_point",
+                       "arguments": {"workspace_id": "niryo_ws", "point": "center point"}}})
+    }
+
+    #[test]
+    fn a_plain_tool_call_is_taken() {
+        let taken = DirectCall::of(&headers(PLAIN), message(call())).expect("taken");
+        assert_eq!(taken.id.to_string(), "7");
+        assert_eq!(taken.params.name, "get_workspace_coordinate_from_point");
+        assert!(taken.progress.is_none());
+        let mut no_version = headers(PLAIN);
+        no_version.remove("mcp-protocol-version");
+        assert!(DirectCall::of(&no_version, message(call())).is_some());
+        let mut progress = call();
+        progress["params"]["_meta"] = serde_json::json!({"progressToken": "p1"});
+        let taken = DirectCall::of(&headers(PLAIN), message(progress)).expect("taken");
+        assert_eq!(
+            serde_json::to_value(taken.progress.expect("a token")).unwrap(),
+            serde_json::json!("p1")
+        );
+    }
+
+    #[test]
+    fn anything_rmcp_checks_further_is_left_to_it() {
+        let with = |name: &'static str, value: &'static str| {
+            let mut map = headers(PLAIN);
+            map.insert(name, value.parse().unwrap());
+            DirectCall::of(&map, message(call())).is_some()
+        };
+        assert!(!with("accept", "application/json"), "no event stream");
+        assert!(
+            !with("accept", "application/json, text/event-stream;q=0"),
+            "weights"
+        );
+        assert!(!with("content-type", "text/plain"));
+        assert!(!with("mcp-protocol-version", "2026-07-28"), "newer rules");
+        assert!(!with("mcp-protocol-version", "1999-01-01"), "unknown");
+        let mut traced = call();
+        traced["params"]["_meta"] = serde_json::json!({"progressToken": 1, "traceparent": "00-x"});
+        assert!(DirectCall::of(&headers(PLAIN), message(traced)).is_none());
+        let ping = serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "ping"});
+        assert!(DirectCall::of(&headers(PLAIN), message(ping)).is_none());
+        let list = serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "tools/list"});
+        assert!(DirectCall::of(&headers(PLAIN), message(list)).is_none());
+    }
+
+    #[test]
+    fn a_cancellation_reaches_the_call_it_names_only() {
+        let scopes = CallScopes::default();
+        let seven = scopes.request("s1", "7");
+        let eight = scopes.request("s1", "8");
+        let other_session = scopes.request("s2", "7");
+        let cancelled = serde_json::json!({"jsonrpc": "2.0", "method": "notifications/cancelled",
+            "params": {"requestId": 7, "reason": "user"}});
+        cancel_named(&scopes, "s1", &message(cancelled));
+        assert!(seven.is_cancelled());
+        assert!(!eight.is_cancelled());
+        assert!(!other_session.is_cancelled());
+    }
+}
