@@ -1,17 +1,21 @@
-//! Streamable-HTTP `tools/call` answered without rmcp's session pipeline.
+//! `tools/call` run without rmcp's session pipeline, on streamable HTTP and legacy SSE.
 //!
 //! rmcp hands every request of a streamable-HTTP session to the session's worker task, which
 //! passes it to the service loop, which runs it on a task of its own and sends the answer back
-//! through the worker onto an event stream. On a two-CPU machine those hand-overs cost a cheap
-//! tool call about 100 µs (BENCHMARKS.md). The common case is answered here instead: a
-//! `tools/call` in an open, initialized session, whose `_meta` holds at most a progress token,
-//! from a client of a protocol revision whose requests rmcp checks no further than their
-//! session. The call runs through the same [`McpService::serve_call`] as rmcp's handler (same
-//! registry call, call log, trace id, cancellation), on a task of its own. A call that ends
-//! within [`STREAM_AFTER`] without reporting progress (every cheap tool) is answered as one
-//! `application/json` body; otherwise the answer is an event stream with keep-alives: the
-//! `notifications/progress` events (when the client gave a progress token), then the result.
-//! The MCP spec lets a server answer a request either way.
+//! through the worker onto an event stream; a legacy-SSE request crosses the service loop the
+//! same way. On a two-CPU machine those hand-overs cost a cheap tool call about 100 µs
+//! (BENCHMARKS.md). The common case is run here instead: a `tools/call` in an open, initialized
+//! session, whose `_meta` holds at most a progress token, from a client of a protocol revision
+//! whose requests rmcp checks no further than their session. The call runs through the same
+//! [`McpService::serve_call`] as rmcp's handler (same registry call, call log, trace id,
+//! cancellation), on a task of its own ([`start`]).
+//!
+//! How the answer goes out: on legacy SSE, onto the session's event stream as always
+//! (`super::sse`). On streamable HTTP, a call that ends within [`STREAM_AFTER`] without
+//! reporting progress (every cheap tool) is answered as one `application/json` body; otherwise
+//! the answer is an event stream with keep-alives: the `notifications/progress` events (when
+//! the client gave a progress token), then the result. The MCP spec lets a server answer a
+//! request either way.
 //!
 //! What the direct path keeps of rmcp's pipeline, each in its own place:
 //! - **the session order**: only a session whose gate ([`crate::gate`]) saw
@@ -34,13 +38,16 @@ use crate::sessions::{CallScopes, ClosingSessions};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
+use futures::FutureExt;
 use rmcp::model::{
-    CallToolRequestParams, ClientJsonRpcMessage, ClientNotification, ClientRequest, ErrorData,
-    GetMeta, JsonRpcMessage, ProgressNotification, ProgressToken, ProtocolVersion, RequestId,
-    ServerJsonRpcMessage, ServerNotification, ServerResult,
+    CallToolRequestParams, CallToolResult, ClientJsonRpcMessage, ClientNotification, ClientRequest,
+    ErrorData, GetMeta, JsonRpcMessage, ProgressNotification, ProgressToken, ProtocolVersion,
+    RequestId, ServerJsonRpcMessage, ServerNotification, ServerResult,
 };
 use robotd_tools::Progress;
+use std::any::Any;
 use std::convert::Infallible;
+use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::mpsc;
@@ -62,7 +69,7 @@ pub(super) struct DirectCalls {
     pub(super) scopes: Arc<CallScopes>,
 }
 
-/// A `tools/call` that may be answered directly, as far as its headers and body tell.
+/// A `tools/call` that may be run directly, as far as its headers and body tell.
 pub(super) struct DirectCall {
     id: RequestId,
     params: CallToolRequestParams,
@@ -76,6 +83,12 @@ impl DirectCall {
         if !plain_headers(headers) {
             return None;
         }
+        Self::in_message(message)
+    }
+
+    /// The call in `message` (legacy SSE: rmcp checks no headers there), when its `_meta`
+    /// holds at most a progress token.
+    pub(super) fn in_message(message: ClientJsonRpcMessage) -> Option<Self> {
         let JsonRpcMessage::Request(request) = message else {
             return None;
         };
@@ -163,57 +176,80 @@ pub(super) fn cancel_named(scopes: &CallScopes, session: &str, message: &ClientJ
 }
 
 /// What a direct call's task sends its answer with.
-enum Outgoing {
+pub(super) enum Outgoing {
     /// A `notifications/progress` for the client.
     Progress(ServerJsonRpcMessage),
     /// The call's response; nothing follows.
     Answer(ServerJsonRpcMessage),
 }
 
+/// A direct call on its way: its messages arrive on `incoming`, and `scope` cancels it when
+/// dropped before the answer was passed on.
+pub(super) struct Started {
+    pub(super) incoming: mpsc::UnboundedReceiver<Outgoing>,
+    pub(super) scope: RequestScope,
+}
+
+/// Starts `call` of `session` on `service` (rmcp's handler is not involved): on a task of its
+/// own, so a caller that goes away cancels the call (through the scope) without cutting it.
+pub(super) fn start(
+    service: &McpService,
+    scopes: &Arc<CallScopes>,
+    session: &str,
+    call: DirectCall,
+) -> Started {
+    let DirectCall {
+        id,
+        params,
+        progress,
+    } = call;
+    let request = id.to_string();
+    // Looked up by the call as "its connection": dropping the scope (the client went away)
+    // or a `notifications/cancelled` fires it.
+    scopes.request(session, &request);
+    let scope = RequestScope {
+        scopes: scopes.clone(),
+        session: session.to_owned(),
+        request: request.clone(),
+        answered: false,
+    };
+    let (outgoing, incoming) = mpsc::unbounded_channel();
+    let report = progress.map(|token| {
+        let outgoing = outgoing.clone();
+        Box::new(move |step: Progress| {
+            let notification = ServerNotification::ProgressNotification(ProgressNotification::new(
+                progress_param(&token, step),
+            ));
+            let message = ServerJsonRpcMessage::notification(notification);
+            // The receiver is gone only when the client went away; the call is cancelled.
+            let _ = outgoing.send(Outgoing::Progress(message));
+        }) as Box<dyn Fn(Progress) + Send + Sync>
+    });
+    let context = CallContext {
+        session: Some(session.to_owned()),
+        request_id: request,
+        by_client: CancellationToken::new(),
+        progress: report,
+    };
+    let service = service.clone();
+    tokio::spawn(async move {
+        let outcome = AssertUnwindSafe(service.serve_call(params, context))
+            .catch_unwind()
+            .await;
+        let _ = outgoing.send(Outgoing::Answer(response_to(id, outcome)));
+    });
+    Started { incoming, scope }
+}
+
 impl DirectCalls {
     /// Runs `call` in `session`; answers it as one JSON body, or as an event stream once the
-    /// call reports progress.
+    /// call reports progress or runs longer than [`STREAM_AFTER`].
     pub(super) async fn answer(&self, session: &str, call: DirectCall) -> Response {
         self.sessions.keep_open(session).await;
-        let DirectCall {
-            id,
-            params,
-            progress,
-        } = call;
-        let request = id.to_string();
-        // Looked up by the call as "its connection": dropping this answer (the client went
-        // away) or a `notifications/cancelled` fires it.
-        self.scopes.request(session, &request);
-        let mut scope = RequestScope {
-            scopes: self.scopes.clone(),
-            session: session.to_owned(),
-            request: request.clone(),
-            answered: false,
-        };
-        let (outgoing, mut incoming) = mpsc::unbounded_channel();
-        let report = progress.map(|token| {
-            let outgoing = outgoing.clone();
-            Box::new(move |step: Progress| {
-                let notification = ServerNotification::ProgressNotification(
-                    ProgressNotification::new(progress_param(&token, step)),
-                );
-                let message = ServerJsonRpcMessage::notification(notification);
-                // The receiver is gone only when the client went away; the call is cancelled.
-                let _ = outgoing.send(Outgoing::Progress(message));
-            }) as Box<dyn Fn(Progress) + Send + Sync>
-        });
-        let context = CallContext {
-            session: Some(session.to_owned()),
-            request_id: request,
-            by_client: CancellationToken::new(),
-            progress: report,
-        };
-        let service = self.service.clone();
-        let call = tokio::spawn(async move { service.serve_call(params, context).await });
-        tokio::spawn(async move {
-            let answer = response_to(id, call.await);
-            let _ = outgoing.send(Outgoing::Answer(answer));
-        });
+        let Started {
+            mut incoming,
+            mut scope,
+        } = start(&self.service, &self.scopes, session, call);
         let first = match tokio::time::timeout(STREAM_AFTER, incoming.recv()).await {
             Ok(Some(Outgoing::Answer(answer))) => {
                 scope.answered = true;
@@ -240,13 +276,7 @@ impl DirectCalls {
                     Some(first) => first,
                     None => incoming.recv().await?,
                 };
-                let message = match message {
-                    Outgoing::Progress(message) => message,
-                    Outgoing::Answer(message) => {
-                        scope.answered = true;
-                        message
-                    }
-                };
+                let message = scope.pass_on(message);
                 Some((event(&message), (None, incoming, scope)))
             },
         );
@@ -259,7 +289,7 @@ impl DirectCalls {
 /// The JSON-RPC response to request `id` from the call's outcome.
 fn response_to(
     id: RequestId,
-    outcome: Result<Result<rmcp::model::CallToolResult, ErrorData>, tokio::task::JoinError>,
+    outcome: Result<Result<CallToolResult, ErrorData>, Box<dyn Any + Send>>,
 ) -> ServerJsonRpcMessage {
     match outcome {
         Ok(Ok(result)) => {
@@ -271,10 +301,15 @@ fn response_to(
             ServerJsonRpcMessage::response(result, id)
         }
         Ok(Err(error)) => ServerJsonRpcMessage::error(error, Some(id)),
-        Err(error) => {
-            tracing::error!(%error, "MCP tool call task failed");
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            tracing::error!(panic = %what, "MCP tool call panicked");
             let error = ErrorData::internal_error(
-                format!("the tool call failed inside robotd: {error}"),
+                format!("the tool call failed inside robotd: {what}"),
                 None,
             );
             ServerJsonRpcMessage::error(error, Some(id))
@@ -310,11 +345,29 @@ fn event(message: &ServerJsonRpcMessage) -> Result<Event, Infallible> {
 
 /// The request's cancellation token while its answer is pending: dropped unanswered (the
 /// client's connection went away), it cancels the call; either way it is forgotten.
-struct RequestScope {
+pub(super) struct RequestScope {
     scopes: Arc<CallScopes>,
     session: String,
     request: String,
     answered: bool,
+}
+
+impl RequestScope {
+    /// The message to send the client for `outgoing`; an answer marks the call answered.
+    pub(super) fn pass_on(&mut self, outgoing: Outgoing) -> ServerJsonRpcMessage {
+        match outgoing {
+            Outgoing::Progress(message) => message,
+            Outgoing::Answer(message) => {
+                self.answered = true;
+                message
+            }
+        }
+    }
+
+    /// Whether the answer was passed on.
+    pub(super) fn answered(&self) -> bool {
+        self.answered
+    }
 }
 
 impl Drop for RequestScope {

@@ -121,6 +121,7 @@ pub fn router(service: McpService, options: RouterOptions, shutdown: Cancellatio
         sessions: cap.sse.clone(),
         shutdown,
         cap,
+        direct: options.direct_tool_calls,
     };
     let streamable =
         Router::new()

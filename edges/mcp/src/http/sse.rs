@@ -3,10 +3,13 @@
 //! `GET /sse` opens an event stream whose first event, `endpoint`, names
 //! `/messages/?session_id=<id>`; the client POSTs each JSON-RPC message there (answered
 //! `202 Accepted`) and reads the replies as `message` events on the stream. Each stream is one
-//! rmcp session fed through a pair of channels, behind [`crate::gate`]. Closing the stream
-//! ends the session and cancels its calls (a motion in flight stops); a keep-alive comment
-//! every second makes a vanished client noticed within about two seconds.
+//! rmcp session fed through a pair of channels, behind [`crate::gate`]. A `tools/call` of an
+//! initialized session skips rmcp's service loop ([`super::direct_call`]): it runs on a task
+//! of its own, which writes its progress and answer onto the session's stream. Closing the
+//! stream ends the session and cancels its calls (a motion in flight stops); a keep-alive
+//! comment every second makes a vanished client noticed within about two seconds.
 
+use super::direct_call::{self, cancel_named, DirectCall, Started};
 use super::SessionCap;
 use crate::gate::gated;
 use crate::owner::SessionOwner;
@@ -25,13 +28,27 @@ use rmcp::ServiceExt;
 use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio_util::sync::CancellationToken;
 
-/// The open SSE sessions: where each one's posted messages go.
-pub(super) type SessionMap = Arc<Mutex<HashMap<String, mpsc::Sender<ClientJsonRpcMessage>>>>;
+/// The open SSE sessions by id.
+pub(super) type SessionMap = Arc<Mutex<HashMap<String, SseSession>>>;
+
+/// One open SSE session.
+#[derive(Clone)]
+pub(super) struct SseSession {
+    /// Where its posted messages go (rmcp's session, behind the gate).
+    to_server: mpsc::Sender<ClientJsonRpcMessage>,
+    /// Its event stream, for the answers of direct calls.
+    to_client: mpsc::Sender<ServerJsonRpcMessage>,
+    /// Set by its gate at `notifications/initialized`.
+    initialized: Arc<AtomicBool>,
+    /// The service naming this session.
+    service: McpService,
+}
 
 /// What the SSE routes share.
 #[derive(Clone)]
@@ -40,6 +57,8 @@ pub(super) struct SseState {
     pub(super) sessions: SessionMap,
     pub(super) shutdown: CancellationToken,
     pub(super) cap: SessionCap,
+    /// Run tool calls of initialized sessions without rmcp's service loop.
+    pub(super) direct: bool,
 }
 
 /// The event stream of one SSE session; dropping it (the client went away) ends the session.
@@ -90,19 +109,23 @@ pub(super) async fn open_sse(State(state): State<SseState>, request: Request) ->
     state.service.scopes().bind_owner(&id, owner);
     let (to_server, from_client) = mpsc::channel::<ClientJsonRpcMessage>(64);
     let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);
+    let service = state.service.for_sse_session(&id);
+    let gate = gated((to_client.clone(), from_client));
+    let entry = SseSession {
+        to_server,
+        to_client,
+        initialized: gate.initialized_flag(),
+        service: service.clone(),
+    };
     state
         .sessions
         .lock()
         .unwrap_or_else(|e| e.into_inner())
-        .insert(id.clone(), to_server);
-    let service = state.service.for_sse_session(&id);
+        .insert(id.clone(), entry);
     let session = id.clone();
     let shutdown = state.shutdown.clone();
     tokio::spawn(async move {
-        match service
-            .serve_with_ct(gated((to_client, from_client)), shutdown.child_token())
-            .await
-        {
+        match service.serve_with_ct(gate, shutdown.child_token()).await {
             Ok(running) => {
                 if let Err(error) = running.waiting().await {
                     tracing::debug!(%session, %error, "SSE session ended");
@@ -173,13 +196,13 @@ pub(super) async fn post_message(
         )
             .into_response();
     }
-    let sender = state
+    let session = state
         .sessions
         .lock()
         .unwrap_or_else(|e| e.into_inner())
         .get(&id)
         .cloned();
-    let Some(mut sender) = sender else {
+    let Some(session) = session else {
         return (StatusCode::NOT_FOUND, "Could not find session").into_response();
     };
     let message: ClientJsonRpcMessage = match serde_json::from_slice(&body) {
@@ -192,6 +215,16 @@ pub(super) async fn post_message(
                 .into_response()
         }
     };
+    let scopes = state.service.scopes();
+    cancel_named(&scopes, &id, &message);
+    if state.direct && session.initialized.load(Ordering::Acquire) {
+        if let Some(call) = DirectCall::in_message(message.clone()) {
+            let started = direct_call::start(&session.service, &scopes, &id, call);
+            tokio::spawn(onto_the_stream(started, session.to_client));
+            return (StatusCode::ACCEPTED, "Accepted").into_response();
+        }
+    }
+    let mut sender = session.to_server;
     match tokio::time::timeout(POST_QUEUE_WAIT, sender.send(message)).await {
         Ok(Ok(())) => (StatusCode::ACCEPTED, "Accepted").into_response(),
         Ok(Err(_)) => (StatusCode::NOT_FOUND, "Could not find session").into_response(),
@@ -202,6 +235,24 @@ pub(super) async fn post_message(
                 "the session's queue is full: its client is not reading the SSE stream",
             )
                 .into_response()
+        }
+    }
+}
+
+/// Writes a direct call's progress and answer onto its session's event stream. A stream that
+/// is gone (the session closed) drops the call's scope unanswered, which cancels the call.
+async fn onto_the_stream(started: Started, mut to_client: mpsc::Sender<ServerJsonRpcMessage>) {
+    let Started {
+        mut incoming,
+        mut scope,
+    } = started;
+    while !scope.answered() {
+        let Some(outgoing) = incoming.recv().await else {
+            return;
+        };
+        let message = scope.pass_on(outgoing);
+        if to_client.send(message).await.is_err() {
+            return;
         }
     }
 }
