@@ -5,7 +5,8 @@
 
 mod common;
 
-use serde_json::Value;
+use common::mcp_http::{header, json_rpc, INIT, INITIALIZED};
+
 use std::io::{BufRead, BufReader, Write};
 use std::net::{Ipv4Addr, TcpStream};
 use std::process::{Command, Stdio};
@@ -14,9 +15,6 @@ use std::time::Duration;
 const LOCAL: Ipv4Addr = Ipv4Addr::LOCALHOST;
 /// Another client on this machine (Linux routes all of 127.0.0.0/8 to the loopback).
 const OTHER: Ipv4Addr = Ipv4Addr::new(127, 0, 0, 2);
-
-const INIT: &[u8] = br#"{"jsonrpc":"2.0","id":1,"method":"initialize","params":{"protocolVersion":"2025-06-18","capabilities":{},"clientInfo":{"name":"t","version":"1"}}}"#;
-const INITIALIZED: &[u8] = br#"{"jsonrpc":"2.0","method":"notifications/initialized"}"#;
 
 fn mcp_headers(session: Option<&str>) -> Vec<(&str, &str)> {
     let mut headers = vec![
@@ -27,22 +25,6 @@ fn mcp_headers(session: Option<&str>) -> Vec<(&str, &str)> {
         headers.push(("Mcp-Session-Id", id));
     }
     headers
-}
-
-/// The JSON-RPC message in a streamable-HTTP answer (plain JSON or one SSE `data:` line).
-fn json_rpc(body: &str) -> Value {
-    let text = body
-        .lines()
-        .find_map(|l| l.strip_prefix("data: ").filter(|d| d.starts_with('{')))
-        .unwrap_or(body);
-    serde_json::from_str(text).unwrap_or_else(|e| panic!("not JSON-RPC ({e}): {body}"))
-}
-
-fn header<'a>(head: &'a str, name: &str) -> Option<&'a str> {
-    head.lines().find_map(|l| {
-        let (k, v) = l.split_once(':')?;
-        k.eq_ignore_ascii_case(name).then(|| v.trim())
-    })
 }
 
 fn post_mcp(source: Ipv4Addr, port: u16, session: Option<&str>, body: &[u8]) -> (u16, String) {

@@ -6,17 +6,15 @@
 
 mod common;
 
+use common::mcp_http::{header, json_rpc, INIT, INITIALIZED};
+
 use robotd_protocol::arm::ArmState;
-use robotd_protocol::diagnostics::SimWorldRequest;
 use robotd_runtime::bus::{Bus, BusOptions, Subscriber};
-use robotd_runtime::catalog::{ARM_STATE, SIM_WORLD};
+use robotd_runtime::catalog::ARM_STATE;
 use serde_json::{json, Value};
 use std::io::{Read, Write};
 use std::net::{Ipv4Addr, TcpStream};
 use std::time::{Duration, Instant};
-
-const INIT: &[u8] = br#"{"jsonrpc":"2.0","id":1,"method":"initialize","params":{"protocolVersion":"2025-06-18","capabilities":{},"clientInfo":{"name":"t","version":"1"}}}"#;
-const INITIALIZED: &[u8] = br#"{"jsonrpc":"2.0","method":"notifications/initialized"}"#;
 
 fn headers(session: Option<&str>) -> Vec<(&str, &str)> {
     let mut headers = vec![
@@ -28,22 +26,6 @@ fn headers(session: Option<&str>) -> Vec<(&str, &str)> {
         headers.push(("Mcp-Session-Id", id));
     }
     headers
-}
-
-fn header<'a>(head: &'a str, name: &str) -> Option<&'a str> {
-    head.lines().find_map(|l| {
-        let (k, v) = l.split_once(':')?;
-        k.eq_ignore_ascii_case(name).then(|| v.trim())
-    })
-}
-
-/// The JSON-RPC message of a streamable-HTTP answer (plain JSON or an SSE `data:` line).
-fn json_rpc(body: &str) -> Value {
-    let text = body
-        .lines()
-        .find_map(|l| l.strip_prefix("data: ").filter(|d| d.starts_with('{')))
-        .unwrap_or(body);
-    serde_json::from_str(text).unwrap_or_else(|e| panic!("not JSON-RPC ({e}): {body}"))
 }
 
 /// POSTs `body` to `/mcp`; returns (status, content type, JSON-RPC message or null).
@@ -82,6 +64,11 @@ fn open_session(port: u16, initialized: bool) -> String {
     if initialized {
         let (status, _, _) = post(port, Some(&id), INITIALIZED);
         assert_eq!(status, 202);
+        // The session's gate reads `initialized` in order with the requests after it; once a
+        // ping is answered, it has, and calls take the direct path (before, they go to rmcp).
+        let ping = br#"{"jsonrpc":"2.0","id":0,"method":"ping"}"#;
+        let (status, _, pong) = post(port, Some(&id), ping);
+        assert_eq!((status, &pong["result"]), (200, &json!({})), "{pong}");
     }
     id
 }
@@ -310,13 +297,10 @@ async fn comes_to_rest(states: &mut Subscriber<ArmState>, what: &str) {
 
 /// Whether the simulated world has the pencil in the gripper.
 async fn pencil_held(bus: &Bus) -> bool {
-    let world = bus
-        .client(&SIM_WORLD)
-        .unwrap()
-        .request(&SimWorldRequest {}, Duration::from_secs(5))
+    common::sim_world(bus)
         .await
-        .unwrap();
-    world.objects.iter().any(|o| o.label == "pencil" && o.held)
+        .iter()
+        .any(|o| o.label == "pencil" && o.held)
 }
 
 fn pick_pencil(id: u64) -> Vec<u8> {
@@ -334,12 +318,7 @@ fn a_cancelled_or_abandoned_direct_call_stops_the_arm() {
     let port = common::free_port();
     // Real-time motions, so that the cancel lands mid-motion.
     let _robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=1.0"]);
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    runtime.block_on(async {
+    common::runtime().block_on(async {
         let bus = Bus::open(BusOptions::new(&namespace, "direct-cancel-test")).unwrap();
         let mut states = bus.subscriber(&ARM_STATE).unwrap();
         let session = open_session(port, true);

@@ -1,6 +1,8 @@
 //! Helpers for the end-to-end tests: start robotd and the example actor as real processes.
 #![allow(dead_code)]
 
+pub mod mcp_http;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpListener;
 use std::path::PathBuf;
@@ -424,4 +426,28 @@ pub fn look_at_the_workspace(port: u16) {
         .output()
         .expect("robotd call");
     assert!(looked.status.success(), "{looked:?}");
+}
+
+/// A two-worker tokio runtime for a test's async part.
+pub fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("a tokio runtime")
+}
+
+/// The simulated world's objects, as the simulator reports them on the bus.
+pub async fn sim_world(
+    bus: &robotd_runtime::bus::Bus,
+) -> Vec<robotd_protocol::diagnostics::SimObjectState> {
+    bus.client(&robotd_runtime::catalog::SIM_WORLD)
+        .expect("a sim/world client")
+        .request(
+            &robotd_protocol::diagnostics::SimWorldRequest {},
+            Duration::from_secs(5),
+        )
+        .await
+        .expect("the simulated world")
+        .objects
 }
