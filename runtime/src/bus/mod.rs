@@ -107,6 +107,8 @@ pub struct CleanupReport {
     pub removed: u64,
     /// Dead nodes that could not be removed (permissions, or another process was cleaning).
     pub failed: u64,
+    /// Segments killed processes left half-created, removed first ([`stale`]).
+    pub half_created: usize,
 }
 
 /// A process's membership of the bus: one iceoryx2 node, from which ports are created.
@@ -209,11 +211,22 @@ impl Bus {
     /// Removes the shared-memory resources of every dead node (a crashed actor process) and
     /// disconnects its ports from the services they used, so a restarted actor can take its
     /// place (a service allows one server, for instance).
+    ///
+    /// Segments a killed process left half-created go first: iceoryx2's clean-up would wait
+    /// for them forever. A process killed less than [`stale::HALF_CREATED_AFTER`] ago may
+    /// still leave one too young to tell from a segment being created; the next clean-up
+    /// removes it.
     pub fn cleanup_dead_nodes(&self) -> CleanupReport {
+        let half_created = stale::remove_half_created(
+            std::path::Path::new(stale::SHARED_MEMORY_DIR),
+            stale::HALF_CREATED_AFTER,
+        )
+        .len();
         let state = self.inner.node.try_cleanup_dead_nodes();
         CleanupReport {
             removed: state.cleanups,
             failed: state.failed_cleanups,
+            half_created,
         }
     }
 

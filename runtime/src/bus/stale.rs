@@ -10,7 +10,10 @@
 //!
 //! A creator that is alive finishes those steps within microseconds, so an empty, write-only
 //! segment older than [`HALF_CREATED_AFTER`] is a corpse: [`remove_half_created`] deletes it
-//! (processes that already hold it keep their mapping; nobody can open it anyway).
+//! (processes that already hold it keep their mapping; nobody can open it anyway). It runs
+//! when a process joins the bus, in `robotd doctor`, and before every dead-node clean-up
+//! (`Bus::cleanup_dead_nodes`: a supervisor restarting an actor, a request whose server went
+//! quiet, a queue a dead subscriber keeps full).
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
@@ -103,6 +106,25 @@ mod tests {
         for kept in [young, readable, sized, foreign] {
             assert!(kept.exists(), "{} was removed", kept.display());
         }
+    }
+
+    #[test]
+    fn a_dead_node_clean_up_removes_a_corpse_that_appeared_after_the_start() {
+        use crate::bus::{Bus, BusOptions};
+        let namespace = format!("test-stale-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "sweeper")).unwrap();
+        // Made after the bus was joined, as by a process killed while the service ran.
+        let name = format!("iox2_robotd_test_corpse_{}", std::process::id());
+        let corpse = file(
+            Path::new(SHARED_MEMORY_DIR),
+            &name,
+            0,
+            0o200,
+            Duration::from_secs(60),
+        );
+        let report = bus.cleanup_dead_nodes();
+        assert!(!corpse.exists(), "the corpse is still there");
+        assert!(report.half_created >= 1, "{report:?}");
     }
 
     #[test]
