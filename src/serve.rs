@@ -19,6 +19,9 @@ use robotd_protocol::geometry::RobotModel;
 use robotd_protocol::health::{ActorHealth, ActorState, RestartEvent};
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_robot::Hardware;
+use robotd_runtime::bus::stale::{
+    remove_half_created_after, HALF_CREATED_SETTLE, SHARED_MEMORY_DIR,
+};
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
 use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
 use robotd_runtime::supervision::{
@@ -29,6 +32,7 @@ use robotd_speech::{Speech, SpeechSettings};
 use robotd_tools::{Registry, ToolSettings};
 use robotd_workspace_model::{MemorySettings, WorkspaceModel, WorkspaceModelSettings};
 use std::collections::BTreeMap;
+use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tokio_util::sync::CancellationToken;
@@ -579,6 +583,11 @@ async fn start_process_actors(
             .policy(config.supervision_for(name).policy())
             .observer(observer)
             .on_restart_cleanup(move |_context| {
+                // The process just died: segments it left half-created are too young for the
+                // clean-up's own sweep, and iceoryx2 would wait on them forever.
+                remove_half_created_after(Path::new(SHARED_MEMORY_DIR), || {
+                    std::thread::sleep(HALF_CREATED_SETTLE)
+                });
                 let report = cleanup_bus.cleanup_dead_nodes();
                 if report.failed > 0 {
                     return Err(format!(

@@ -51,6 +51,20 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
             .unwrap();
         let first_pid = first.served_by_pid;
 
+        // A segment left half-created moments ago (empty, write-only), as by a process
+        // killed while creating it: too young for the start-up sweep, so the supervisor
+        // must take it for a corpse once its creator had time to finish.
+        let young_corpse = std::path::Path::new("/dev/shm").join(format!(
+            "iox2_robotd_test_young_corpse_{}",
+            std::process::id()
+        ));
+        std::fs::write(&young_corpse, b"").unwrap();
+        std::fs::set_permissions(
+            &young_corpse,
+            std::os::unix::fs::PermissionsExt::from_mode(0o200),
+        )
+        .unwrap();
+
         // Freeze the actor, send a request it will never answer, then kill it.
         signal(first_pid, "-STOP");
         let in_flight = {
@@ -82,6 +96,10 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
             }
         };
         assert_ne!(second.served_by_pid, first_pid, "a new process serves");
+        assert!(
+            !young_corpse.exists(),
+            "the restart's clean-up left the half-created segment"
+        );
 
         // ...and told the bus about it.
         let event = tokio::time::timeout(Duration::from_secs(5), restarts.recv())

@@ -13,13 +13,20 @@
 //! (processes that already hold it keep their mapping; nobody can open it anyway). It runs
 //! when a process joins the bus, in `robotd doctor`, and before every dead-node clean-up
 //! (`Bus::cleanup_dead_nodes`: a supervisor restarting an actor, a request whose server went
-//! quiet, a queue a dead subscriber keeps full).
+//! quiet, a queue a dead subscriber keeps full). A supervisor that just saw a process die
+//! also removes that process's younger corpses, after giving a living creator a moment
+//! ([`remove_half_created_after`]).
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
 
 /// Age after which an empty, write-only iceoryx2 segment counts as abandoned.
 pub const HALF_CREATED_AFTER: Duration = Duration::from_secs(5);
+
+/// How long a supervisor gives a living creator to finish its segments before taking an
+/// empty, write-only one for a corpse ([`remove_half_created_after`]); creating one takes
+/// microseconds.
+pub const HALF_CREATED_SETTLE: Duration = Duration::from_secs(1);
 
 /// Where iceoryx2 keeps its shared-memory segments on Linux.
 pub const SHARED_MEMORY_DIR: &str = "/dev/shm";
@@ -28,11 +35,41 @@ pub const SHARED_MEMORY_DIR: &str = "/dev/shm";
 /// ago; returns the paths removed. Errors reading `dir` or a file are skipped (a directory we
 /// cannot read holds nothing we could remove).
 pub fn remove_half_created(dir: &Path, older_than: Duration) -> Vec<PathBuf> {
+    let corpses = half_created(dir)
+        .into_iter()
+        .filter(|(_, age)| *age >= older_than)
+        .map(|(path, _)| path)
+        .collect();
+    remove(corpses)
+}
+
+/// Deletes the half-created segments in `dir` whatever their age, once `settle` has given a
+/// living creator its chance: a file still empty and write-only after `settle` returns is a
+/// corpse. For a supervisor restarting a process it just saw die, whose segments are too young
+/// for [`remove_half_created`]; `settle` is a short sleep there (a living creator needs
+/// microseconds), and nothing waits when no such file exists.
+pub fn remove_half_created_after(dir: &Path, settle: impl FnOnce()) -> Vec<PathBuf> {
+    let candidates = half_created(dir);
+    if candidates.is_empty() {
+        return Vec::new();
+    }
+    settle();
+    let still: Vec<PathBuf> = half_created(dir).into_iter().map(|(p, _)| p).collect();
+    let corpses = candidates
+        .into_iter()
+        .map(|(path, _)| path)
+        .filter(|path| still.contains(path))
+        .collect();
+    remove(corpses)
+}
+
+/// The empty, write-only `iox2_*` files in `dir`, with how long ago each last changed.
+fn half_created(dir: &Path) -> Vec<(PathBuf, Duration)> {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return Vec::new();
     };
     let now = SystemTime::now();
-    let mut removed = Vec::new();
+    let mut found = Vec::new();
     for entry in entries.flatten() {
         if !entry.file_name().to_string_lossy().starts_with("iox2_") {
             continue;
@@ -41,20 +78,29 @@ pub fn remove_half_created(dir: &Path, older_than: Duration) -> Vec<PathBuf> {
             continue;
         };
         let readable = std::os::unix::fs::PermissionsExt::mode(&meta.permissions()) & 0o444 != 0;
+        if !meta.is_file() || meta.len() != 0 || readable {
+            continue;
+        }
         let age = meta
             .modified()
             .ok()
             .and_then(|m| now.duration_since(m).ok())
             .unwrap_or_default();
-        if !meta.is_file() || meta.len() != 0 || readable || age < older_than {
-            continue;
-        }
-        let path = entry.path();
+        found.push((entry.path(), age));
+    }
+    found
+}
+
+/// Deletes `corpses`; returns those removed, and warns once with their count.
+fn remove(corpses: Vec<PathBuf>) -> Vec<PathBuf> {
+    let mut removed = Vec::new();
+    for path in corpses {
         match std::fs::remove_file(&path) {
             Ok(()) => {
-                tracing::debug!(path = %path.display(), age_s = age.as_secs(), "removed a half-created bus segment");
+                tracing::debug!(path = %path.display(), "removed a half-created bus segment");
                 removed.push(path);
             }
+            Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
             Err(error) => tracing::warn!(
                 path = %path.display(),
                 %error,
@@ -125,6 +171,33 @@ mod tests {
         let report = bus.cleanup_dead_nodes();
         assert!(!corpse.exists(), "the corpse is still there");
         assert!(report.half_created >= 1, "{report:?}");
+    }
+
+    #[test]
+    fn after_settling_a_young_corpse_goes_and_a_segment_being_created_stays() {
+        let dir = tempfile::tempdir().unwrap();
+        let corpse = file(dir.path(), "iox2_abc_1.dynamic", 0, 0o200, Duration::ZERO);
+        let growing = file(dir.path(), "iox2_abc_2.dynamic", 0, 0o200, Duration::ZERO);
+        let removed = remove_half_created_after(dir.path(), || {
+            // Its creator is alive: it sizes the segment and makes it readable meanwhile.
+            std::fs::File::options()
+                .write(true)
+                .open(&growing)
+                .and_then(|f| f.set_len(64))
+                .unwrap();
+            std::fs::set_permissions(&growing, std::fs::Permissions::from_mode(0o600)).unwrap();
+        });
+        assert_eq!(removed, vec![corpse.clone()]);
+        assert!(!corpse.exists());
+        assert!(growing.exists());
+    }
+
+    #[test]
+    fn nothing_half_created_means_no_wait() {
+        let dir = tempfile::tempdir().unwrap();
+        file(dir.path(), "iox2_abc_3.dynamic", 64, 0o600, Duration::ZERO);
+        let removed = remove_half_created_after(dir.path(), || panic!("waited for nothing"));
+        assert!(removed.is_empty());
     }
 
     #[test]
