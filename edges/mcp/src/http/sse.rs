@@ -28,7 +28,7 @@ use rmcp::ServiceExt;
 use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::pin::Pin;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll};
 use std::time::Duration;
@@ -46,6 +46,8 @@ pub(super) struct SseSession {
     to_client: mpsc::Sender<ServerJsonRpcMessage>,
     /// Set by its gate at `notifications/initialized`.
     initialized: Arc<AtomicBool>,
+    /// Its direct calls not yet written onto its stream.
+    in_flight: Arc<AtomicUsize>,
     /// The service naming this session.
     service: McpService,
 }
@@ -115,6 +117,7 @@ pub(super) async fn open_sse(State(state): State<SseState>, request: Request) ->
         to_server,
         to_client,
         initialized: gate.initialized_flag(),
+        in_flight: Arc::default(),
         service: service.clone(),
     };
     state
@@ -217,10 +220,17 @@ pub(super) async fn post_message(
     };
     let scopes = state.service.scopes();
     cancel_named(&scopes, &id, &message);
-    if state.direct && session.initialized.load(Ordering::Acquire) {
+    // Past MAX_DIRECT_IN_FLIGHT (a client that stops reading its stream), calls take rmcp's
+    // queue, whose bound answers 503.
+    let room = session.in_flight.load(Ordering::Acquire) < MAX_DIRECT_IN_FLIGHT;
+    if state.direct && room && session.initialized.load(Ordering::Acquire) {
         if let Some(call) = DirectCall::in_message(message.clone()) {
             let started = direct_call::start(&session.service, &scopes, &id, call);
-            tokio::spawn(onto_the_stream(started, session.to_client));
+            session.in_flight.fetch_add(1, Ordering::AcqRel);
+            tokio::spawn(async move {
+                onto_the_stream(started, session.to_client).await;
+                session.in_flight.fetch_sub(1, Ordering::AcqRel);
+            });
             return (StatusCode::ACCEPTED, "Accepted").into_response();
         }
     }
@@ -256,6 +266,10 @@ async fn onto_the_stream(started: Started, mut to_client: mpsc::Sender<ServerJso
         }
     }
 }
+
+/// Most direct calls of one session whose answers are not yet on its stream: as many as its
+/// queue to rmcp holds.
+const MAX_DIRECT_IN_FLIGHT: usize = 64;
 
 /// Longest a POST waits for room in its session's queue (the client reads its answers from
 /// the SSE stream; one that stops reading fills the queue) before it is answered 503.
