@@ -12,7 +12,7 @@ use robotd_protocol::arm::ArmState;
 use robotd_runtime::bus::{Bus, BusOptions, Subscriber};
 use robotd_runtime::catalog::ARM_STATE;
 use serde_json::{json, Value};
-use std::io::{Read, Write};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{Ipv4Addr, TcpStream};
 use std::time::{Duration, Instant};
 
@@ -317,7 +317,7 @@ fn a_cancelled_or_abandoned_direct_call_stops_the_arm() {
     let namespace = common::fresh_namespace("directcancel");
     let port = common::free_port();
     // Real-time motions, so that the cancel lands mid-motion.
-    let _robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=1.0"]);
+    let robotd = common::start_robotd(&namespace, port, &["--set", "robot.time_scale=1.0"]);
     common::runtime().block_on(async {
         let bus = Bus::open(BusOptions::new(&namespace, "direct-cancel-test")).unwrap();
         let mut states = bus.subscriber(&ARM_STATE).unwrap();
@@ -359,8 +359,161 @@ fn a_cancelled_or_abandoned_direct_call_stops_the_arm() {
         drop(call);
         comes_to_rest(&mut states, "dropped").await;
         assert!(!pencil_held(&bus).await, "the abandoned pick went on");
+
+        // A client that drops its connection while the call still runs on its request's task
+        // (no progress token, within half a second): the arm stops, and the call goes on to
+        // its end on a task of its own, so it is in the call log.
+        let mut call = start_post(port, &session, &pick_pencil(23));
+        common::wait_until_the_arm_moves(&mut states).await;
+        call.set_read_timeout(Some(Duration::from_millis(1)))
+            .unwrap();
+        let mut byte = [0u8; 1];
+        assert!(
+            call.read(&mut byte).is_err(),
+            "the call answered before it was dropped"
+        );
+        drop(call);
+        comes_to_rest(&mut states, "dropped early").await;
+        assert!(!pencil_held(&bus).await, "the abandoned pick went on");
+        // All three picks ended cancelled, each in the call log.
+        let logged = logged_calls(robotd.log_dir().expect("a log directory"), "pick_object", 3);
+        for pick in &logged {
+            assert!(
+                pick["result"].as_str().is_some_and(|r| r.contains("cancelled")),
+                "{pick}"
+            );
+        }
+
         // And the session still serves calls.
-        let (status, _, answer) = post(port, Some(&session), &center_point(23, None));
+        let (status, _, answer) = post(port, Some(&session), &center_point(24, None));
         assert_eq!(status, 200, "{answer}");
     });
+}
+
+/// The MCP call log's lines in `dir` for `tool`, once there are `count`; fails after 5 s.
+fn logged_calls(dir: &std::path::Path, tool: &str, count: usize) -> Vec<Value> {
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        let calls: Vec<Value> = std::fs::read_dir(dir)
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| e.file_name().to_string_lossy().starts_with("mcp_server_"))
+            .filter_map(|e| std::fs::read_to_string(e.path()).ok())
+            .flat_map(|log| {
+                log.lines()
+                    .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+                    .collect::<Vec<_>>()
+            })
+            .filter(|l| l["tool"] == tool)
+            .collect();
+        if calls.len() >= count {
+            return calls;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "{} {tool} calls in the call log, {count} expected",
+            calls.len()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// A legacy-SSE session opened by hand and initialized; returns its event stream's reader
+/// (kept open, no longer read) and the session's message path.
+fn open_sse_session(port: u16) -> (BufReader<TcpStream>, String) {
+    // A small receive buffer: the unread answers fill it (and the service's send buffer) soon.
+    let connect = async {
+        let socket = tokio::net::TcpSocket::new_v4()?;
+        socket.set_recv_buffer_size(4096)?;
+        socket.connect((Ipv4Addr::LOCALHOST, port).into()).await
+    };
+    let mut stream = common::runtime()
+        .block_on(connect)
+        .and_then(|stream| stream.into_std())
+        .expect("connect");
+    stream.set_nonblocking(false).unwrap();
+    let request =
+        format!("GET /sse HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nAccept: text/event-stream\r\n\r\n");
+    stream
+        .write_all(request.as_bytes())
+        .expect("open the stream");
+    stream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    let mut events = BufReader::new(stream);
+    let mut read_until = |wanted: &str| loop {
+        let mut line = String::new();
+        let read = events.read_line(&mut line).expect("the event stream");
+        assert!(read > 0, "the event stream ended");
+        if line.contains(wanted) {
+            return line;
+        }
+    };
+    let endpoint = read_until("data: /messages/");
+    let path = endpoint.trim().trim_start_matches("data: ").to_owned();
+    let post_message = |body: &[u8]| sse_post(port, &path, body);
+    assert_eq!(post_message(INIT), 202);
+    read_until("\"id\":1");
+    assert_eq!(post_message(INITIALIZED), 202);
+    // Once the ping is answered, the session's gate has read `initialized`.
+    assert_eq!(
+        post_message(br#"{"jsonrpc":"2.0","id":2,"method":"ping"}"#),
+        202
+    );
+    read_until("\"id\":2");
+    (events, path)
+}
+
+/// POSTs `body` to an SSE session's message `path`; returns the status. Waits up to 15 s
+/// (a full session's queue holds a POST for 10 s before refusing it).
+fn sse_post(port: u16, path: &str, body: &[u8]) -> u16 {
+    let mut stream = TcpStream::connect((Ipv4Addr::LOCALHOST, port)).expect("connect");
+    stream
+        .set_read_timeout(Some(Duration::from_secs(15)))
+        .unwrap();
+    let head = format!(
+        "POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\
+         Content-Type: application/json\r\nContent-Length: {}\r\n\r\n",
+        body.len()
+    );
+    stream.write_all(head.as_bytes()).expect("send head");
+    stream.write_all(body).expect("send body");
+    let mut answer = String::new();
+    stream.read_to_string(&mut answer).expect("the answer");
+    answer
+        .split(' ')
+        .nth(1)
+        .and_then(|code| code.parse().ok())
+        .unwrap_or_else(|| panic!("not an HTTP answer: {answer:?}"))
+}
+
+#[test]
+fn an_sse_client_that_stops_reading_is_refused_not_piled_up() {
+    let namespace = common::fresh_namespace("directsse");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &[]);
+    let (_unread, path) = open_sse_session(port);
+    // The answers fill the socket, then the session's queues and at most 64 direct calls
+    // waiting to write theirs; from then on a call waits for room in rmcp's queue and is
+    // refused with 503. Without the bound every call would be taken (and its task kept).
+    let mut accepted = 0;
+    let refused =
+        (0..40000u64).find_map(
+            |i| match sse_post(port, &path, &center_point(10 + i, None)) {
+                202 => {
+                    accepted += 1;
+                    None
+                }
+                status => Some(status),
+            },
+        );
+    assert_eq!(
+        refused,
+        Some(503),
+        "{accepted} calls accepted from a client that reads none of its answers"
+    );
+    // The service still answers others.
+    let other = open_session(port, true);
+    let (status, _, answer) = post(port, Some(&other), &center_point(1, None));
+    assert_eq!(status, 200, "{answer}");
 }

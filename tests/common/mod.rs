@@ -67,6 +67,11 @@ impl Running {
     pub fn pid(&self) -> u32 {
         self.child.id()
     }
+
+    /// The directory the child writes its logs to (`telemetry.log_dir`), when it has one.
+    pub fn log_dir(&self) -> Option<&std::path::Path> {
+        self.logs.as_ref().map(|dir| dir.path())
+    }
 }
 
 /// A fresh temporary directory for a child's logs.

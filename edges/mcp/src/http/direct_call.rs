@@ -8,7 +8,11 @@
 //! session, whose `_meta` holds at most a progress token, from a client of a protocol revision
 //! whose requests rmcp checks no further than their session. The call runs through the same
 //! [`McpService::serve_call`] as rmcp's handler (same registry call, call log, trace id,
-//! cancellation), on a task of its own ([`start`]).
+//! cancellation). On streamable HTTP it runs on the request's own task until it ends, reports
+//! progress or has run [`STREAM_AFTER`], then on a task of its own; on legacy SSE on the task
+//! that writes its answer onto the session's stream until it reports progress
+//! ([`run_onto_stream`]). Either way a call whose client went away is cancelled, never cut
+//! short ([`CallRun`]).
 //!
 //! How the answer goes out: on legacy SSE, onto the session's event stream as always
 //! (`super::sse`). On streamable HTTP, a call that ends within [`STREAM_AFTER`] without
@@ -24,9 +28,9 @@
 //! - **the idle timeout**: a direct call restarts rmcp's idle timer of its session
 //!   ([`ClosingSessions::keep_open`]);
 //! - **cancellation**: a `notifications/cancelled` naming the call, the session closing and
-//!   the client's connection dropping each cancel it ([`cancel_named`], [`CallScopes`]); the
-//!   call runs on a task of its own, so a dropped connection stops the motion and the call
-//!   still ends and is logged;
+//!   the client's connection dropping each cancel it ([`cancel_named`], [`CallScopes`]); a
+//!   call dropped by its request's task goes on on a task of its own, so a dropped connection
+//!   stops the motion and the call still ends and is logged;
 //! - **rmcp's checks**: a request with anything rmcp would look at more closely (an `Accept`
 //!   with weights, a protocol-version header of the 2026-07-28 revision or unknown, `_meta`
 //!   beyond a progress token, input responses) is left to rmcp, which answers it as before.
@@ -38,7 +42,7 @@ use crate::sessions::{CallScopes, ClosingSessions};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
-use futures::FutureExt;
+use futures::{FutureExt, SinkExt};
 use rmcp::model::{
     CallToolRequestParams, CallToolResult, ClientJsonRpcMessage, ClientNotification, ClientRequest,
     ErrorData, GetMeta, JsonRpcMessage, ProgressNotification, ProgressToken, ProtocolVersion,
@@ -47,8 +51,11 @@ use rmcp::model::{
 use robotd_tools::Progress;
 use std::any::Any;
 use std::convert::Infallible;
+use std::future::Future;
 use std::panic::AssertUnwindSafe;
+use std::pin::Pin;
 use std::sync::Arc;
+use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
@@ -175,7 +182,7 @@ pub(super) fn cancel_named(scopes: &CallScopes, session: &str, message: &ClientJ
     }
 }
 
-/// What a direct call's task sends its answer with.
+/// What a direct call sends its answer with.
 pub(super) enum Outgoing {
     /// A `notifications/progress` for the client.
     Progress(ServerJsonRpcMessage),
@@ -185,19 +192,62 @@ pub(super) enum Outgoing {
 
 /// A direct call on its way: its messages arrive on `incoming`, and `scope` cancels it when
 /// dropped before the answer was passed on.
-pub(super) struct Started {
-    pub(super) incoming: mpsc::UnboundedReceiver<Outgoing>,
-    pub(super) scope: RequestScope,
+struct Started {
+    incoming: mpsc::UnboundedReceiver<Outgoing>,
+    scope: RequestScope,
 }
 
-/// Starts `call` of `session` on `service` (rmcp's handler is not involved): on a task of its
-/// own, so a caller that goes away cancels the call (through the scope) without cutting it.
-pub(super) fn start(
+/// The future of a direct call that yields its JSON-RPC response.
+type CallFuture = Pin<Box<dyn Future<Output = ServerJsonRpcMessage> + Send>>;
+
+/// A direct call that runs on its caller's task until it is handed over. Dropped unfinished
+/// (handed over, or its caller went away), it goes on on a task of its own and sends its
+/// answer to `answers`, so a call is never cut: a caller that went away has cancelled it
+/// (through its [`RequestScope`]) by then, and the call still ends, stops its motion and is
+/// logged.
+struct CallRun {
+    future: Option<CallFuture>,
+    answers: mpsc::UnboundedSender<Outgoing>,
+}
+
+impl CallRun {
+    /// Runs the call on the caller's task; `Ready` with its response once it ended.
+    fn poll_here(&mut self, cx: &mut Context<'_>) -> Poll<ServerJsonRpcMessage> {
+        let Some(future) = self.future.as_mut() else {
+            return Poll::Pending;
+        };
+        let answer = std::task::ready!(future.as_mut().poll(cx));
+        self.future = None;
+        Poll::Ready(answer)
+    }
+}
+
+impl Drop for CallRun {
+    fn drop(&mut self) {
+        let Some(future) = self.future.take() else {
+            return;
+        };
+        let answers = self.answers.clone();
+        match tokio::runtime::Handle::try_current() {
+            Ok(runtime) => {
+                runtime.spawn(async move {
+                    let _ = answers.send(Outgoing::Answer(future.await));
+                });
+            }
+            // Only at shutdown, with no runtime left to run it on.
+            Err(_) => tracing::warn!("a direct MCP tool call was dropped with its runtime"),
+        }
+    }
+}
+
+/// Prepares `call` of `session` on `service` (rmcp's handler is not involved) without running
+/// it: the caller polls it, or drops it to run it on a task of its own.
+fn prepare(
     service: &McpService,
     scopes: &Arc<CallScopes>,
     session: &str,
     call: DirectCall,
-) -> Started {
+) -> (CallRun, Started) {
     let DirectCall {
         id,
         params,
@@ -232,39 +282,82 @@ pub(super) fn start(
         progress: report,
     };
     let service = service.clone();
-    tokio::spawn(async move {
+    let future: CallFuture = Box::pin(async move {
         let outcome = AssertUnwindSafe(service.serve_call(params, context))
             .catch_unwind()
             .await;
-        let _ = outgoing.send(Outgoing::Answer(response_to(id, outcome)));
+        response_to(id, outcome)
     });
-    Started { incoming, scope }
+    let run = CallRun {
+        future: Some(future),
+        answers: outgoing,
+    };
+    (run, Started { incoming, scope })
+}
+
+/// Runs `call` of `session` on `service` for a legacy-SSE session (on a task spawned for it)
+/// and writes its progress and answer onto the session's stream `to_client`. Runs the call on
+/// this task until it reports progress, then on a task of its own: a progress event waiting
+/// for a slow reader does not hold the call up. A stream that is gone (the session closed)
+/// drops the call's scope unanswered, which cancels the call.
+pub(super) async fn run_onto_stream(
+    service: &McpService,
+    scopes: &Arc<CallScopes>,
+    session: &str,
+    call: DirectCall,
+    to_client: super::sse::SharedSender<ServerJsonRpcMessage>,
+) {
+    let (mut run, started) = prepare(service, scopes, session, call);
+    let Started {
+        mut incoming,
+        mut scope,
+    } = started;
+    let mut next = tokio::select! {
+        biased;
+        answer = std::future::poll_fn(|cx| run.poll_here(cx)) => Outgoing::Answer(answer),
+        Some(progress) = incoming.recv() => progress,
+    };
+    // Handed over, when it still runs.
+    drop(run);
+    loop {
+        let message = scope.pass_on(next);
+        let written = to_client.lock().await.send(message).await;
+        if written.is_err() || scope.answered() {
+            return;
+        }
+        next = match incoming.recv().await {
+            Some(outgoing) => outgoing,
+            None => return,
+        };
+    }
 }
 
 impl DirectCalls {
     /// Runs `call` in `session`; answers it as one JSON body, or as an event stream once the
     /// call reports progress or runs longer than [`STREAM_AFTER`].
+    ///
+    /// The call runs on this request's task until then: a cheap call is answered with no
+    /// hand-over between tasks (on two CPUs each costs a wake-up of the other one). From the
+    /// first progress or [`STREAM_AFTER`] on, it goes on on a task of its own.
     pub(super) async fn answer(&self, session: &str, call: DirectCall) -> Response {
         self.sessions.keep_open(session).await;
+        let (mut run, started) = prepare(&self.service, &self.scopes, session, call);
         let Started {
             mut incoming,
             mut scope,
-        } = start(&self.service, &self.scopes, session, call);
-        let first = match tokio::time::timeout(STREAM_AFTER, incoming.recv()).await {
-            Ok(Some(Outgoing::Answer(answer))) => {
+        } = started;
+        let stream_after = tokio::time::sleep(STREAM_AFTER);
+        let first = tokio::select! {
+            biased;
+            answer = std::future::poll_fn(|cx| run.poll_here(cx)) => {
                 scope.answered = true;
                 return json_body(&answer);
             }
-            Ok(Some(progress)) => Some(progress),
-            Ok(None) => {
-                return (
-                    StatusCode::INTERNAL_SERVER_ERROR,
-                    "Internal Server Error: the tool call ended without an answer",
-                )
-                    .into_response()
-            }
-            Err(_still_running) => None,
+            Some(progress) = incoming.recv() => Some(progress),
+            () = stream_after => None,
         };
+        // Handed over: the call goes on on a task of its own.
+        drop(run);
         // From here the stream owns the scope: dropped unanswered, it cancels the call.
         let events = futures::stream::unfold(
             (first, incoming, scope),
@@ -448,6 +541,30 @@ mod tests {
         assert!(DirectCall::of(&headers(PLAIN), message(ping)).is_none());
         let list = serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "tools/list"});
         assert!(DirectCall::of(&headers(PLAIN), message(list)).is_none());
+    }
+
+    #[tokio::test]
+    async fn a_call_dropped_unfinished_goes_on_to_its_answer() {
+        let (release, released) = tokio::sync::oneshot::channel::<()>();
+        let (answers, mut incoming) = mpsc::unbounded_channel();
+        let mut run = CallRun {
+            future: Some(Box::pin(async move {
+                let _ = released.await;
+                let error = ErrorData::internal_error("the end", None);
+                ServerJsonRpcMessage::error(error, Some(RequestId::Number(3)))
+            })),
+            answers,
+        };
+        let polled = std::future::poll_fn(|cx| Poll::Ready(run.poll_here(cx))).await;
+        assert!(polled.is_pending(), "the call cannot have ended yet");
+        drop(run);
+        release.send(()).expect("the call still runs");
+        match incoming.recv().await {
+            Some(Outgoing::Answer(answer)) => {
+                assert!(serde_json::to_string(&answer).unwrap().contains("the end"))
+            }
+            _ => panic!("the dropped call did not answer"),
+        }
     }
 
     #[test]

@@ -10,6 +10,7 @@
 
 mod direct_call;
 mod sse;
+mod sse_transport;
 mod streamable;
 
 use crate::service::McpService;

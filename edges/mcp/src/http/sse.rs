@@ -8,8 +8,14 @@
 //! of its own, which writes its progress and answer onto the session's stream. Closing the
 //! stream ends the session and cancels its calls (a motion in flight stops); a keep-alive
 //! comment every second makes a vanished client noticed within about two seconds.
+//!
+//! Every queue of a session is bounded, so a client that stops reading its stream holds a
+//! bounded amount of memory and then gets 503: the stream's queue (64 answers), the direct
+//! calls waiting for room there (64), the requests rmcp holds unanswered (64,
+//! [`super::sse_transport`]) and the posted messages waiting for rmcp (64).
 
-use super::direct_call::{self, cancel_named, DirectCall, Started};
+use super::direct_call::{self, cancel_named, DirectCall};
+use super::sse_transport::SseTransport;
 use super::SessionCap;
 use crate::gate::gated;
 use crate::owner::SessionOwner;
@@ -37,13 +43,21 @@ use tokio_util::sync::CancellationToken;
 /// The open SSE sessions by id.
 pub(super) type SessionMap = Arc<Mutex<HashMap<String, SseSession>>>;
 
+/// One sender of a bounded channel, shared by the tasks that send into it.
+///
+/// futures' bounded channel gives every clone of a sender a slot of its own beyond the
+/// channel's capacity, so a clone per message (per POST, per call) would make it unbounded:
+/// a client that stops reading its stream could pile up messages without end. Shared, the
+/// sender keeps the bound, and a send waits for room.
+pub(super) type SharedSender<T> = Arc<tokio::sync::Mutex<mpsc::Sender<T>>>;
+
 /// One open SSE session.
 #[derive(Clone)]
 pub(super) struct SseSession {
     /// Where its posted messages go (rmcp's session, behind the gate).
-    to_server: mpsc::Sender<ClientJsonRpcMessage>,
-    /// Its event stream, for the answers of direct calls.
-    to_client: mpsc::Sender<ServerJsonRpcMessage>,
+    to_server: SharedSender<ClientJsonRpcMessage>,
+    /// Its event stream, for the answers of direct calls (rmcp holds a sender of its own).
+    to_client: SharedSender<ServerJsonRpcMessage>,
     /// Set by its gate at `notifications/initialized`.
     initialized: Arc<AtomicBool>,
     /// Its direct calls not yet written onto its stream.
@@ -111,10 +125,11 @@ pub(super) async fn open_sse(State(state): State<SseState>, request: Request) ->
     state.service.scopes().bind_owner(&id, owner);
     let (to_server, from_client) = mpsc::channel::<ClientJsonRpcMessage>(64);
     let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);
+    let to_client: SharedSender<_> = Arc::new(tokio::sync::Mutex::new(to_client));
     let service = state.service.for_sse_session(&id);
-    let gate = gated((to_client.clone(), from_client));
+    let gate = gated(SseTransport::new(from_client, to_client.clone()));
     let entry = SseSession {
-        to_server,
+        to_server: Arc::new(tokio::sync::Mutex::new(to_server)),
         to_client,
         initialized: gate.initialized_flag(),
         in_flight: Arc::default(),
@@ -221,21 +236,30 @@ pub(super) async fn post_message(
     let scopes = state.service.scopes();
     cancel_named(&scopes, &id, &message);
     // Past MAX_DIRECT_IN_FLIGHT (a client that stops reading its stream), calls take rmcp's
-    // queue, whose bound answers 503.
+    // queue: rmcp takes at most `MAX_UNANSWERED` requests of the session ([`SseTransport`]),
+    // so the queue fills and a post is answered 503.
     let room = session.in_flight.load(Ordering::Acquire) < MAX_DIRECT_IN_FLIGHT;
     if state.direct && room && session.initialized.load(Ordering::Acquire) {
         if let Some(call) = DirectCall::in_message(message.clone()) {
-            let started = direct_call::start(&session.service, &scopes, &id, call);
             session.in_flight.fetch_add(1, Ordering::AcqRel);
             tokio::spawn(async move {
-                onto_the_stream(started, session.to_client).await;
-                session.in_flight.fetch_sub(1, Ordering::AcqRel);
+                let SseSession {
+                    service,
+                    to_client,
+                    in_flight,
+                    ..
+                } = session;
+                direct_call::run_onto_stream(&service, &scopes, &id, call, to_client).await;
+                in_flight.fetch_sub(1, Ordering::AcqRel);
             });
             return (StatusCode::ACCEPTED, "Accepted").into_response();
         }
     }
-    let mut sender = session.to_server;
-    match tokio::time::timeout(POST_QUEUE_WAIT, sender.send(message)).await {
+    let queued = async {
+        let mut sender = session.to_server.lock().await;
+        sender.send(message).await
+    };
+    match tokio::time::timeout(POST_QUEUE_WAIT, queued).await {
         Ok(Ok(())) => (StatusCode::ACCEPTED, "Accepted").into_response(),
         Ok(Err(_)) => (StatusCode::NOT_FOUND, "Could not find session").into_response(),
         Err(_) => {
@@ -249,26 +273,8 @@ pub(super) async fn post_message(
     }
 }
 
-/// Writes a direct call's progress and answer onto its session's event stream. A stream that
-/// is gone (the session closed) drops the call's scope unanswered, which cancels the call.
-async fn onto_the_stream(started: Started, mut to_client: mpsc::Sender<ServerJsonRpcMessage>) {
-    let Started {
-        mut incoming,
-        mut scope,
-    } = started;
-    while !scope.answered() {
-        let Some(outgoing) = incoming.recv().await else {
-            return;
-        };
-        let message = scope.pass_on(outgoing);
-        if to_client.send(message).await.is_err() {
-            return;
-        }
-    }
-}
-
-/// Most direct calls of one session whose answers are not yet on its stream: as many as its
-/// queue to rmcp holds.
+/// Most direct calls of one session whose answers are not yet on its stream's queue (each
+/// waits for room there: the stream's queue is bounded, [`SharedSender`]).
 const MAX_DIRECT_IN_FLIGHT: usize = 64;
 
 /// Longest a POST waits for room in its session's queue (the client reads its answers from

@@ -1,0 +1,194 @@
+//! rmcp's side of a legacy-SSE session, with a bound on the requests it holds unanswered.
+//!
+//! rmcp reads a session's next message without waiting for its earlier answers: each answer is
+//! written by a task of its own. With a client that stops reading its event stream, nothing
+//! would stop rmcp from taking request after request, each holding a task and its answer.
+//! [`SseTransport`] hands rmcp a request only while fewer than [`MAX_UNANSWERED`] of the
+//! session's requests have no answer on the stream's queue yet; beyond, the posted messages
+//! wait in the session's queue, and a POST that finds that queue full long enough is refused
+//! with 503 (`super::sse`).
+//!
+//! A request's place is given back when its answer is queued onto the stream, or when the
+//! client cancels it (rmcp then sends no answer).
+
+use super::sse::SharedSender;
+use futures::channel::mpsc;
+use futures::{SinkExt, StreamExt};
+use rmcp::model::{
+    ClientJsonRpcMessage, ClientNotification, JsonRpcMessage, RequestId, ServerJsonRpcMessage,
+};
+use rmcp::transport::Transport;
+use rmcp::RoleServer;
+use std::collections::HashMap;
+use std::future::Future;
+use std::sync::{Arc, Mutex, PoisonError};
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
+
+/// Most requests of one SSE session that rmcp holds without their answer on the stream's queue.
+pub(super) const MAX_UNANSWERED: usize = 64;
+
+/// The places of unanswered requests, by request id (a list: a client may reuse an id).
+type Unanswered = Arc<Mutex<HashMap<RequestId, Vec<OwnedSemaphorePermit>>>>;
+
+/// The messages a client posted into its SSE session, in, and the session's event stream,
+/// out (see the module documentation).
+pub(super) struct SseTransport {
+    from_client: mpsc::Receiver<ClientJsonRpcMessage>,
+    to_client: SharedSender<ServerJsonRpcMessage>,
+    room: Arc<Semaphore>,
+    unanswered: Unanswered,
+    /// A request taken from the queue, waiting for a place.
+    waiting: Option<ClientJsonRpcMessage>,
+}
+
+impl SseTransport {
+    /// rmcp reads the session's posted messages from `from_client` and writes onto its
+    /// stream through `to_client`.
+    pub(super) fn new(
+        from_client: mpsc::Receiver<ClientJsonRpcMessage>,
+        to_client: SharedSender<ServerJsonRpcMessage>,
+    ) -> Self {
+        Self {
+            from_client,
+            to_client,
+            room: Arc::new(Semaphore::new(MAX_UNANSWERED)),
+            unanswered: Arc::default(),
+            waiting: None,
+        }
+    }
+}
+
+/// Gives back one place of request `id`, if it holds one.
+fn give_back(unanswered: &Unanswered, id: &RequestId) {
+    let mut places = unanswered.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some(held) = places.get_mut(id) {
+        held.pop();
+        if held.is_empty() {
+            places.remove(id);
+        }
+    }
+}
+
+impl Transport<RoleServer> for SseTransport {
+    type Error = mpsc::SendError;
+
+    fn send(
+        &mut self,
+        item: ServerJsonRpcMessage,
+    ) -> impl Future<Output = Result<(), Self::Error>> + Send + 'static {
+        let to_client = self.to_client.clone();
+        let unanswered = self.unanswered.clone();
+        async move {
+            let answers = match &item {
+                JsonRpcMessage::Response(response) => Some(response.id.clone()),
+                JsonRpcMessage::Error(error) => error.id.clone(),
+                _ => None,
+            };
+            let sent = to_client.lock().await.send(item).await;
+            if let Some(id) = answers {
+                give_back(&unanswered, &id);
+            }
+            sent
+        }
+    }
+
+    async fn receive(&mut self) -> Option<ClientJsonRpcMessage> {
+        let message = match self.waiting.take() {
+            Some(message) => message,
+            None => self.from_client.next().await?,
+        };
+        let JsonRpcMessage::Request(request) = &message else {
+            if let JsonRpcMessage::Notification(notification) = &message {
+                if let ClientNotification::CancelledNotification(cancelled) =
+                    &notification.notification
+                {
+                    if let Some(id) = &cancelled.params.request_id {
+                        give_back(&self.unanswered, id);
+                    }
+                }
+            }
+            return Some(message);
+        };
+        let id = request.id.clone();
+        // Kept here while it waits for a place: rmcp drops this future whenever something
+        // else happened first, and the next call takes the request up again.
+        self.waiting = Some(message);
+        let place = self.room.clone().acquire_owned().await.ok()?;
+        self.unanswered
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .entry(id)
+            .or_default()
+            .push(place);
+        self.waiting.take()
+    }
+
+    async fn close(&mut self) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn request(id: i64) -> ClientJsonRpcMessage {
+        serde_json::from_value(serde_json::json!({"jsonrpc": "2.0", "id": id, "method": "ping"}))
+            .unwrap()
+    }
+
+    fn answer(id: i64) -> ServerJsonRpcMessage {
+        ServerJsonRpcMessage::response(rmcp::model::ServerResult::empty(()), RequestId::Number(id))
+    }
+
+    #[tokio::test]
+    async fn no_more_requests_are_taken_than_have_room_until_one_is_answered() {
+        let (mut to_server, from_client) = mpsc::channel(2 * MAX_UNANSWERED);
+        let (to_client, mut from_server) = mpsc::channel(2 * MAX_UNANSWERED);
+        let mut transport =
+            SseTransport::new(from_client, Arc::new(tokio::sync::Mutex::new(to_client)));
+        for id in 0..=MAX_UNANSWERED as i64 {
+            to_server.send(request(id)).await.unwrap();
+        }
+        for _ in 0..MAX_UNANSWERED {
+            assert!(transport.receive().await.is_some());
+        }
+        let waits = tokio::time::timeout(std::time::Duration::from_millis(50), transport.receive());
+        assert!(waits.await.is_err(), "a request beyond the bound was taken");
+        transport.send(answer(3)).await.unwrap();
+        assert!(
+            from_server.next().await.is_some(),
+            "the answer is on the stream"
+        );
+        let next = transport.receive().await.expect("room again");
+        assert!(matches!(next, JsonRpcMessage::Request(r) if r.id == RequestId::Number(64)));
+    }
+
+    #[tokio::test]
+    async fn a_cancelled_request_gives_its_place_back() {
+        let (mut to_server, from_client) = mpsc::channel(2 * MAX_UNANSWERED);
+        let (to_client, _from_server) = mpsc::channel(1);
+        let mut transport =
+            SseTransport::new(from_client, Arc::new(tokio::sync::Mutex::new(to_client)));
+        for id in 0..MAX_UNANSWERED as i64 {
+            to_server.send(request(id)).await.unwrap();
+            transport.receive().await.unwrap();
+        }
+        // A notification needs no place; a cancellation gives its request's place back (rmcp
+        // sends no answer to a cancelled request).
+        let cancel = serde_json::json!({"jsonrpc": "2.0", "method": "notifications/cancelled",
+            "params": {"requestId": 5}});
+        to_server
+            .send(serde_json::from_value(cancel).unwrap())
+            .await
+            .unwrap();
+        let next = transport.receive().await.expect("the cancellation");
+        assert!(matches!(next, JsonRpcMessage::Notification(_)));
+        to_server.send(request(99)).await.unwrap();
+        let next = tokio::time::timeout(std::time::Duration::from_secs(5), transport.receive())
+            .await
+            .expect("the cancelled request's place is free")
+            .expect("a request");
+        assert!(matches!(next, JsonRpcMessage::Request(r) if r.id == RequestId::Number(99)));
+    }
+}
