@@ -8,6 +8,7 @@
 //! its calls cancelled. The port's guard (token, Host, Origin, body size) is the HTTP edge's:
 //! `robotd_http::guard`, around every route.
 
+mod call_run;
 mod direct_call;
 mod sse;
 mod sse_transport;
