@@ -65,6 +65,14 @@ impl CallRun {
     }
 }
 
+impl CallRun {
+    /// Sends the answer of a call that ended here after the progress it reported, so the
+    /// caller reads them in order from its messages.
+    pub(super) fn queue_answer(&self, answer: ServerJsonRpcMessage) {
+        let _ = self.answers.send(Outgoing::Answer(answer));
+    }
+}
+
 impl Drop for CallRun {
     fn drop(&mut self) {
         let Some(future) = self.future.take() else {

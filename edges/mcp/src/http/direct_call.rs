@@ -38,12 +38,12 @@
 //! `mcp.direct_tool_calls = false` sends every call through rmcp.
 
 use super::call_run::{prepare, Outgoing, Started};
+use super::sse_transport::queue;
 use crate::service::McpService;
 use crate::sessions::{CallScopes, ClosingSessions};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
-use futures::SinkExt;
 use rmcp::model::{
     CallToolRequestParams, ClientJsonRpcMessage, ClientNotification, ClientRequest, GetMeta,
     JsonRpcMessage, ProgressToken, ProtocolVersion, RequestId, ServerJsonRpcMessage,
@@ -193,14 +193,21 @@ pub(super) async fn run_onto_stream(
     } = started;
     let mut next = tokio::select! {
         biased;
-        answer = std::future::poll_fn(|cx| run.poll_here(cx)) => Outgoing::Answer(answer),
+        answer = std::future::poll_fn(|cx| run.poll_here(cx)) => match incoming.try_recv() {
+            // It reported progress as it ended: the progress goes first, then the answer.
+            Ok(progress) => {
+                run.queue_answer(answer);
+                progress
+            }
+            Err(_) => Outgoing::Answer(answer),
+        },
         Some(progress) = incoming.recv() => progress,
     };
     // Handed over, when it still runs.
     drop(run);
     loop {
         let message = scope.pass_on(next);
-        let written = to_client.lock().await.send(message).await;
+        let written = queue(&mut *to_client.lock().await, message).await;
         if written.is_err() || scope.answered() {
             return;
         }
@@ -228,10 +235,17 @@ impl DirectCalls {
         let stream_after = tokio::time::sleep(STREAM_AFTER);
         let first = tokio::select! {
             biased;
-            answer = std::future::poll_fn(|cx| run.poll_here(cx)) => {
-                scope.mark_answered();
-                return json_body(&answer);
-            }
+            answer = std::future::poll_fn(|cx| run.poll_here(cx)) => match incoming.try_recv() {
+                Err(_) => {
+                    scope.mark_answered();
+                    return json_body(&answer);
+                }
+                // It reported progress as it ended: an event stream, the progress first.
+                Ok(progress) => {
+                    run.queue_answer(answer);
+                    Some(progress)
+                }
+            },
             Some(progress) = incoming.recv() => Some(progress),
             () = stream_after => None,
         };

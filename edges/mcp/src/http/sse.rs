@@ -15,7 +15,7 @@
 //! [`super::sse_transport`]) and the posted messages waiting for rmcp (64).
 
 use super::direct_call::{self, cancel_named, DirectCall};
-use super::sse_transport::SseTransport;
+use super::sse_transport::{queue, SseTransport};
 use super::SessionCap;
 use crate::gate::gated;
 use crate::owner::SessionOwner;
@@ -28,7 +28,7 @@ use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::Extension;
 use futures::channel::mpsc;
-use futures::{SinkExt, Stream, StreamExt};
+use futures::{Stream, StreamExt};
 use rmcp::model::{ClientJsonRpcMessage, ServerJsonRpcMessage};
 use rmcp::ServiceExt;
 use std::collections::HashMap;
@@ -255,10 +255,8 @@ pub(super) async fn post_message(
             return (StatusCode::ACCEPTED, "Accepted").into_response();
         }
     }
-    let queued = async {
-        let mut sender = session.to_server.lock().await;
-        sender.send(message).await
-    };
+    // Waits for room, then queues: a POST refused after the wait has queued nothing.
+    let queued = async { queue(&mut *session.to_server.lock().await, message).await };
     match tokio::time::timeout(POST_QUEUE_WAIT, queued).await {
         Ok(Ok(())) => (StatusCode::ACCEPTED, "Accepted").into_response(),
         Ok(Err(_)) => (StatusCode::NOT_FOUND, "Could not find session").into_response(),

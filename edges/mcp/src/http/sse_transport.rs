@@ -8,12 +8,14 @@
 //! wait in the session's queue, and a POST that finds that queue full long enough is refused
 //! with 503 (`super::sse`).
 //!
-//! A request's place is given back when its answer is queued onto the stream, or when the
-//! client cancels it (rmcp then sends no answer).
+//! A request's place is given back when its answer is queued onto the stream (or the answer
+//! is dropped unsent), or when the client cancels it (rmcp then sends no answer). An id the
+//! client reuses while it is still unanswered gets one answer from rmcp, which gives back all
+//! its places.
 
 use super::sse::SharedSender;
 use futures::channel::mpsc;
-use futures::{SinkExt, StreamExt};
+use futures::StreamExt;
 use rmcp::model::{
     ClientJsonRpcMessage, ClientNotification, JsonRpcMessage, RequestId, ServerJsonRpcMessage,
 };
@@ -58,15 +60,25 @@ impl SseTransport {
     }
 }
 
-/// Gives back one place of request `id`, if it holds one.
-fn give_back(unanswered: &Unanswered, id: &RequestId) {
-    let mut places = unanswered.lock().unwrap_or_else(PoisonError::into_inner);
-    if let Some(held) = places.get_mut(id) {
-        held.pop();
-        if held.is_empty() {
-            places.remove(id);
-        }
-    }
+/// Takes every place held under request `id` (rmcp answers a reused id once: one answer ends
+/// all of them).
+fn take_places(unanswered: &Unanswered, id: &RequestId) -> Vec<OwnedSemaphorePermit> {
+    unanswered
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .remove(id)
+        .unwrap_or_default()
+}
+
+/// Queues `message` on `sender` once there is room. Unlike `SinkExt::send`, which queues the
+/// message first and then waits for room (a send that times out has still queued its
+/// message), this either queues it or waits; dropped while waiting, nothing was queued.
+pub(super) async fn queue<T>(
+    sender: &mut mpsc::Sender<T>,
+    message: T,
+) -> Result<(), mpsc::SendError> {
+    std::future::poll_fn(|cx| sender.poll_ready(cx)).await?;
+    sender.start_send(message)
 }
 
 impl Transport<RoleServer> for SseTransport {
@@ -77,18 +89,18 @@ impl Transport<RoleServer> for SseTransport {
         item: ServerJsonRpcMessage,
     ) -> impl Future<Output = Result<(), Self::Error>> + Send + 'static {
         let to_client = self.to_client.clone();
-        let unanswered = self.unanswered.clone();
+        // The answer holds its request's place until it is queued onto the stream, or dropped
+        // (rmcp may drop a send the gate started inside `receive`): either way it comes back.
+        let answers = match &item {
+            JsonRpcMessage::Response(response) => Some(&response.id),
+            JsonRpcMessage::Error(error) => error.id.as_ref(),
+            _ => None,
+        };
+        let places = answers.map(|id| take_places(&self.unanswered, id));
         async move {
-            let answers = match &item {
-                JsonRpcMessage::Response(response) => Some(response.id.clone()),
-                JsonRpcMessage::Error(error) => error.id.clone(),
-                _ => None,
-            };
-            let sent = to_client.lock().await.send(item).await;
-            if let Some(id) = answers {
-                give_back(&unanswered, &id);
-            }
-            sent
+            let queued = queue(&mut *to_client.lock().await, item).await;
+            drop(places);
+            queued
         }
     }
 
@@ -103,7 +115,7 @@ impl Transport<RoleServer> for SseTransport {
                     &notification.notification
                 {
                     if let Some(id) = &cancelled.params.request_id {
-                        give_back(&self.unanswered, id);
+                        drop(take_places(&self.unanswered, id));
                     }
                 }
             }
@@ -131,6 +143,7 @@ impl Transport<RoleServer> for SseTransport {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use futures::SinkExt;
 
     fn request(id: i64) -> ClientJsonRpcMessage {
         serde_json::from_value(serde_json::json!({"jsonrpc": "2.0", "id": id, "method": "ping"}))
@@ -190,5 +203,42 @@ mod tests {
             .expect("the cancelled request's place is free")
             .expect("a request");
         assert!(matches!(next, JsonRpcMessage::Request(r) if r.id == RequestId::Number(99)));
+    }
+
+    #[tokio::test]
+    async fn a_queueing_that_gave_up_queued_nothing() {
+        let (mut sender, mut receiver) = mpsc::channel::<u32>(1);
+        // One slot of the channel, one of the sender: then it waits.
+        queue(&mut sender, 1).await.unwrap();
+        queue(&mut sender, 2).await.unwrap();
+        let gave_up =
+            tokio::time::timeout(std::time::Duration::from_millis(50), queue(&mut sender, 3));
+        assert!(gave_up.await.is_err(), "there was no room");
+        assert_eq!(receiver.next().await, Some(1));
+        assert_eq!(receiver.next().await, Some(2));
+        assert!(
+            receiver.try_recv().is_err(),
+            "3 was queued although refused"
+        );
+    }
+
+    #[tokio::test]
+    async fn one_answer_gives_back_every_place_of_a_reused_id() {
+        let (mut to_server, from_client) = mpsc::channel(2 * MAX_UNANSWERED);
+        let (to_client, _from_server) = mpsc::channel(2 * MAX_UNANSWERED);
+        let mut transport =
+            SseTransport::new(from_client, Arc::new(tokio::sync::Mutex::new(to_client)));
+        for _ in 0..MAX_UNANSWERED {
+            to_server.send(request(7)).await.unwrap();
+            transport.receive().await.unwrap();
+        }
+        // rmcp answers a reused id once.
+        transport.send(answer(7)).await.unwrap();
+        to_server.send(request(8)).await.unwrap();
+        let next = tokio::time::timeout(std::time::Duration::from_secs(5), transport.receive())
+            .await
+            .expect("the places are back")
+            .expect("a request");
+        assert!(matches!(next, JsonRpcMessage::Request(r) if r.id == RequestId::Number(8)));
     }
 }
