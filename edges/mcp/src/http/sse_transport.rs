@@ -150,16 +150,42 @@ mod tests {
             .unwrap()
     }
 
+    /// A session's transport: where the client's posts go in, and its stream's queue.
+    fn session() -> (
+        mpsc::Sender<ClientJsonRpcMessage>,
+        SseTransport,
+        mpsc::Receiver<ServerJsonRpcMessage>,
+    ) {
+        let (to_server, from_client) = mpsc::channel(2 * MAX_UNANSWERED);
+        let (to_client, from_server) = mpsc::channel(2 * MAX_UNANSWERED);
+        let transport =
+            SseTransport::new(from_client, Arc::new(tokio::sync::Mutex::new(to_client)));
+        (to_server, transport, from_server)
+    }
+
+    /// Posts request `id` and checks the transport takes it within 5 s (`room` names the
+    /// place that must have come back).
+    async fn takes_request(
+        to_server: &mut mpsc::Sender<ClientJsonRpcMessage>,
+        transport: &mut SseTransport,
+        id: i64,
+        room: &str,
+    ) {
+        to_server.send(request(id)).await.unwrap();
+        let next = tokio::time::timeout(std::time::Duration::from_secs(5), transport.receive())
+            .await
+            .unwrap_or_else(|_| panic!("{room} did not come back"))
+            .expect("a request");
+        assert!(matches!(next, JsonRpcMessage::Request(r) if r.id == RequestId::Number(id)));
+    }
+
     fn answer(id: i64) -> ServerJsonRpcMessage {
         ServerJsonRpcMessage::response(rmcp::model::ServerResult::empty(()), RequestId::Number(id))
     }
 
     #[tokio::test]
     async fn no_more_requests_are_taken_than_have_room_until_one_is_answered() {
-        let (mut to_server, from_client) = mpsc::channel(2 * MAX_UNANSWERED);
-        let (to_client, mut from_server) = mpsc::channel(2 * MAX_UNANSWERED);
-        let mut transport =
-            SseTransport::new(from_client, Arc::new(tokio::sync::Mutex::new(to_client)));
+        let (mut to_server, mut transport, mut from_server) = session();
         for id in 0..=MAX_UNANSWERED as i64 {
             to_server.send(request(id)).await.unwrap();
         }
@@ -179,10 +205,7 @@ mod tests {
 
     #[tokio::test]
     async fn a_cancelled_request_gives_its_place_back() {
-        let (mut to_server, from_client) = mpsc::channel(2 * MAX_UNANSWERED);
-        let (to_client, _from_server) = mpsc::channel(1);
-        let mut transport =
-            SseTransport::new(from_client, Arc::new(tokio::sync::Mutex::new(to_client)));
+        let (mut to_server, mut transport, _from_server) = session();
         for id in 0..MAX_UNANSWERED as i64 {
             to_server.send(request(id)).await.unwrap();
             transport.receive().await.unwrap();
@@ -197,12 +220,13 @@ mod tests {
             .unwrap();
         let next = transport.receive().await.expect("the cancellation");
         assert!(matches!(next, JsonRpcMessage::Notification(_)));
-        to_server.send(request(99)).await.unwrap();
-        let next = tokio::time::timeout(std::time::Duration::from_secs(5), transport.receive())
-            .await
-            .expect("the cancelled request's place is free")
-            .expect("a request");
-        assert!(matches!(next, JsonRpcMessage::Request(r) if r.id == RequestId::Number(99)));
+        takes_request(
+            &mut to_server,
+            &mut transport,
+            99,
+            "the cancelled request's place",
+        )
+        .await;
     }
 
     #[tokio::test]
@@ -224,21 +248,13 @@ mod tests {
 
     #[tokio::test]
     async fn one_answer_gives_back_every_place_of_a_reused_id() {
-        let (mut to_server, from_client) = mpsc::channel(2 * MAX_UNANSWERED);
-        let (to_client, _from_server) = mpsc::channel(2 * MAX_UNANSWERED);
-        let mut transport =
-            SseTransport::new(from_client, Arc::new(tokio::sync::Mutex::new(to_client)));
+        let (mut to_server, mut transport, _from_server) = session();
         for _ in 0..MAX_UNANSWERED {
             to_server.send(request(7)).await.unwrap();
             transport.receive().await.unwrap();
         }
         // rmcp answers a reused id once.
         transport.send(answer(7)).await.unwrap();
-        to_server.send(request(8)).await.unwrap();
-        let next = tokio::time::timeout(std::time::Duration::from_secs(5), transport.receive())
-            .await
-            .expect("the places are back")
-            .expect("a request");
-        assert!(matches!(next, JsonRpcMessage::Request(r) if r.id == RequestId::Number(8)));
+        takes_request(&mut to_server, &mut transport, 8, "the reused id's places").await;
     }
 }
