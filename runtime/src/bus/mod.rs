@@ -15,7 +15,8 @@
 //!
 //! Receiving never busy-polls or sleeps in a loop: each port is paired with an iceoryx2 *event*
 //! service whose listener is a file descriptor registered with tokio, so a task waiting for a
-//! message is woken by the kernel when the sender notifies; a client waiting for its server is
+//! message is woken by the kernel when the sender notifies (or directly, without the kernel,
+//! when the sender is in the same process: see `wake`); a client waiting for its server is
 //! woken by the event a server raises when it attaches. (One wait is not an event: a request
 //! that has waited 250 ms checks that its server's process is still alive, since a crashed
 //! process cannot announce its death.)
@@ -125,7 +126,7 @@ struct BusInner {
     /// Message-topic services opened by this process, shared by their ports.
     topics: handles::Handles<pubsub::PubSubFactory>,
     /// Event services opened by this process, shared by their notifiers and listeners.
-    events: handles::Handles<wake::EventFactory>,
+    events: handles::Handles<wake::EventService>,
 }
 
 impl std::fmt::Debug for Bus {

@@ -656,7 +656,8 @@ pub(crate) mod tests {
     }
 
     /// Loses a wake-up of `subscriber`, as a consume racing a notifier can: the topic is
-    /// notified and the datagram read before tokio's reactor sees it.
+    /// notified and the datagram read before tokio's reactor sees it. `bus` must be another
+    /// node than the subscriber's (a notifier of its own node sends it no datagram).
     pub(crate) fn lose_a_wake_up<T: Message>(bus: &Bus, subscriber: &Subscriber<T>) {
         Notify::new(bus, &data_event(&subscriber.topic.name))
             .unwrap()

@@ -3,13 +3,23 @@
 //! iceoryx2's event listener on Linux is a Unix datagram socket. Registering its file
 //! descriptor with tokio's reactor lets a task sleep until a notifier in any process fires,
 //! with no polling thread and no sleep loop.
+//!
+//! A notifier in the *same* process wakes that process's sleepers directly, through a
+//! `tokio::sync::Notify` its ports on the event service share, and sends datagrams only when
+//! a listener elsewhere (another process, or a blocking listener here) needs one. A sleeper in
+//! this process then does not wait for the kernel: on a multi-threaded runtime the woken task
+//! runs next on the notifier's own worker thread, where the datagram would have woken the
+//! reactor on another CPU first, and no other worker is woken for nothing. An in-process tool
+//! call's round trip to an actor (MCP call → workspace model → reply) stays on one CPU.
 
 use super::{Bus, BusError, Ipc};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use std::os::fd::{AsRawFd, RawFd};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
+use std::task::{Context, Poll, Waker};
 use std::time::Duration;
 use tokio::io::unix::AsyncFd;
 
@@ -23,7 +33,33 @@ impl AsRawFd for ListenerFd {
 }
 
 /// An event service's handle, shared by this process's notifiers and listeners on it.
-pub(crate) type EventFactory = iceoryx2::service::port_factory::event::PortFactory<Ipc>;
+pub(crate) struct EventService {
+    factory: iceoryx2::service::port_factory::event::PortFactory<Ipc>,
+    /// Wakes this process's [`Wake`]s on the service that are asleep, without the kernel.
+    in_process: tokio::sync::Notify,
+    /// In-process notifications so far, counted before each wakes anyone: a [`Wake`] that
+    /// saw the count change since its rearm does not sleep.
+    notifications: AtomicU64,
+    /// This process's [`Wake`]s on the service. When they are all of its listeners, a
+    /// notifier sends no datagram.
+    wakes: AtomicUsize,
+}
+
+impl EventService {
+    /// Whether some listener of the service is not one of this process's [`Wake`]s (it is in
+    /// another process, or a blocking listener here) and so needs the datagram.
+    fn has_listeners_elsewhere(&self) -> bool {
+        let wakes = self.wakes.load(Ordering::SeqCst);
+        wakes == 0 || self.factory.dynamic_config().number_of_listeners() > wakes
+    }
+}
+
+impl std::ops::Deref for EventService {
+    type Target = iceoryx2::service::port_factory::event::PortFactory<Ipc>;
+    fn deref(&self) -> &Self::Target {
+        &self.factory
+    }
+}
 
 /// Wakes a task when the paired [`Notify`] fires.
 pub(crate) struct Wake {
@@ -31,18 +67,20 @@ pub(crate) struct Wake {
     fd: AsyncFd<ListenerFd>,
     listener: PlainListener,
     name: String,
+    /// The service's in-process notification count at the last rearm.
+    seen: AtomicU64,
 }
 
 /// Fires the paired [`Wake`]s.
 pub(crate) struct Notify {
     notifier: Notifier<Ipc>,
-    _service: Arc<EventFactory>,
+    service: Arc<EventService>,
 }
 
 /// A listener for blocking waits outside tokio, with its service's shared handle.
 pub(crate) struct PlainListener {
     listener: Listener<Ipc>,
-    _service: Arc<EventFactory>,
+    service: Arc<EventService>,
 }
 
 impl std::ops::Deref for PlainListener {
@@ -90,14 +128,15 @@ pub(crate) const EVENT_LIMITS: EventLimits = EventLimits {
 };
 
 /// The event service `name`: the handle this process already holds, or a new one.
-pub(crate) fn event_service(bus: &Bus, name: &str) -> Result<Arc<EventFactory>, BusError> {
+pub(crate) fn event_service(bus: &Bus, name: &str) -> Result<Arc<EventService>, BusError> {
     bus.inner
         .events
         .get_or_open(name, || open_event_service(bus, name))
 }
 
-fn open_event_service(bus: &Bus, name: &str) -> Result<EventFactory, BusError> {
-    bus.node()
+fn open_event_service(bus: &Bus, name: &str) -> Result<EventService, BusError> {
+    let factory = bus
+        .node()
         .service_builder(&bus.service_name(name)?)
         .event()
         .max_notifiers(EVENT_LIMITS.max_notifiers)
@@ -111,7 +150,13 @@ fn open_event_service(bus: &Bus, name: &str) -> Result<EventFactory, BusError> {
         .map_err(|e| BusError::Setup {
             what: format!("event service '{name}'"),
             reason: format!("{e:?}"),
-        })
+        })?;
+    Ok(EventService {
+        factory,
+        in_process: tokio::sync::Notify::new(),
+        notifications: AtomicU64::new(0),
+        wakes: AtomicUsize::new(0),
+    })
 }
 
 impl Wake {
@@ -134,10 +179,13 @@ impl Wake {
             topic: name.to_owned(),
             source: e.into_parts().1,
         })?;
+        // Counted once its listener exists (uncounted, a listener only costs a datagram).
+        listener.service.wakes.fetch_add(1, Ordering::SeqCst);
         Ok(Self {
             fd,
             listener,
             name: name.to_owned(),
+            seen: AtomicU64::new(0),
         })
     }
 
@@ -157,7 +205,16 @@ impl Wake {
     /// A notifier racing the consume marks the listener again; so consuming repeats until a
     /// round finds no notification (bounded: under a flood the notifiers' data is there to
     /// be read anyway).
+    ///
+    /// Rearming also forgets a readiness tokio's reactor recorded for a datagram that the
+    /// in-process wake-up made needless, so the next sleep does not return at once for it.
     pub(crate) fn rearm(&self) {
+        let service = &self.listener.service;
+        self.seen.store(
+            service.notifications.load(Ordering::SeqCst),
+            Ordering::SeqCst,
+        );
+        self.forget_readiness();
         for _ in 0..8 {
             discard_datagrams(self.fd.get_ref().0);
             match self.listener.try_wait(|_| {}) {
@@ -171,15 +228,41 @@ impl Wake {
         }
     }
 
+    /// Clears the readiness tokio holds for the listener's socket, if any. Called before the
+    /// socket is emptied, so a datagram landing after this raises a fresh edge.
+    fn forget_readiness(&self) {
+        let mut context = Context::from_waker(Waker::noop());
+        if let Poll::Ready(Ok(mut guard)) = self.fd.poll_read_ready(&mut context) {
+            guard.clear_ready();
+        }
+    }
+
     /// Sleeps until a notification arrived since the last [`rearm`](Self::rearm) (or one
-    /// before it that tokio already saw: a needless wake, never a missed one).
+    /// before it that tokio already saw: a needless wake, never a missed one). A notifier in
+    /// this process wakes it directly; one elsewhere through the listener's socket.
     pub(crate) async fn sleep(&self) -> Result<(), BusError> {
-        let mut guard = self.fd.readable().await.map_err(|source| BusError::Wait {
-            topic: self.name.clone(),
-            source,
-        })?;
-        // Cleared now; a datagram that lands later raises a fresh edge.
-        guard.clear_ready();
+        let service = &self.listener.service;
+        let in_process = service.in_process.notified();
+        tokio::pin!(in_process);
+        // Listening before looking: a notifier that counts after this look wakes `in_process`.
+        in_process.as_mut().enable();
+        let notifications = service.notifications.load(Ordering::SeqCst);
+        if notifications != self.seen.swap(notifications, Ordering::SeqCst) {
+            return Ok(()); // notified in this process since the rearm
+        }
+        tokio::select! {
+            biased;
+            readable = self.fd.readable() => {
+                let mut guard = readable.map_err(|source| BusError::Wait {
+                    topic: self.name.clone(),
+                    source,
+                })?;
+                // Cleared now; a datagram that lands later raises a fresh edge.
+                guard.clear_ready();
+            }
+            // The datagram of this notification is read by the next rearm.
+            () = in_process => {}
+        }
         Ok(())
     }
 
@@ -189,6 +272,13 @@ impl Wake {
             Ok(result) => result.map(|()| true),
             Err(_) => Ok(false),
         }
+    }
+}
+
+impl Drop for Wake {
+    fn drop(&mut self) {
+        // Uncounted before its listener goes (see `Wake::new`).
+        self.listener.service.wakes.fetch_sub(1, Ordering::SeqCst);
     }
 }
 
@@ -242,10 +332,7 @@ pub(crate) fn listener(bus: &Bus, name: &str) -> Result<PlainListener, BusError>
             what: format!("listener on '{name}'"),
             reason: format!("{e:?}"),
         })?;
-    Ok(PlainListener {
-        listener,
-        _service: service,
-    })
+    Ok(PlainListener { listener, service })
 }
 
 impl Notify {
@@ -259,17 +346,19 @@ impl Notify {
                 what: format!("notifier on '{name}'"),
                 reason: format!("{e:?}"),
             })?;
-        Ok(Self {
-            notifier,
-            _service: service,
-        })
+        Ok(Self { notifier, service })
     }
 
-    /// Wakes every listener of the event service.
+    /// Wakes every listener of the event service: those of other processes through their
+    /// sockets, this process's sleeping [`Wake`]s directly as well.
     pub(crate) fn notify(&self) {
-        if let Err(e) = self.notifier.notify() {
-            tracing::warn!(error = ?e, "bus notification failed");
+        self.service.notifications.fetch_add(1, Ordering::SeqCst);
+        if self.service.has_listeners_elsewhere() {
+            if let Err(e) = self.notifier.notify() {
+                tracing::warn!(error = ?e, "bus notification failed");
+            }
         }
+        self.service.in_process.notify_waiters();
     }
 }
 
@@ -307,7 +396,9 @@ mod tests {
         let namespace = format!("test-wake-{}", std::process::id());
         let bus = Bus::open(BusOptions::new(&namespace, "wake")).unwrap();
         let wake = Wake::new(&bus, "topic/ready").unwrap();
-        let notify = Notify::new(&bus, "topic/ready").unwrap();
+        // Another node, as another process is: it wakes the listener through its socket only.
+        let other = Bus::open(BusOptions::new(&namespace, "notifier")).unwrap();
+        let notify = Notify::new(&other, "topic/ready").unwrap();
         // Leftover datagrams, as several notifiers racing one drain leave them.
         let fd = wake.fd.get_ref().0;
         let sender = UnixDatagram::unbound().unwrap();
@@ -341,7 +432,8 @@ mod tests {
         let namespace = format!("test-wake-lost-{}", std::process::id());
         let bus = Bus::open(BusOptions::new(&namespace, "wake")).unwrap();
         let wake = Wake::new(&bus, "topic/ready").unwrap();
-        let notify = Notify::new(&bus, "topic/ready").unwrap();
+        let other = Bus::open(BusOptions::new(&namespace, "notifier")).unwrap();
+        let notify = Notify::new(&other, "topic/ready").unwrap();
         notify.notify();
         assert_eq!(wake.swallow_datagrams(), 1);
         // A waiting loop found no data: it rearms, checks again, sleeps.
@@ -351,5 +443,102 @@ mod tests {
             .await
             .expect("the notification after the rearm wakes the listener")
             .unwrap();
+    }
+
+    /// A sleeper in a task woken by a notifier in the same process: `sleeper` runs the
+    /// rearm-then-sleep of a waiting loop on `wake`.
+    async fn sleeping(wake: &Arc<Wake>) -> tokio::task::JoinHandle<Result<(), BusError>> {
+        wake.rearm();
+        let sleeper = tokio::spawn({
+            let wake = Arc::clone(wake);
+            async move { wake.sleep().await }
+        });
+        // Let the sleeper start sleeping.
+        tokio::task::yield_now().await;
+        assert!(!sleeper.is_finished());
+        sleeper
+    }
+
+    /// When every listener of the event service is a [`Wake`] of this process, a notifier
+    /// wakes them directly and sends no datagram at all.
+    #[tokio::test(flavor = "current_thread")]
+    async fn a_notifier_in_the_same_process_wakes_the_sleeper_without_a_datagram() {
+        let namespace = format!("test-wake-local-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "wake")).unwrap();
+        let wake = Arc::new(Wake::new(&bus, "topic/ready").unwrap());
+        let notify = Notify::new(&bus, "topic/ready").unwrap();
+        let sleeper = sleeping(&wake).await;
+        notify.notify();
+        assert_eq!(wake.swallow_datagrams(), 0, "a datagram nobody needed");
+        tokio::time::timeout(Duration::from_secs(2), sleeper)
+            .await
+            .expect("woken in-process")
+            .unwrap()
+            .unwrap();
+    }
+
+    /// A notification that comes after the waiting loop's last check but before its sleep
+    /// starts listening is not lost: the sleep sees the count moved and returns at once.
+    #[tokio::test(flavor = "current_thread")]
+    async fn an_in_process_notification_between_rearm_and_sleep_is_not_lost() {
+        let namespace = format!("test-wake-gap-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "wake")).unwrap();
+        let wake = Wake::new(&bus, "topic/ready").unwrap();
+        let notify = Notify::new(&bus, "topic/ready").unwrap();
+        wake.rearm();
+        notify.notify();
+        tokio::time::timeout(Duration::from_secs(2), wake.sleep())
+            .await
+            .expect("the notification before the sleep wakes it")
+            .unwrap();
+    }
+
+    /// With a listener in another node (as in another process) beside this process's own, a
+    /// notifier here still sends the datagrams, and both are woken.
+    #[tokio::test(flavor = "current_thread")]
+    async fn a_listener_elsewhere_still_gets_its_datagram() {
+        let namespace = format!("test-wake-mixed-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "wake")).unwrap();
+        let other = Bus::open(BusOptions::new(&namespace, "elsewhere")).unwrap();
+        let local = Arc::new(Wake::new(&bus, "topic/ready").unwrap());
+        let remote = Arc::new(Wake::new(&other, "topic/ready").unwrap());
+        let notify = Notify::new(&bus, "topic/ready").unwrap();
+        let local_sleeper = sleeping(&local).await;
+        let remote_sleeper = sleeping(&remote).await;
+        notify.notify();
+        for sleeper in [local_sleeper, remote_sleeper] {
+            tokio::time::timeout(Duration::from_secs(2), sleeper)
+                .await
+                .expect("both listeners woken")
+                .unwrap()
+                .unwrap();
+        }
+    }
+
+    /// After an in-process wake-up, the datagram the same notification sent to a listener
+    /// elsewhere is also in this listener's socket; the next rearm reads it and forgets the
+    /// readiness tokio recorded for it, so the next sleep sleeps instead of returning at once.
+    /// (Paused clock: the timeout fires only once the runtime has nothing else to do, its
+    /// reactor polled.)
+    #[tokio::test(flavor = "current_thread", start_paused = true)]
+    async fn a_rearm_after_an_in_process_wake_up_leaves_no_stale_readiness() {
+        let namespace = format!("test-wake-stale-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "wake")).unwrap();
+        let other = Bus::open(BusOptions::new(&namespace, "elsewhere")).unwrap();
+        let _elsewhere = Wake::new(&other, "topic/ready").unwrap();
+        let wake = Arc::new(Wake::new(&bus, "topic/ready").unwrap());
+        let notify = Notify::new(&bus, "topic/ready").unwrap();
+        let sleeper = sleeping(&wake).await;
+        notify.notify();
+        sleeper.await.unwrap().unwrap();
+        // The reactor sees the datagram's edge before the rearm.
+        tokio::task::yield_now().await;
+        wake.rearm();
+        assert_eq!(wake.swallow_datagrams(), 0);
+        let slept = tokio::time::timeout(Duration::from_secs(1), wake.sleep()).await;
+        assert!(
+            slept.is_err(),
+            "the sleep returned for a notification already read"
+        );
     }
 }
