@@ -588,7 +588,7 @@ async fn start_process_actors(
                 remove_half_created_after(Path::new(SHARED_MEMORY_DIR), || {
                     std::thread::sleep(HALF_CREATED_SETTLE)
                 });
-                let report = cleanup_bus.cleanup_dead_nodes();
+                let report = cleanup_bus.cleanup_dead_nodes_after_sweep();
                 if report.failed > 0 {
                     return Err(format!(
                         "{} dead bus node(s) could not be removed",

@@ -110,6 +110,10 @@ pub struct CleanupReport {
     pub failed: u64,
     /// Segments killed processes left half-created, removed first ([`stale`]).
     pub half_created: usize,
+    /// Half-created segments too young to remove were there, so the dead-node clean-up was
+    /// put off (iceoryx2's would wait forever on one left by a killed process); a clean-up
+    /// once they are [`stale::HALF_CREATED_AFTER`] old removes them and goes on.
+    pub deferred: bool,
 }
 
 /// A process's membership of the bus: one iceoryx2 node, from which ports are created.
@@ -214,20 +218,41 @@ impl Bus {
     /// place (a service allows one server, for instance).
     ///
     /// Segments a killed process left half-created go first: iceoryx2's clean-up would wait
-    /// for them forever. A process killed less than [`stale::HALF_CREATED_AFTER`] ago may
-    /// still leave one too young to tell from a segment being created; the next clean-up
-    /// removes it.
+    /// for them forever. One younger than [`stale::HALF_CREATED_AFTER`] cannot be told from
+    /// a segment being created, so while one is there the clean-up is put off
+    /// ([`CleanupReport::deferred`]): callers retry (a waiting request every 250 ms), and a
+    /// supervisor removes the corpses of a process it saw die itself
+    /// ([`stale::remove_half_created_after`]) before cleaning.
     pub fn cleanup_dead_nodes(&self) -> CleanupReport {
-        let half_created = stale::remove_half_created(
-            std::path::Path::new(stale::SHARED_MEMORY_DIR),
-            stale::HALF_CREATED_AFTER,
-        )
-        .len();
+        self.cleanup_dead_nodes_in(std::path::Path::new(stale::SHARED_MEMORY_DIR), true)
+    }
+
+    /// [`cleanup_dead_nodes`](Self::cleanup_dead_nodes) for a supervisor that has just removed
+    /// the young corpses of a process it saw die ([`stale::remove_half_created_after`]): a
+    /// half-created segment still there is a living creator's, which iceoryx2 waits for only
+    /// a moment, so the clean-up is not put off (the restarted actor needs it).
+    pub fn cleanup_dead_nodes_after_sweep(&self) -> CleanupReport {
+        self.cleanup_dead_nodes_in(std::path::Path::new(stale::SHARED_MEMORY_DIR), false)
+    }
+
+    fn cleanup_dead_nodes_in(&self, segments: &std::path::Path, defer: bool) -> CleanupReport {
+        let half_created = stale::remove_half_created(segments, stale::HALF_CREATED_AFTER).len();
+        if defer && stale::any_half_created(segments) {
+            tracing::debug!(
+                "dead-node clean-up put off: a half-created bus segment is too young to remove"
+            );
+            return CleanupReport {
+                half_created,
+                deferred: true,
+                ..CleanupReport::default()
+            };
+        }
         let state = self.inner.node.try_cleanup_dead_nodes();
         CleanupReport {
             removed: state.cleanups,
             failed: state.failed_cleanups,
             half_created,
+            deferred: false,
         }
     }
 

@@ -15,7 +15,8 @@
 //! (`Bus::cleanup_dead_nodes`: a supervisor restarting an actor, a request whose server went
 //! quiet, a queue a dead subscriber keeps full). A supervisor that just saw a process die
 //! also removes that process's younger corpses, after giving a living creator a moment
-//! ([`remove_half_created_after`]).
+//! ([`remove_half_created_after`]). Any other dead-node clean-up that finds a younger one
+//! waits for a later round ([`any_half_created`]) rather than risk iceoryx2's endless wait.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
@@ -61,6 +62,11 @@ pub fn remove_half_created_after(dir: &Path, settle: impl FnOnce()) -> Vec<PathB
         .filter(|path| still.contains(path))
         .collect();
     remove(corpses)
+}
+
+/// Whether `dir` holds a half-created segment of any age.
+pub fn any_half_created(dir: &Path) -> bool {
+    !half_created(dir).is_empty()
 }
 
 /// The empty, write-only `iox2_*` files in `dir`, with how long ago each last changed.
@@ -152,6 +158,34 @@ mod tests {
         for kept in [young, readable, sized, foreign] {
             assert!(kept.exists(), "{} was removed", kept.display());
         }
+    }
+
+    /// iceoryx2's clean-up would wait forever on a young corpse it cannot yet be told from a
+    /// segment being created, so the clean-up waits until the corpse is old enough to go.
+    #[test]
+    fn a_dead_node_clean_up_waits_while_a_young_half_created_segment_is_there() {
+        use crate::bus::{Bus, BusOptions};
+        let namespace = format!("test-stale-young-{}", std::process::id());
+        let bus = Bus::open(BusOptions::new(&namespace, "sweeper")).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let name = "iox2_abc_young.dynamic";
+        let young = file(dir.path(), name, 0, 0o200, Duration::ZERO);
+        let report = bus.cleanup_dead_nodes_in(dir.path(), true);
+        assert!(report.deferred, "{report:?}");
+        assert!(young.exists());
+        // Old enough now: removed, and the clean-up goes on.
+        file(dir.path(), name, 0, 0o200, Duration::from_secs(60));
+        let report = bus.cleanup_dead_nodes_in(dir.path(), true);
+        assert!(!report.deferred, "{report:?}");
+        assert_eq!(report.half_created, 1);
+        assert!(!young.exists());
+        // A supervisor that swept the dead process's corpses itself does not wait.
+        let young = file(dir.path(), name, 0, 0o200, Duration::ZERO);
+        assert!(!bus.cleanup_dead_nodes_in(dir.path(), false).deferred);
+        assert!(
+            young.exists(),
+            "a young one is left to its (living) creator"
+        );
     }
 
     #[test]
