@@ -12,6 +12,12 @@
 //! is dropped unsent), or when the client cancels it (rmcp then sends no answer). An id the
 //! client reuses while it is still unanswered gets one answer from rmcp, which gives back all
 //! its places.
+//!
+//! While a request waits for a place, the transport reads on (up to [`MAX_READ_AHEAD`]
+//! messages) so that a cancellation is not stuck behind it: a `notifications/cancelled` goes
+//! to rmcp at once, and one that names a request still waiting here (or read ahead) removes
+//! that request, which then never runs and gets no answer (as the MCP spec asks of a cancelled
+//! request). Every other message read ahead keeps its order behind the waiting request.
 
 use super::sse::SharedSender;
 use futures::channel::mpsc;
@@ -21,13 +27,16 @@ use rmcp::model::{
 };
 use rmcp::transport::Transport;
 use rmcp::RoleServer;
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::future::Future;
 use std::sync::{Arc, Mutex, PoisonError};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
 /// Most requests of one SSE session that rmcp holds without their answer on the stream's queue.
 pub(super) const MAX_UNANSWERED: usize = 64;
+
+/// Most messages read past a request that waits for a place, looking for cancellations.
+pub(super) const MAX_READ_AHEAD: usize = MAX_UNANSWERED;
 
 /// The places of unanswered requests, by request id (a list: a client may reuse an id).
 type Unanswered = Arc<Mutex<HashMap<RequestId, Vec<OwnedSemaphorePermit>>>>;
@@ -41,6 +50,8 @@ pub(super) struct SseTransport {
     unanswered: Unanswered,
     /// A request taken from the queue, waiting for a place.
     waiting: Option<ClientJsonRpcMessage>,
+    /// Messages read past the waiting request, in the order they came.
+    read_ahead: VecDeque<ClientJsonRpcMessage>,
 }
 
 impl SseTransport {
@@ -56,6 +67,7 @@ impl SseTransport {
             room: Arc::new(Semaphore::new(MAX_UNANSWERED)),
             unanswered: Arc::default(),
             waiting: None,
+            read_ahead: VecDeque::new(),
         }
     }
 }
@@ -104,40 +116,86 @@ impl Transport<RoleServer> for SseTransport {
         }
     }
 
+    // Cancel-safe: rmcp drops this future whenever something else happened first. Every
+    // message taken from the queue is kept in `self` across an await, and the next call takes
+    // it up again.
     async fn receive(&mut self) -> Option<ClientJsonRpcMessage> {
-        let message = match self.waiting.take() {
-            Some(message) => message,
-            None => self.from_client.next().await?,
-        };
-        let JsonRpcMessage::Request(request) = &message else {
-            if let JsonRpcMessage::Notification(notification) = &message {
-                if let ClientNotification::CancelledNotification(cancelled) =
-                    &notification.notification
-                {
-                    if let Some(id) = &cancelled.params.request_id {
-                        drop(take_places(&self.unanswered, id));
+        loop {
+            if let Some(JsonRpcMessage::Request(request)) = &self.waiting {
+                let id = request.id.clone();
+                let room = Arc::clone(&self.room);
+                let may_read_on = self.read_ahead.len() < MAX_READ_AHEAD;
+                tokio::select! {
+                    biased;
+                    place = room.acquire_owned() => {
+                        self.unanswered
+                            .lock()
+                            .unwrap_or_else(PoisonError::into_inner)
+                            .entry(id)
+                            .or_default()
+                            .push(place.ok()?);
+                        return self.waiting.take();
+                    }
+                    next = self.from_client.next(), if may_read_on => {
+                        let message = next?;
+                        match cancelled_id(&message) {
+                            Some(cancelled) if cancelled == &id => self.waiting = None,
+                            Some(cancelled) => {
+                                let before = self.read_ahead.len();
+                                self.read_ahead.retain(|m| !is_request(m, cancelled));
+                                if self.read_ahead.len() == before {
+                                    return Some(self.pass_on(message));
+                                }
+                            }
+                            None => self.read_ahead.push_back(message),
+                        }
+                        continue;
                     }
                 }
             }
-            return Some(message);
-        };
-        let id = request.id.clone();
-        // Kept here while it waits for a place: rmcp drops this future whenever something
-        // else happened first, and the next call takes the request up again.
-        self.waiting = Some(message);
-        let place = self.room.clone().acquire_owned().await.ok()?;
-        self.unanswered
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .entry(id)
-            .or_default()
-            .push(place);
-        self.waiting.take()
+            let message = match self.read_ahead.pop_front() {
+                Some(message) => message,
+                None => self.from_client.next().await?,
+            };
+            if matches!(message, JsonRpcMessage::Request(_)) {
+                // Waits for a place at the top of the loop.
+                self.waiting = Some(message);
+                continue;
+            }
+            return Some(self.pass_on(message));
+        }
     }
 
     async fn close(&mut self) -> Result<(), Self::Error> {
         Ok(())
     }
+}
+
+impl SseTransport {
+    /// A message that needs no place, on its way to rmcp: a cancellation gives its request's
+    /// places back (rmcp sends no answer to a cancelled request).
+    fn pass_on(&self, message: ClientJsonRpcMessage) -> ClientJsonRpcMessage {
+        if let Some(id) = cancelled_id(&message) {
+            drop(take_places(&self.unanswered, id));
+        }
+        message
+    }
+}
+
+/// The request a `notifications/cancelled` names.
+fn cancelled_id(message: &ClientJsonRpcMessage) -> Option<&RequestId> {
+    let JsonRpcMessage::Notification(notification) = message else {
+        return None;
+    };
+    let ClientNotification::CancelledNotification(cancelled) = &notification.notification else {
+        return None;
+    };
+    cancelled.params.request_id.as_ref()
+}
+
+/// Whether `message` is request `id`.
+fn is_request(message: &ClientJsonRpcMessage, id: &RequestId) -> bool {
+    matches!(message, JsonRpcMessage::Request(request) if &request.id == id)
 }
 
 #[cfg(test)]
@@ -256,5 +314,61 @@ mod tests {
         // rmcp answers a reused id once.
         transport.send(answer(7)).await.unwrap();
         takes_request(&mut to_server, &mut transport, 8, "the reused id's places").await;
+    }
+
+    fn cancel(id: i64) -> ClientJsonRpcMessage {
+        serde_json::from_value(serde_json::json!({"jsonrpc": "2.0",
+            "method": "notifications/cancelled", "params": {"requestId": id}}))
+        .unwrap()
+    }
+
+    /// Fills every place: requests 0..MAX_UNANSWERED are inside rmcp, unanswered.
+    async fn full(
+        to_server: &mut mpsc::Sender<ClientJsonRpcMessage>,
+        transport: &mut SseTransport,
+    ) {
+        for id in 0..MAX_UNANSWERED as i64 {
+            to_server.send(request(id)).await.unwrap();
+            transport.receive().await.unwrap();
+        }
+    }
+
+    #[tokio::test]
+    async fn a_cancellation_is_not_held_up_by_a_request_waiting_for_a_place() {
+        let (mut to_server, mut transport, _from_server) = session();
+        full(&mut to_server, &mut transport).await;
+        to_server.send(request(100)).await.unwrap();
+        to_server.send(request(101)).await.unwrap();
+        to_server.send(cancel(5)).await.unwrap();
+        let next = tokio::time::timeout(std::time::Duration::from_secs(5), transport.receive())
+            .await
+            .expect("the cancellation went past the waiting request")
+            .unwrap();
+        assert_eq!(cancelled_id(&next), Some(&RequestId::Number(5)));
+        // Its place came back: the waiting requests follow, in order.
+        let next = transport.receive().await.unwrap();
+        assert!(is_request(&next, &RequestId::Number(100)));
+        transport.send(answer(6)).await.unwrap();
+        let next = transport.receive().await.unwrap();
+        assert!(is_request(&next, &RequestId::Number(101)));
+    }
+
+    #[tokio::test]
+    async fn a_request_cancelled_while_it_waits_for_a_place_never_reaches_rmcp() {
+        let (mut to_server, mut transport, _from_server) = session();
+        full(&mut to_server, &mut transport).await;
+        to_server.send(request(100)).await.unwrap();
+        to_server.send(request(101)).await.unwrap();
+        to_server.send(request(102)).await.unwrap();
+        to_server.send(cancel(100)).await.unwrap();
+        to_server.send(cancel(101)).await.unwrap();
+        let waits = tokio::time::timeout(std::time::Duration::from_millis(50), transport.receive());
+        assert!(waits.await.is_err(), "no place yet, nothing to hand on");
+        transport.send(answer(0)).await.unwrap();
+        let next = transport.receive().await.unwrap();
+        assert!(
+            is_request(&next, &RequestId::Number(102)),
+            "100 (waiting) and 101 (read ahead) were cancelled: {next:?}"
+        );
     }
 }
