@@ -1,7 +1,7 @@
 //! The agent on the bus: any front end (the CLI, a dashboard, another process) publishes an
 //! [`AgentRequest`] on [`AGENT_REQUEST`] and follows the [`AgentEvent`]s on [`AGENT_EVENTS`]
 //! tagged with its request id — plan, each tool call and result as they happen, then exactly
-//! one terminal event (answer, error or cancelled). An [`AgentCancel`] on [`AGENT_CANCEL`]
+//! one terminal event (answer, error or cancelled). An [`AgentCancel`](robotd_protocol::agent::AgentCancel) on [`AGENT_CANCEL`]
 //! stops that request: the running LLM call or tool call (the motion stops safely), or the
 //! request before it starts if it is still queued.
 //!

@@ -163,7 +163,7 @@ impl Report {
     }
 }
 
-/// The corner names in the order [`Pipeline::plane_from_markers`] returns the four markers.
+/// The corner names in the order `Pipeline::plane_from_markers` returns the four markers.
 const CORNERS: [&str; 4] = ["upper_left", "upper_right", "lower_left", "lower_right"];
 
 pub fn marker_reports(

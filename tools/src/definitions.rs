@@ -1,6 +1,6 @@
 //! The tools as clients see them: name, description, input and output schema.
 //!
-//! Everything here is derived from the tool table ([`crate::tools`]): the schemas come from
+//! Everything here is derived from the tool table (`crate::tools`): the schemas come from
 //! each tool's argument and data types, so this list cannot drift from what the handlers
 //! read and return.
 

@@ -6,7 +6,7 @@
 //! not say when a frame was taken, so the feed dates each one `latency` before its arrival and
 //! places the camera where the [`PoseSource`] says it is then. The camera
 //! actor calls [`CameraFeed::frame_ready`] and [`CameraFeed::capture_into`] through the
-//! driver's [`CameraDriver`](crate::CameraDriver) methods. Only the newest frame is kept: a
+//! driver's [`CameraDriver`] methods. Only the newest frame is kept: a
 //! camera never queues old frames, and a frame is handed out once.
 
 use crate::{CameraDriver, CaptureInfo, DriverError, DriverFuture};

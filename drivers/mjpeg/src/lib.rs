@@ -8,7 +8,7 @@
 //! arrival, which a `pose` function gives (for a wrist camera: from the arm's joints). A lost
 //! stream is retried (100 ms, doubling to 2 s); meanwhile the camera says why it has no frame.
 //!
-//! [`serve`] is the other end: a stream of frames from any [`CameraDriver`], the way a lab's
+//! [`serve`] is the other end: a stream of frames from any [`CameraDriver`](robotd_driver::CameraDriver), the way a lab's
 //! IP camera would send them.
 
 mod client;

@@ -4,7 +4,7 @@
 //! `robot.driver = "niryo"` with `robot.host` selects it. [`open`] returns the arm, gripper
 //! and camera drivers at once, whether or not the robot answers: they share one [`link`]
 //! whose reconnector keeps trying (at most `robot.niryo.reconnect_max_ms` apart), and until
-//! it succeeds every command fails with "robot not connected: <reason>".
+//! it succeeds every command fails with `robot not connected: <reason>`.
 //!
 //! - [`wire`]: the framing and message shapes, validated both ways;
 //! - [`link`]: the one connection — commands one at a time with deadlines, stale replies

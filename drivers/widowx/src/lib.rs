@@ -3,8 +3,8 @@
 //!
 //! `robot.driver = "widowx"` selects it; `[robot.widowx]` names the serial device of the U2D2
 //! adapter and the camera stream. [`open`] starts the bus thread and returns the drivers at
-//! once, whether or not the servos answer: until they do, every command fails with "robot not
-//! connected: <reason>", and the thread keeps reopening the port.
+//! once, whether or not the servos answer: until they do, every command fails with `robot not
+//! connected: <reason>`, and the thread keeps reopening the port.
 //!
 //! - [`control_table`]: servo IDs, models, control-table addresses, units;
 //! - [`startup`]: ping and model check of every servo, the settings written, torque on;

@@ -11,7 +11,7 @@ use std::net::SocketAddr;
 pub struct HttpConfig {
     /// Address of the HTTP edge; port 0 picks a free port.
     pub bind: SocketAddr,
-    /// Host names accepted in the `Host` header besides localhost, 127.0.0.1 and [::1]
+    /// Host names accepted in the `Host` header besides `localhost`, `127.0.0.1` and `[::1]`
     /// (DNS-rebinding protection), e.g. "robot-pc.lab". On a non-loopback bind a non-empty
     /// list restricts `Host` to these names.
     #[serde(default)]

@@ -17,7 +17,7 @@ pub struct McpConfig {
     pub token: Option<String>,
     /// Largest request body, bytes (1 KiB … 64 MiB).
     pub max_body_bytes: usize,
-    /// Browser origins allowed besides local ones, e.g. "https://lab.example.org".
+    /// Browser origins allowed besides local ones, e.g. `https://lab.example.org`.
     pub allowed_origins: Vec<String>,
     /// Set `isError: true` on failure replies (the Python server never did).
     pub strict_errors: bool,

@@ -23,7 +23,7 @@
 //! - [`settings`]: where to connect (`--redis`, `[redis] url`, `REDIS_*`), which detector to trust.
 //! - [`wire`]: the entries, field by field; the readers' checks.
 //! - [`camera`]: frames to JPEG entries, the ring of published frames.
-//! - [`annotate`]: boxes and labels drawn on a frame.
+//! - [`annotate`](robotd_render::annotate): boxes and labels drawn on a frame.
 //! - [`relay`]: detections, labels and overlays out.
 //! - [`consume`]: external detections and labels in.
 //! - [`writer`]: the queue and the task that appends to Redis.

@@ -2,7 +2,7 @@
 //!
 //! A GPU detector in Python (OWLv2, YOLO-World, YOLOE) reads robotd's camera frames from Redis
 //! and answers with labels, pixel boxes and, usually, masks. This module turns such a
-//! [`PixelObject`] into the same [`DetectedObject`] the built-in detector makes, through the same
+//! [`PixelObject`] into the same [`DetectedObject`](robotd_protocol::objects::DetectedObject) the built-in detector makes, through the same
 //! chain: the frame's workspace markers give the table plane, and [`crate::footprint::measure`]
 //! maps the object's pixels onto it. So external and built-in perception are interchangeable;
 //! only who found the pixels differs.

@@ -210,7 +210,7 @@ fn odd_one_out(four: &[MarkerObservation; 4]) -> Option<usize> {
     differs(&|m| u8::from(m.white_centre))
 }
 
-/// Orders four markers of one sheet as upper-left (the origin marker, see [`odd_one_out`]),
+/// Orders four markers of one sheet as upper-left (the origin marker, see `odd_one_out`),
 /// upper-right, lower-left, lower-right. The diagonal partner of the origin is the farthest in
 /// the image; which of the other two is upper-right is decided by the caller (mirror order
 /// gives no valid camera pose), so both orders are returned, the more likely first.

@@ -299,7 +299,7 @@ fn corner_points(workspace: &WorkspaceInfo) -> [[f64; 2]; 4] {
     })
 }
 
-/// How far from its observation pose (in [`pose_gap`] units: metres plus radians/10) the
+/// How far from its observation pose (in `pose_gap` units: metres plus radians/10) the
 /// tool may be for a view to count as taken from there: 1.5 cm, or 1 cm and 0.05 rad. Arms
 /// repeat a pose to well under a millimetre.
 pub const OBSERVATION_POSE_TOLERANCE: f64 = 0.015;

@@ -24,7 +24,7 @@ pub struct ServiceConfig {
     #[serde(deserialize_with = "lenient::string")]
     pub name: String,
     /// Threads of the async runtime that runs the edges and the light actors (1 to
-    /// [`MAX_WORKER_THREADS`]); perception, the writers and the live views have threads of
+    /// `MAX_WORKER_THREADS`); perception, the writers and the live views have threads of
     /// their own. See `config/default.toml` for the default and the trade-off.
     pub worker_threads: usize,
 }
@@ -84,7 +84,7 @@ pub struct TelemetryConfig {
         skip_serializing_if = "Option::is_none"
     )]
     pub otlp_endpoint: Option<String>,
-    /// Service name of exported spans and prefix of the log file names. [`Config::load`]
+    /// Service name of exported spans and prefix of the log file names. `Config::load`
     /// fills it with `[service] name` when not set.
     #[serde(
         default,

@@ -1,5 +1,5 @@
-//! The MCP edge's HTTP side: legacy HTTP+SSE ([`sse`]) and streamable HTTP (rmcp's service
-//! at `/mcp`, with [`streamable`] checks in front) on one port.
+//! The MCP edge's HTTP side: legacy HTTP+SSE (`sse`) and streamable HTTP (rmcp's service
+//! at `/mcp`, with `streamable` checks in front) on one port.
 //!
 //! Each session is bound to the client that opened it ([`crate::owner`]) and served through
 //! [`crate::gate`] (no request before `notifications/initialized`). At most
@@ -36,7 +36,7 @@ pub struct RouterOptions {
     pub max_sessions: usize,
     /// A streamable-HTTP session without a request for this long is closed.
     pub idle_timeout: Duration,
-    /// Run streamable-HTTP tool calls without rmcp's session pipeline ([`direct_call`]).
+    /// Run streamable-HTTP tool calls without rmcp's session pipeline (`direct_call`).
     pub direct_tool_calls: bool,
 }
 
