@@ -134,6 +134,7 @@ fn bench_mcp_json_reports_every_figure() {
             "coordinate_sse_us_p50",
             "coordinate_http_us_p50",
             "coordinate_http_raw_us_p50",
+            "coordinate_sse_raw_us_p50",
             "ping_http_raw_us_p50",
             "http_floor_us_p50",
             "tcp_echo_us_p50",

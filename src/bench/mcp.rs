@@ -8,11 +8,12 @@
 //!    model at once) over legacy SSE and streamable HTTP, one call at a time;
 //! 2. the same two tools called directly on the tool registry over the bus (no MCP, no HTTP):
 //!    the baseline the MCP edge adds to;
-//! 3. the first tool over streamable HTTP again with the leanest client ([`super::mcp_raw`]):
-//!    how much of the per-call cost is the server's, interleaved with an MCP `ping` (rmcp's
-//!    session pipeline without a tool) and a `GET /health` (the HTTP floor) on the same
-//!    connection, so the server's share splits into layers; and a loopback TCP round trip to
-//!    a peer process ([`super::tcp_echo`]): the raw floor under all of them;
+//! 3. the first tool over streamable HTTP and legacy SSE again with the leanest client
+//!    ([`super::mcp_raw`], [`super::mcp_raw_sse`]): how much of the per-call cost is the
+//!    server's (rmcp's own client adds ~0.2–0.4 ms on its side), interleaved with an MCP
+//!    `ping` (rmcp's session pipeline without a tool) and a `GET /health` (the HTTP floor) on
+//!    the streamable-HTTP connection, so the server's share splits into layers; and a loopback
+//!    TCP round trip to a peer process ([`super::tcp_echo`]): the raw floor under all of them;
 //! 4. calls per second with 8 and 64 concurrent streamable-HTTP clients;
 //! 5. the service's resident memory (VmRSS) after the load, and after the clients left.
 //!
@@ -58,6 +59,10 @@ pub struct McpFigures {
     /// `get_workspace_coordinate_from_point` over streamable HTTP with the leanest client
     /// (plain HTTP requests, no MCP client library), µs.
     pub coordinate_http_raw_us_p50: f64,
+    /// `get_workspace_coordinate_from_point` over legacy SSE with the leanest client (posted
+    /// on one connection, answer read from the event stream), µs; timed interleaved with the
+    /// streamable-HTTP call above.
+    pub coordinate_sse_raw_us_p50: f64,
     /// MCP `ping` over streamable HTTP with the leanest client (rmcp's session pipeline, no
     /// tool), µs; timed interleaved with the call above.
     pub ping_http_raw_us_p50: f64,
@@ -88,6 +93,11 @@ pub struct McpFigures {
     pub throughput_s: f64,
     /// Whether the service and this benchmark ran pinned to one CPU (`--one-core`).
     pub one_core: bool,
+    /// On a VM guest with the `haltpoll` cpuidle driver, how long an idle vCPU polls before
+    /// it halts (`/sys/module/haltpoll/parameters/guest_halt_poll_ns`); `None` elsewhere.
+    /// With 0, every wake-up of an idle vCPU goes through the hypervisor (~50–100 µs on the
+    /// 2-vCPU VM), and a call over loopback pays one on each side.
+    pub guest_halt_poll_ns: Option<u64>,
 }
 
 impl McpFigures {
@@ -98,11 +108,13 @@ impl McpFigures {
              get_workspace_coordinate_from_point, SSE           {:>7.0} / {:>7.0}   p50 ≤ 500\n\
              get_workspace_coordinate_from_point, HTTP          {:>7.0} / {:>7.0}   p50 ≤ 500\n\
              get_workspace_coordinate_from_point, HTTP, raw     {:>7.0}           (lean client)\n\
+             get_workspace_coordinate_from_point, SSE, raw      {:>7.0}           (lean client)\n\
              MCP ping, HTTP, raw                                {:>7.0}           (lean client)\n\
              GET /health (HTTP floor)                           {:>7.0}           (lean client)\n\
              loopback TCP round trip (raw baseline)             {:>7.0}\n\
              get_workspace_coordinate_from_point, direct        {:>7.0}\n\
-             MCP overhead (p50 − direct): SSE / HTTP / raw      {:>7.0} / {:>7.0} / {:>5.0} ≤ 150\n\
+             MCP overhead (p50 − direct): SSE / HTTP            {:>7.0} / {:>7.0}   (rmcp client)\n\
+             MCP overhead (p50 − direct): SSE / HTTP, raw       {:>7.0} / {:>7.0}   ≤ 150\n\
              get_detected_objects at obs. pose, SSE             {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
              get_detected_objects at obs. pose, HTTP            {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
              get_detected_objects at obs. pose, direct          {:>7.0}\n\
@@ -111,18 +123,21 @@ impl McpFigures {
              service RSS right after load                       {:>9.1} MB        ≤ 80 MB\n\
              service RSS 3 s after load, sessions open          {:>9.1} MB        ≤ 80 MB\n\
              service RSS 3 s after the clients left             {:>9.1} MB        near idle\n\
+             {}\n\
              {}\n",
             self.coordinate_sse_us_p50,
             self.coordinate_sse_us_p99,
             self.coordinate_http_us_p50,
             self.coordinate_http_us_p99,
             self.coordinate_http_raw_us_p50,
+            self.coordinate_sse_raw_us_p50,
             self.ping_http_raw_us_p50,
             self.http_floor_us_p50,
             self.tcp_echo_us_p50,
             self.coordinate_direct_us_p50,
             self.coordinate_sse_us_p50 - self.coordinate_direct_us_p50,
             self.coordinate_http_us_p50 - self.coordinate_direct_us_p50,
+            self.coordinate_sse_raw_us_p50 - self.coordinate_direct_us_p50,
             self.coordinate_http_raw_us_p50 - self.coordinate_direct_us_p50,
             self.objects_sse_us_p50,
             self.objects_sse_us_p99,
@@ -138,6 +153,10 @@ impl McpFigures {
                 "service and benchmark pinned to CPU 0 (--one-core)"
             } else {
                 "threads on any CPU (--one-core pins everything to CPU 0)"
+            },
+            match self.guest_halt_poll_ns {
+                Some(ns) => format!("VM guest halt polling: {ns} ns before an idle vCPU halts"),
+                None => "no VM guest halt polling (haltpoll) on this machine".to_owned(),
             },
         )
     }
@@ -274,6 +293,16 @@ async fn throughput(url: &str, clients: usize, run_for: Duration) -> Result<(f64
     Ok((total as f64 / elapsed, Clients(sessions)))
 }
 
+/// How long an idle vCPU of this VM guest polls before halting, when the `haltpoll` cpuidle
+/// driver is loaded.
+fn guest_halt_poll_ns() -> Option<u64> {
+    std::fs::read_to_string("/sys/module/haltpoll/parameters/guest_halt_poll_ns")
+        .ok()?
+        .trim()
+        .parse()
+        .ok()
+}
+
 fn rss_mb(pid: u32) -> Result<f64> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status"))?;
     let kb: f64 = status
@@ -405,6 +434,7 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64, one_core: bool) -> Resul
             objects_http_us_p50: objects_http.p50_us,
             objects_http_us_p99: objects_http.p99_us,
             coordinate_http_raw_us_p50: raw.call.p50_us,
+            coordinate_sse_raw_us_p50: raw.sse_call.p50_us,
             ping_http_raw_us_p50: raw.ping.p50_us,
             http_floor_us_p50: raw.http.p50_us,
             tcp_echo_us_p50: tcp_echo.p50_us,
@@ -418,6 +448,7 @@ pub fn run(exe: &Path, calls: usize, throughput_s: f64, one_core: bool) -> Resul
             calls,
             throughput_s,
             one_core,
+            guest_halt_poll_ns: guest_halt_poll_ns(),
         })
     })?;
     drop(served);

@@ -1,4 +1,5 @@
-//! The server's share of a streamable-HTTP MCP call, measured with the leanest client.
+//! The server's share of an MCP call, measured with the leanest client: streamable HTTP here,
+//! legacy SSE in [`super::mcp_raw_sse`].
 //!
 //! `robotd bench mcp` times calls made with rmcp's client, so its figures are the server's
 //! work plus the client's (request bookkeeping, SSE parsing, task hand-offs). This client is
@@ -25,7 +26,7 @@ use std::net::SocketAddr;
 use std::time::Instant;
 
 /// The protocol version this client asks for: the newest one with sessions.
-const PROTOCOL_VERSION: &str = "2025-06-18";
+pub(super) const PROTOCOL_VERSION: &str = "2025-06-18";
 
 /// One streamable-HTTP MCP session driven with plain HTTP requests on one connection.
 pub struct RawSession {
@@ -48,20 +49,8 @@ impl RawSession {
     /// (`initialize`, then `notifications/initialized`). Must run inside a tokio runtime: the
     /// connection is driven by a task of the current one.
     pub async fn open(addr: SocketAddr) -> Result<Self> {
-        let stream = tokio::net::TcpStream::connect(addr)
-            .await
-            .with_context(|| format!("connecting to {addr}"))?;
-        stream.set_nodelay(true)?;
-        let (sender, connection) = hyper::client::conn::http1::handshake(TokioIo::new(stream))
-            .await
-            .context("HTTP/1 handshake")?;
-        tokio::spawn(async move {
-            if let Err(error) = connection.await {
-                tracing::debug!(%error, "the lean MCP client's connection ended");
-            }
-        });
         let mut session = Self {
-            sender,
+            sender: connect(addr).await?,
             host: addr.to_string(),
             session_id: String::new(),
             protocol_version: PROTOCOL_VERSION.to_owned(),
@@ -178,9 +167,27 @@ impl RawSession {
     }
 }
 
+/// One kept-alive HTTP/1 connection to `addr` (no Nagle delay), driven by a task of the
+/// current runtime.
+pub(super) async fn connect(addr: SocketAddr) -> Result<SendRequest<Full<Bytes>>> {
+    let stream = tokio::net::TcpStream::connect(addr)
+        .await
+        .with_context(|| format!("connecting to {addr}"))?;
+    stream.set_nodelay(true)?;
+    let (sender, connection) = hyper::client::conn::http1::handshake(TokioIo::new(stream))
+        .await
+        .context("HTTP/1 handshake")?;
+    tokio::spawn(async move {
+        if let Err(error) = connection.await {
+            tracing::debug!(%error, "the lean MCP client's connection ended");
+        }
+    });
+    Ok(sender)
+}
+
 /// The JSON-RPC message answering `id` in a reply body: plain JSON, or the `data:` lines of
 /// an event stream.
-fn json_rpc_reply(body: &str, id: u64) -> Result<Value> {
+pub(super) fn json_rpc_reply(body: &str, id: u64) -> Result<Value> {
     let candidates = std::iter::once(body.trim()).chain(
         body.lines()
             .filter_map(|line| line.strip_prefix("data:"))
@@ -200,10 +207,14 @@ pub struct Layers {
     pub ping: Latency,
     /// `tool`: the above plus the tool and its bus round trip.
     pub call: Latency,
+    /// `tool` over legacy SSE ([`super::mcp_raw_sse`]): posted on one connection, answered on
+    /// the session's event stream.
+    pub sse_call: Latency,
 }
 
 /// `calls` rounds of a `GET /health`, a `ping` and a call of `tool` on a fresh raw session
-/// with robotd's HTTP port at `addr`, interleaved so that all three see the same machine.
+/// with robotd's HTTP port at `addr`, and a call of `tool` on a fresh raw legacy-SSE session,
+/// interleaved so that all four see the same machine.
 /// The client runs on a thread of its own with a single-threaded runtime.
 pub async fn layers(
     addr: SocketAddr,
@@ -237,9 +248,13 @@ async fn measure(
     calls: usize,
 ) -> Result<Layers> {
     let mut session = RawSession::open(addr).await?;
+    let mut sse = super::mcp_raw_sse::RawSseSession::open(addr)
+        .await
+        .context("the lean legacy-SSE session")?;
     let mut http = Vec::with_capacity(calls);
     let mut ping = Vec::with_capacity(calls);
     let mut call = Vec::with_capacity(calls);
+    let mut sse_call = Vec::with_capacity(calls);
     for _ in 0..calls {
         let started = Instant::now();
         session.health().await?;
@@ -250,12 +265,16 @@ async fn measure(
         let started = Instant::now();
         session.call(tool, arguments).await?;
         call.push(started.elapsed());
+        let started = Instant::now();
+        sse.call(tool, arguments).await?;
+        sse_call.push(started.elapsed());
     }
     session.close().await;
     Ok(Layers {
         http: Latency::of(&mut http),
         ping: Latency::of(&mut ping),
         call: Latency::of(&mut call),
+        sse_call: Latency::of(&mut sse_call),
     })
 }
 

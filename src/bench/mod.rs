@@ -8,6 +8,7 @@
 pub mod jpeg;
 pub mod mcp;
 pub mod mcp_raw;
+pub mod mcp_raw_sse;
 pub mod niryo;
 pub mod perception;
 pub mod ping;

@@ -1,0 +1,234 @@
+//! The server's share of a legacy-SSE MCP call, measured with the leanest client.
+//!
+//! The legacy transport takes two connections: `GET /sse` opens the session's event stream,
+//! whose first event (`endpoint`) names where to post; each JSON-RPC message is then a
+//! `POST /messages/?session_id=…`, answered `202 Accepted`, and the request's answer comes
+//! back on the event stream. rmcp's client adds its own work on both sides of that (reqwest's
+//! pooled connection task, its transport worker, an event-stream parser); this client is two
+//! kept-alive HTTP/1 connections driven by hyper's bare connection API on the lean client's
+//! thread ([`super::mcp_raw`]), so the time from posting a call to reading its answer is the
+//! loopback round trips plus robotd's own work. Every answer is still checked (the call's id
+//! and a `✓` text), so a server that answered nothing or an error is not timed as fast.
+
+use super::mcp_raw::{connect, json_rpc_reply, PROTOCOL_VERSION};
+use anyhow::{bail, Context, Result};
+use bytes::Bytes;
+use http_body_util::{BodyExt, Full};
+use hyper::body::Incoming;
+use hyper::client::conn::http1::SendRequest;
+use hyper::{Method, Request};
+use serde_json::{json, Map, Value};
+use std::net::SocketAddr;
+
+/// The most bytes of one event this client keeps while waiting for its end: robotd's answers
+/// to the benchmark's tools are a few hundred bytes, so more is a stream gone wrong.
+const MAX_EVENT_BYTES: usize = 1 << 20;
+
+/// One legacy-SSE MCP session: its event stream and the connection it posts on.
+pub struct RawSseSession {
+    events: EventStream,
+    poster: Poster,
+    next_id: u64,
+}
+
+/// The session's event stream (`GET /sse`), read event by event.
+struct EventStream {
+    body: Incoming,
+    /// Bytes received and not yet split into events.
+    pending: String,
+}
+
+/// The connection that posts the session's messages.
+struct Poster {
+    sender: SendRequest<Full<Bytes>>,
+    host: String,
+    endpoint: String,
+}
+
+/// One server-sent event: its `event:` name (empty when none) and its `data:` lines joined.
+struct Event {
+    name: String,
+    data: String,
+}
+
+impl RawSseSession {
+    /// Opens a legacy-SSE session with robotd's HTTP port at `addr` (`GET /sse`, then
+    /// `initialize` and `notifications/initialized` posted to the announced endpoint). Must run
+    /// inside a tokio runtime: each connection is driven by a task of the current one.
+    pub async fn open(addr: SocketAddr) -> Result<Self> {
+        let mut stream_connection = connect(addr).await?;
+        let host = addr.to_string();
+        let request = Request::builder()
+            .method(Method::GET)
+            .uri("/sse")
+            .header("host", &host)
+            .header("accept", "text/event-stream")
+            .body(Full::new(Bytes::new()))?;
+        let response = stream_connection.send_request(request).await?;
+        if !response.status().is_success() {
+            bail!("GET /sse answered {}", response.status());
+        }
+        let mut events = EventStream {
+            body: response.into_body(),
+            pending: String::new(),
+        };
+        let endpoint = events.next().await?;
+        if endpoint.name != "endpoint" || !endpoint.data.starts_with('/') {
+            bail!(
+                "the event stream began with {:?} {:?}, not the endpoint",
+                endpoint.name,
+                endpoint.data
+            );
+        }
+        let poster = Poster {
+            sender: connect(addr).await?,
+            host,
+            endpoint: endpoint.data,
+        };
+        let mut session = Self {
+            events,
+            poster,
+            next_id: 1,
+        };
+        let initialize = json!({
+            "jsonrpc": "2.0", "id": 0, "method": "initialize",
+            "params": {
+                "protocolVersion": PROTOCOL_VERSION,
+                "capabilities": {},
+                "clientInfo": {"name": "robotd-bench-raw-sse", "version": "0"}
+            }
+        });
+        session
+            .request(initialize.to_string(), 0)
+            .await
+            .context("initialize")?;
+        let initialized = json!({"jsonrpc": "2.0", "method": "notifications/initialized"});
+        session.poster.post(initialized.to_string()).await?;
+        Ok(session)
+    }
+
+    /// Posts a request and waits both for its `202` and for its answer on the event stream
+    /// (either may come first).
+    async fn request(&mut self, body: String, id: u64) -> Result<Value> {
+        let (posted, answer) = tokio::join!(self.poster.post(body), self.events.answer(id));
+        posted?;
+        answer
+    }
+
+    /// Calls `tool` and checks that it answered its id with a `✓` text.
+    pub async fn call(&mut self, tool: &str, arguments: &Map<String, Value>) -> Result<()> {
+        let id = self.next_id;
+        self.next_id += 1;
+        let body = json!({
+            "jsonrpc": "2.0", "id": id, "method": "tools/call",
+            "params": {"name": tool, "arguments": arguments}
+        });
+        let reply = self.request(body.to_string(), id).await?;
+        let answer = reply["result"]["content"][0]["text"].as_str().unwrap_or("");
+        if !answer.starts_with('✓') {
+            bail!("{tool} answered {reply}");
+        }
+        Ok(())
+    }
+}
+
+impl Poster {
+    /// Posts one message to the session's endpoint; robotd accepts it with `202`.
+    async fn post(&mut self, body: String) -> Result<()> {
+        let request = Request::builder()
+            .method(Method::POST)
+            .uri(&self.endpoint)
+            .header("host", &self.host)
+            .header("content-type", "application/json")
+            .body(Full::new(Bytes::from(body)))?;
+        self.sender
+            .ready()
+            .await
+            .context("the connection to robotd closed")?;
+        let response = self.sender.send_request(request).await?;
+        let status = response.status();
+        let text = response.into_body().collect().await?.to_bytes();
+        if !status.is_success() {
+            bail!(
+                "POST {} answered {status}: {}",
+                self.endpoint,
+                String::from_utf8_lossy(&text)
+            );
+        }
+        Ok(())
+    }
+}
+
+impl EventStream {
+    /// Reads events until the JSON-RPC answer to `id`; notifications, keep-alives and other
+    /// answers are skipped.
+    async fn answer(&mut self, id: u64) -> Result<Value> {
+        loop {
+            let event = self.next().await?;
+            if event.name == "message" {
+                if let Ok(answer) = json_rpc_reply(&event.data, id) {
+                    return Ok(answer);
+                }
+            }
+        }
+    }
+
+    /// The next event with data (comments and empty events are skipped).
+    async fn next(&mut self) -> Result<Event> {
+        loop {
+            while let Some(end) = self.pending.find("\n\n") {
+                let block: String = self.pending.drain(..end + 2).collect();
+                if let Some(event) = parse_event(&block) {
+                    return Ok(event);
+                }
+            }
+            if self.pending.len() > MAX_EVENT_BYTES {
+                bail!("an event of more than {MAX_EVENT_BYTES} bytes on the session's stream");
+            }
+            let frame = self
+                .body
+                .frame()
+                .await
+                .context("the session's event stream ended")??;
+            if let Ok(data) = frame.into_data() {
+                let text = std::str::from_utf8(&data).context("an event that is not UTF-8")?;
+                self.pending.push_str(&text.replace("\r\n", "\n"));
+            }
+        }
+    }
+}
+
+/// One event block (the lines before a blank line) as an [`Event`], or `None` when it holds no
+/// data (a comment such as a keep-alive).
+fn parse_event(block: &str) -> Option<Event> {
+    let mut name = String::new();
+    let mut data: Vec<&str> = Vec::new();
+    for line in block.lines() {
+        if let Some(value) = line.strip_prefix("event:") {
+            name = value.trim().to_owned();
+        } else if let Some(value) = line.strip_prefix("data:") {
+            data.push(value.strip_prefix(' ').unwrap_or(value));
+        }
+    }
+    (!data.is_empty()).then(|| Event {
+        name,
+        data: data.join("\n"),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_event_has_its_name_and_its_data_lines_joined() {
+        let event = parse_event("event: message\ndata: {\"a\":\ndata: 1}\n\n").unwrap();
+        assert_eq!(event.name, "message");
+        assert_eq!(event.data, "{\"a\":\n1}");
+    }
+
+    #[test]
+    fn a_keep_alive_comment_is_no_event() {
+        assert!(parse_event(":\n\n").is_none());
+    }
+}
