@@ -34,8 +34,9 @@ pub struct RawSseSession {
 /// The session's event stream (`GET /sse`), read event by event.
 struct EventStream {
     body: Incoming,
-    /// Bytes received and not yet split into events.
-    pending: String,
+    /// Bytes received and not yet split into events (an event may come in several frames,
+    /// split anywhere, even inside a character).
+    pending: Vec<u8>,
 }
 
 /// The connection that posts the session's messages.
@@ -70,7 +71,7 @@ impl RawSseSession {
         }
         let mut events = EventStream {
             body: response.into_body(),
-            pending: String::new(),
+            pending: Vec::new(),
         };
         let endpoint = events.next().await?;
         if endpoint.name != "endpoint" || !endpoint.data.starts_with('/') {
@@ -176,9 +177,10 @@ impl EventStream {
     /// The next event with data (comments and empty events are skipped).
     async fn next(&mut self) -> Result<Event> {
         loop {
-            while let Some(end) = self.pending.find("\n\n") {
-                let block: String = self.pending.drain(..end + 2).collect();
-                if let Some(event) = parse_event(&block) {
+            while let Some(end) = self.pending.windows(2).position(|w| w == b"\n\n") {
+                let block: Vec<u8> = self.pending.drain(..end + 2).collect();
+                let block = std::str::from_utf8(&block).context("an event that is not UTF-8")?;
+                if let Some(event) = parse_event(block) {
                     return Ok(event);
                 }
             }
@@ -191,11 +193,25 @@ impl EventStream {
                 .await
                 .context("the session's event stream ended")??;
             if let Ok(data) = frame.into_data() {
-                let text = std::str::from_utf8(&data).context("an event that is not UTF-8")?;
-                self.pending.push_str(&text.replace("\r\n", "\n"));
+                self.pending.extend_from_slice(&data);
+                // Line ends may be CRLF (a CR and its LF can come in two frames).
+                if self.pending.contains(&b'\r') {
+                    self.pending = without_cr_before_lf(&self.pending);
+                }
             }
         }
     }
+}
+
+/// `bytes` with every CR that stands before an LF taken out.
+fn without_cr_before_lf(bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(bytes.len());
+    for (i, &byte) in bytes.iter().enumerate() {
+        if byte != b'\r' || bytes.get(i + 1) != Some(&b'\n') {
+            out.push(byte);
+        }
+    }
+    out
 }
 
 /// One event block (the lines before a blank line) as an [`Event`], or `None` when it holds no
@@ -225,6 +241,11 @@ mod tests {
         let event = parse_event("event: message\ndata: {\"a\":\ndata: 1}\n\n").unwrap();
         assert_eq!(event.name, "message");
         assert_eq!(event.data, "{\"a\":\n1}");
+    }
+
+    #[test]
+    fn crlf_line_ends_become_lf_and_a_lone_cr_stays() {
+        assert_eq!(without_cr_before_lf(b"a\r\n\r\nb\r"), b"a\n\nb\r");
     }
 
     #[test]
