@@ -56,16 +56,8 @@ impl RawSession {
             protocol_version: PROTOCOL_VERSION.to_owned(),
             next_id: 1,
         };
-        let initialize = json!({
-            "jsonrpc": "2.0", "id": 0, "method": "initialize",
-            "params": {
-                "protocolVersion": PROTOCOL_VERSION,
-                "capabilities": {},
-                "clientInfo": {"name": "robotd-bench-raw", "version": "0"}
-            }
-        });
         let reply = session
-            .post(initialize.to_string())
+            .post(initialize_request("robotd-bench-raw"))
             .await
             .context("initialize")?;
         session.session_id = reply
@@ -76,8 +68,7 @@ impl RawSession {
             .as_str()
             .context("the initialize answer named no protocol version")?
             .to_owned();
-        let initialized = json!({"jsonrpc": "2.0", "method": "notifications/initialized"});
-        let status = session.post(initialized.to_string()).await?.status;
+        let status = session.post(INITIALIZED.to_owned()).await?.status;
         if !status.is_success() {
             bail!("notifications/initialized answered {status}");
         }
@@ -98,21 +89,15 @@ impl RawSession {
                 .header("mcp-protocol-version", &self.protocol_version);
         }
         let request = request.body(Full::new(Bytes::from(body)))?;
-        self.sender
-            .ready()
-            .await
-            .context("the connection to robotd closed")?;
-        let response = self.sender.send_request(request).await?;
-        let status = response.status();
-        let session_id = response
-            .headers()
+        let (head, bytes) = exchange(&mut self.sender, request).await?;
+        let session_id = head
+            .headers
             .get("mcp-session-id")
             .and_then(|v| v.to_str().ok())
             .map(str::to_owned);
-        let bytes = response.into_body().collect().await?.to_bytes();
         let body = String::from_utf8(bytes.to_vec()).context("a reply that is not UTF-8")?;
         Ok(Reply {
-            status,
+            status: head.status,
             session_id,
             body,
         })
@@ -126,17 +111,8 @@ impl RawSession {
     pub async fn call(&mut self, tool: &str, arguments: &Map<String, Value>) -> Result<()> {
         let id = self.next_id;
         self.next_id += 1;
-        let body = json!({
-            "jsonrpc": "2.0", "id": id, "method": "tools/call",
-            "params": {"name": tool, "arguments": arguments}
-        });
-        let reply = self.post(body.to_string()).await?;
-        let reply = json_rpc_reply(&reply.body, id)?;
-        let answer = reply["result"]["content"][0]["text"].as_str().unwrap_or("");
-        if !answer.starts_with('✓') {
-            bail!("{tool} answered {reply}");
-        }
-        Ok(())
+        let reply = self.post(tool_call_request(id, tool, arguments)).await?;
+        check_tool_answer(tool, &json_rpc_reply(&reply.body, id)?)
     }
 
     /// A JSON-RPC `ping` through the session: the MCP layer's path without a tool.
@@ -165,6 +141,54 @@ impl RawSession {
     pub async fn close(mut self) {
         let _ = self.send(Method::DELETE, "/mcp", String::new()).await;
     }
+}
+
+/// The `initialize` request (id 0) of a client named `client_name`.
+pub(super) fn initialize_request(client_name: &str) -> String {
+    json!({
+        "jsonrpc": "2.0", "id": 0, "method": "initialize",
+        "params": {
+            "protocolVersion": PROTOCOL_VERSION,
+            "capabilities": {},
+            "clientInfo": {"name": client_name, "version": "0"}
+        }
+    })
+    .to_string()
+}
+
+/// The notification that ends a session's initialization.
+pub(super) const INITIALIZED: &str = r#"{"jsonrpc":"2.0","method":"notifications/initialized"}"#;
+
+/// A `tools/call` request of `tool` with `arguments`.
+pub(super) fn tool_call_request(id: u64, tool: &str, arguments: &Map<String, Value>) -> String {
+    json!({
+        "jsonrpc": "2.0", "id": id, "method": "tools/call",
+        "params": {"name": tool, "arguments": arguments}
+    })
+    .to_string()
+}
+
+/// Fails unless `reply` is a tool's success (a text starting with `✓`): a server that
+/// answered an error must not be timed as fast.
+pub(super) fn check_tool_answer(tool: &str, reply: &Value) -> Result<()> {
+    let answer = reply["result"]["content"][0]["text"].as_str().unwrap_or("");
+    if !answer.starts_with('✓') {
+        bail!("{tool} answered {reply}");
+    }
+    Ok(())
+}
+
+/// Sends `request` once the connection is free and reads its answer whole.
+pub(super) async fn exchange(
+    sender: &mut SendRequest<Full<Bytes>>,
+    request: Request<Full<Bytes>>,
+) -> Result<(hyper::http::response::Parts, Bytes)> {
+    sender
+        .ready()
+        .await
+        .context("the connection to robotd closed")?;
+    let (head, body) = sender.send_request(request).await?.into_parts();
+    Ok((head, body.collect().await?.to_bytes()))
 }
 
 /// One kept-alive HTTP/1 connection to `addr` (no Nagle delay), driven by a task of the

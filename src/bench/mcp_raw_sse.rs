@@ -10,14 +10,17 @@
 //! loopback round trips plus robotd's own work. Every answer is still checked (the call's id
 //! and a `✓` text), so a server that answered nothing or an error is not timed as fast.
 
-use super::mcp_raw::{connect, json_rpc_reply, PROTOCOL_VERSION};
+use super::mcp_raw::{
+    check_tool_answer, connect, exchange, initialize_request, json_rpc_reply, tool_call_request,
+    INITIALIZED,
+};
 use anyhow::{bail, Context, Result};
 use bytes::Bytes;
 use http_body_util::{BodyExt, Full};
 use hyper::body::Incoming;
 use hyper::client::conn::http1::SendRequest;
 use hyper::{Method, Request};
-use serde_json::{json, Map, Value};
+use serde_json::{Map, Value};
 use std::net::SocketAddr;
 
 /// The most bytes of one event this client keeps while waiting for its end: robotd's answers
@@ -91,20 +94,11 @@ impl RawSseSession {
             poster,
             next_id: 1,
         };
-        let initialize = json!({
-            "jsonrpc": "2.0", "id": 0, "method": "initialize",
-            "params": {
-                "protocolVersion": PROTOCOL_VERSION,
-                "capabilities": {},
-                "clientInfo": {"name": "robotd-bench-raw-sse", "version": "0"}
-            }
-        });
         session
-            .request(initialize.to_string(), 0)
+            .request(initialize_request("robotd-bench-raw-sse"), 0)
             .await
             .context("initialize")?;
-        let initialized = json!({"jsonrpc": "2.0", "method": "notifications/initialized"});
-        session.poster.post(initialized.to_string()).await?;
+        session.poster.post(INITIALIZED.to_owned()).await?;
         Ok(session)
     }
 
@@ -120,16 +114,10 @@ impl RawSseSession {
     pub async fn call(&mut self, tool: &str, arguments: &Map<String, Value>) -> Result<()> {
         let id = self.next_id;
         self.next_id += 1;
-        let body = json!({
-            "jsonrpc": "2.0", "id": id, "method": "tools/call",
-            "params": {"name": tool, "arguments": arguments}
-        });
-        let reply = self.request(body.to_string(), id).await?;
-        let answer = reply["result"]["content"][0]["text"].as_str().unwrap_or("");
-        if !answer.starts_with('✓') {
-            bail!("{tool} answered {reply}");
-        }
-        Ok(())
+        let reply = self
+            .request(tool_call_request(id, tool, arguments), id)
+            .await?;
+        check_tool_answer(tool, &reply)
     }
 }
 
@@ -142,17 +130,12 @@ impl Poster {
             .header("host", &self.host)
             .header("content-type", "application/json")
             .body(Full::new(Bytes::from(body)))?;
-        self.sender
-            .ready()
-            .await
-            .context("the connection to robotd closed")?;
-        let response = self.sender.send_request(request).await?;
-        let status = response.status();
-        let text = response.into_body().collect().await?.to_bytes();
-        if !status.is_success() {
+        let (head, text) = exchange(&mut self.sender, request).await?;
+        if !head.status.is_success() {
             bail!(
-                "POST {} answered {status}: {}",
+                "POST {} answered {}: {}",
                 self.endpoint,
+                head.status,
                 String::from_utf8_lossy(&text)
             );
         }
