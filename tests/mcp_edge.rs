@@ -1,7 +1,8 @@
 //! The MCP edge of a served robotd, driven by a real MCP client (rmcp) over legacy SSE,
 //! streamable HTTP and stdio: the tool list, the contract's texts for successes, validation
 //! errors and failures, structuredContent, cancellation of a motion, and the HTTP guard
-//! (bearer token, Origin, body limit, non-loopback binds).
+//! (bearer token, Origin, body limit, non-loopback binds), and robotd's client keeping its
+//! connection.
 
 mod common;
 
@@ -677,5 +678,42 @@ fn a_new_client_does_not_cancel_another_transports_motion() {
         let picked = pick.await.unwrap();
         assert!(picked.starts_with('✓'), "{picked}");
         streamable.cancel().await.unwrap();
+    });
+}
+
+/// The TCP connections of this machine to `port` on loopback, in any state (closed ones stay
+/// listed in TIME_WAIT for a minute on the side that closed first).
+fn connections_to(port: u16) -> usize {
+    let table = std::fs::read_to_string("/proc/net/tcp").expect("/proc/net/tcp");
+    let remote = format!("0100007F:{port:04X}");
+    table
+        .lines()
+        .skip(1)
+        .filter(|line| line.split_whitespace().nth(2) == Some(remote.as_str()))
+        .count()
+}
+
+/// robotd's streamable-HTTP client keeps its connection from call to call (rmcp's default
+/// client opens a new one for every request: a TCP handshake and a new server connection per
+/// call).
+#[test]
+fn the_streamable_http_client_keeps_its_connection() {
+    let namespace = common::fresh_namespace("pool");
+    let port = common::free_port();
+    let _robotd = common::start_robotd(&namespace, port, &[]);
+    runtime().block_on(async {
+        let client = connect(&format!("http://127.0.0.1:{port}/mcp"), None)
+            .await
+            .unwrap();
+        let args = json!({"workspace_id": "niryo_ws", "point": "center point"});
+        text(&client, "get_workspace_coordinate_from_point", args.clone()).await;
+        let before = connections_to(port);
+        for _ in 0..20 {
+            let answer = text(&client, "get_workspace_coordinate_from_point", args.clone()).await;
+            assert!(answer.starts_with('✓'), "{answer}");
+        }
+        let opened = connections_to(port).saturating_sub(before);
+        assert!(opened <= 1, "20 calls opened {opened} new connections");
+        client.cancel().await.unwrap();
     });
 }

@@ -77,10 +77,60 @@ pub async fn connect(url: &str, token: Option<&str>) -> Result<McpClient, Connec
         if let Some(token) = token {
             config = config.auth_header(token.to_owned());
         }
-        let transport = StreamableHttpClientTransport::from_config(config);
+        let transport =
+            StreamableHttpClientTransport::with_client(pooled_http_client(url)?, config);
         ().serve(transport).await.map_err(|e| handshake(&e))
     }
 }
+
+/// The HTTP client of a streamable-HTTP session: one that keeps its connections.
+///
+/// rmcp's default client keeps none (`pool_max_idle_per_host(0)`), so every request opens a
+/// new TCP connection: on the 2-vCPU test VM that was most of a cheap call's time with this
+/// client (BENCHMARKS.md, fourteenth session). rmcp gave up pooling after stalls of ~40 ms
+/// (Nagle's algorithm against delayed ACKs) on connections whose event-stream answer had not
+/// been read to its end. Here requests go out with `TCP_NODELAY`, robotd answers with
+/// `TCP_NODELAY` and ends each request's event stream after its answer, and rmcp reads a
+/// stream to its end after the answer (up to 50 ms) before the connection is reused; a
+/// connection whose answer was not read to its end is closed by hyper, never reused.
+fn pooled_http_client(url: &str) -> Result<reqwest::Client, ConnectError> {
+    robotd_runtime::telemetry::install_tls_provider();
+    reqwest::Client::builder()
+        .connect_timeout(Duration::from_secs(10))
+        .tcp_nodelay(true)
+        // Shorter than servers keep an idle connection (uvicorn: 5 s, robotd: 60 s), so a
+        // request is not sent down a connection the server is closing.
+        .pool_idle_timeout(Duration::from_secs(4))
+        .redirect(same_origin_redirects())
+        .build()
+        .map_err(|e| http_error(url, e))
+}
+
+/// Follows only the redirects that keep a POST's body (307, 308) to the same origin, at most
+/// [`MAX_REDIRECTS`] (as rmcp's default client does): a 301–303 would turn the POSTed message
+/// into a GET without it, and another origin must not see the session id or the token.
+fn same_origin_redirects() -> reqwest::redirect::Policy {
+    reqwest::redirect::Policy::custom(|attempt| {
+        let keeps_body = matches!(
+            attempt.status(),
+            reqwest::StatusCode::TEMPORARY_REDIRECT | reqwest::StatusCode::PERMANENT_REDIRECT
+        );
+        let same_origin = attempt
+            .previous()
+            .first()
+            .is_some_and(|first| first.origin() == attempt.url().origin());
+        if !keeps_body || !same_origin {
+            attempt.stop()
+        } else if attempt.previous().len() > MAX_REDIRECTS {
+            attempt.error(format!("more than {MAX_REDIRECTS} redirects"))
+        } else {
+            attempt.follow()
+        }
+    })
+}
+
+/// Most redirects one request follows.
+const MAX_REDIRECTS: usize = 10;
 
 /// The events of a `text/event-stream` body (the `sse-stream` crate: lines split across
 /// chunks, and UTF-8 characters split across chunks, are put back together before decoding).
@@ -270,6 +320,56 @@ mod tests {
             text[at + 2..].to_vec(),
         ];
         assert_eq!(events_of(chunks), vec![(None, Some("✓ done".into()))]);
+    }
+
+    /// A server on loopback answering `POST /a` 307 → `/b`, `/c` 302 → `/b`, `/d` 307 → the
+    /// same port under another host name (another origin), `/b` 200.
+    async fn redirecting_server() -> u16 {
+        use axum::http::{header::LOCATION, StatusCode};
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let port = listener.local_addr().unwrap().port();
+        let to = |status: StatusCode, location: String| {
+            move || async move { (status, [(LOCATION, location)]) }
+        };
+        let app = axum::Router::new()
+            .route(
+                "/a",
+                axum::routing::post(to(StatusCode::TEMPORARY_REDIRECT, "/b".into())),
+            )
+            .route(
+                "/c",
+                axum::routing::post(to(StatusCode::FOUND, "/b".into())),
+            )
+            .route(
+                "/d",
+                axum::routing::post(to(
+                    StatusCode::TEMPORARY_REDIRECT,
+                    format!("http://localhost:{port}/b"),
+                )),
+            )
+            .route(
+                "/b",
+                axum::routing::post(|body: String| async move { body }),
+            );
+        tokio::spawn(async move { axum::serve(listener, app).await });
+        port
+    }
+
+    #[tokio::test]
+    async fn only_same_origin_redirects_that_keep_the_body_are_followed() {
+        let port = redirecting_server().await;
+        let client = pooled_http_client("test").unwrap();
+        let post = |path: &str| {
+            client
+                .post(format!("http://127.0.0.1:{port}{path}"))
+                .body("the message")
+                .send()
+        };
+        let followed = post("/a").await.unwrap();
+        assert_eq!(followed.status(), 200);
+        assert_eq!(followed.text().await.unwrap(), "the message");
+        assert_eq!(post("/c").await.unwrap().status(), 302);
+        assert_eq!(post("/d").await.unwrap().status(), 307);
     }
 
     #[test]
