@@ -10,7 +10,7 @@
 //!    the baseline the MCP edge adds to;
 //! 3. the first tool over streamable HTTP and legacy SSE again with the leanest client
 //!    ([`super::mcp_raw`], [`super::mcp_raw_sse`]): how much of the per-call cost is the
-//!    server's (rmcp's own client adds ~0.2–0.4 ms on its side), interleaved with an MCP
+//!    server's (robotd's rmcp-based client adds ~0.1–0.3 ms on its side), interleaved with an MCP
 //!    `ping` (rmcp's session pipeline without a tool) and a `GET /health` (the HTTP floor) on
 //!    the streamable-HTTP connection, so the server's share splits into layers; and a loopback
 //!    TCP round trip to a peer process ([`super::tcp_echo`]): the raw floor under all of them;
@@ -113,7 +113,7 @@ impl McpFigures {
              GET /health (HTTP floor)                           {:>7.0}           (lean client)\n\
              loopback TCP round trip (raw baseline)             {:>7.0}\n\
              get_workspace_coordinate_from_point, direct        {:>7.0}\n\
-             MCP overhead (p50 − direct): SSE / HTTP            {:>7.0} / {:>7.0}   (rmcp client)\n\
+             MCP overhead (p50 − direct): SSE / HTTP            {:>7.0} / {:>7.0}   (robotd's client)\n\
              MCP overhead (p50 − direct): SSE / HTTP, raw       {:>7.0} / {:>7.0}   ≤ 150\n\
              get_detected_objects at obs. pose, SSE             {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\
              get_detected_objects at obs. pose, HTTP            {:>7.0} / {:>7.0}   p50 ≤ 10,000\n\

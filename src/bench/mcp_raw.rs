@@ -1,8 +1,8 @@
 //! The server's share of an MCP call, measured with the leanest client: streamable HTTP here,
 //! legacy SSE in [`super::mcp_raw_sse`].
 //!
-//! `robotd bench mcp` times calls made with rmcp's client, so its figures are the server's
-//! work plus the client's (request bookkeeping, SSE parsing, task hand-offs). This client is
+//! `robotd bench mcp` times calls made with robotd's MCP client (rmcp's), so its figures are
+//! the server's work plus the client's (request bookkeeping, SSE parsing, task hand-offs). This client is
 //! one kept-alive HTTP/1 connection driven by hyper's bare connection API on a thread of its
 //! own (a single-threaded runtime: no connection pool, no hand-off between threads on the
 //! client's side), posting ready-made JSON-RPC bodies and reading each reply whole. What it

@@ -3,10 +3,10 @@
 //! The legacy transport takes two connections: `GET /sse` opens the session's event stream,
 //! whose first event (`endpoint`) names where to post; each JSON-RPC message is then a
 //! `POST /messages/?session_id=…`, answered `202 Accepted`, and the request's answer comes
-//! back on the event stream. rmcp's client adds its own work on both sides of that (reqwest's
-//! pooled connection task, its transport worker, an event-stream parser); this client is two
-//! kept-alive HTTP/1 connections driven by hyper's bare connection API on the lean client's
-//! thread ([`super::mcp_raw`]), so the time from posting a call to reading its answer is the
+//! back on the event stream. robotd's MCP client adds its own work on both sides of that
+//! (reqwest's pooled connection task, its transport tasks, rmcp's service loop, an event-stream
+//! parser); this client is two kept-alive HTTP/1 connections driven by hyper's bare connection
+//! API on the lean client's thread ([`super::mcp_raw`]), so the time from posting a call to reading its answer is the
 //! loopback round trips plus robotd's own work. Every answer is still checked (the call's id
 //! and a `✓` text), so a server that answered nothing or an error is not timed as fast.
 
