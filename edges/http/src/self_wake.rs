@@ -66,6 +66,7 @@ impl Wake for Shared {
 }
 
 impl<F: Future> InlineSelfWakes<F> {
+    /// Wraps `future`; spawn the result as the task.
     pub fn new(future: F) -> Self {
         let shared = Arc::new(Shared {
             state: AtomicU8::new(IDLE),
