@@ -135,12 +135,15 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
 
     // The sheet from its markers (setting up the camera's undistortion table is not timed).
     let mut pipeline = pipeline_for(&intrinsics, &workspace, &table)?;
+    if args.camera.is_none() && args.intrinsics.is_none() {
+        pipeline = pipeline.with_guessed_intrinsics();
+    }
     let t0 = Instant::now();
     let markers = pipeline.find_markers(&frame);
     let located = if args.warped {
         None
     } else {
-        Some(pipeline.plane_from_markers(&markers, &workspace))
+        Some(pipeline.plane_from_markers(&frame, &markers, &workspace))
     };
     let mut sheet: Option<(Pipeline, TablePlane)> = None;
     let mut corners: Option<[MarkerObservation; 4]> = None;

@@ -3,7 +3,11 @@
 //! The Python stack sends each frame to a GPU detector and then asks the robot, over TCP,
 //! where each pixel lies on the table. robotd does both itself on the CPU:
 //!
-//! - [`markers`] finds the workspace sheet's four ring markers in the frame;
+//! - [`markers`] finds the workspace sheet's ring markers in the frame (each checked for its
+//!   concentric rings by [`rings`]) and the fours of them that can make a sheet;
+//! - [`sheet`] proves a sheet through the homography four markers give: a pinhole camera can
+//!   see the configured rectangle so, the markers are one size on the table, the white
+//!   centre is between them. A workspace is found only when all of that holds;
 //! - [`plane`] fits the table plane's homography to them, recovers where the camera is, and
 //!   maps a pixel to the table — or to the height of an object's top face (parallax);
 //! - a [`detector::Detector`] finds the objects; the built-in [`detector::ColourDetector`]
@@ -49,7 +53,9 @@ pub mod markers;
 pub mod pipeline;
 pub mod plane;
 pub mod rect;
+pub mod rings;
 pub mod shade;
+pub mod sheet;
 pub mod spans;
 pub mod still;
 pub mod warped;

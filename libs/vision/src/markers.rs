@@ -14,11 +14,14 @@
 //! dim, vignetted corner is still found, while the sheet's grey stripes and logo, much lighter
 //! than the printed black, stay white.
 //!
-//! [`MarkerFinder::find_markers`] returns every marker it sees; [`assign_corners`] picks four
-//! that make a sheet, tells the origin marker as the odd one out (white centre, or fewer
-//! rings) and orders them upper-left, upper-right, lower-left, lower-right.
+//! [`MarkerFinder::find_markers`] returns every marker it sees, each checked for its rings by
+//! [`crate::rings`]; [`sheet_candidates`] lists the fours that can make a sheet (convex, with
+//! plausible sides and angles), tells the origin marker as the odd one out (white centre, or
+//! fewer rings) and orders them upper-left, upper-right, lower-left, lower-right. The pipeline
+//! then checks each four through the homography it gives ([`SheetCheck`]).
 
 use crate::components::{Blob, Components};
+use crate::rings::ring_profile;
 use crate::shade::LocalMean;
 
 /// Class of dark pixels in the class map.
@@ -41,6 +44,11 @@ pub struct MarkerObservation {
     pub white_centre: bool,
     /// How many concentric dark blobs it has (rings plus a centre disc or dot).
     pub rings: u8,
+    /// Dark/light changes along a ray from its centre to beyond its outer ring
+    /// ([`crate::rings`]): 3 or more for a real marker.
+    pub ring_changes: u8,
+    /// Grey level of the paper around it (the brightest of its surroundings), 0..=255.
+    pub paper_grey: u8,
 }
 
 /// Reusable buffers of the marker search.
@@ -139,26 +147,62 @@ impl MarkerFinder {
             if inner.is_empty() || size < 6.0 {
                 continue;
             }
-            used[outer] = true;
             let mut area = f64::from(o.area);
             let mut su = o.u_mean * area;
             let mut sv = o.v_mean * area;
             for &i in &inner {
-                used[i] = true;
                 let a = f64::from(blobs[i].area);
                 su += blobs[i].u_mean * a;
                 sv += blobs[i].v_mean * a;
                 area += a;
             }
             let centre = [su / area, sv / area];
+            // Nested dark blobs are only a candidate: a marker has rings all round.
+            let classes = &self.classes;
+            let dark = |u: i64, v: i64| {
+                (u >= 0 && v >= 0 && (u as usize) < width && (v as usize) < height)
+                    .then(|| classes[v as usize * width + u as usize] == DARK)
+            };
+            let Some(profile) = ring_profile(&dark, centre, size / 2.0) else {
+                continue;
+            };
+            used[outer] = true;
+            for &i in &inner {
+                used[i] = true;
+            }
             markers.push(MarkerObservation {
                 centre_px: centre,
                 radius_px: size / 2.0,
                 white_centre: self.is_bright(width, height, centre),
                 rings: (inner.len() + 1).min(255) as u8,
+                ring_changes: profile.changes,
+                paper_grey: self.paper_grey(width, height, centre, size / 2.0),
             });
         }
         markers
+    }
+
+    /// The grey level of the paper around a marker: the 90th percentile of the grey levels
+    /// on a circle just outside its outer ring and between its rings.
+    fn paper_grey(&self, width: usize, height: usize, centre: [f64; 2], radius: f64) -> u8 {
+        let mut greys: Vec<u8> = Vec::with_capacity(64);
+        for &reach in &[0.6, 1.25, 1.5] {
+            for k in 0..16 {
+                let a = k as f64 * std::f64::consts::TAU / 16.0;
+                let (u, v) = (
+                    (centre[0] + reach * radius * a.cos()).round(),
+                    (centre[1] + reach * radius * a.sin()).round(),
+                );
+                if u >= 0.0 && v >= 0.0 && (u as usize) < width && (v as usize) < height {
+                    greys.push(self.shade.grey(u as usize, v as usize));
+                }
+            }
+        }
+        if greys.is_empty() {
+            return 0;
+        }
+        greys.sort_unstable();
+        greys[(greys.len() * 9 / 10).min(greys.len() - 1)]
     }
 
     /// Whether the 3×3 pixels around `at` are brighter than the neighbourhood's mean (which the
@@ -210,62 +254,106 @@ fn odd_one_out(four: &[MarkerObservation; 4]) -> Option<usize> {
     differs(&|m| u8::from(m.white_centre))
 }
 
-/// Orders four markers of one sheet as upper-left (the origin marker, see `odd_one_out`),
-/// upper-right, lower-left, lower-right. The diagonal partner of the origin is the farthest in
-/// the image; which of the other two is upper-right is decided by the caller (mirror order
-/// gives no valid camera pose), so both orders are returned, the more likely first.
-///
-/// With more than four markers in view (another sheet, something ring-like), the four that
-/// make the most plausible sheet are used: similar sizes, an origin that stands out, the most
-/// rings. `None` when no four make a sheet.
-pub fn assign_corners(markers: &[MarkerObservation]) -> Option<[[MarkerObservation; 4]; 2]> {
-    if markers.len() < 4 {
-        return None;
+/// The check that four ring markers failed to make the workspace sheet, in the order they
+/// are made; a sheet is reported only when all of them pass.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum SheetCheck {
+    /// No marker of the four stands out as the reference (upper-left) marker: the sheet's
+    /// orientation is unknown.
+    Reference,
+    /// Their sizes in the image differ too much for markers of one sheet.
+    MarkerSizes,
+    /// They do not make a convex quadrilateral with plausible sides and angles.
+    Shape,
+    /// No pinhole camera sees the configured rectangle as that quadrilateral (one of the
+    /// four is not at a corner).
+    Perspective,
+    /// Through the homography, the markers' sizes on the table disagree.
+    TableSizes,
+    /// Through the homography, the sheet's white centre is not there.
+    Appearance,
+}
+
+impl std::fmt::Display for SheetCheck {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Reference => {
+                "none of them is the reference marker (the upper-left one, drawn differently \
+                 from the other three), so the sheet's orientation is unknown"
+            }
+            Self::MarkerSizes => "their sizes differ too much for the markers of one sheet",
+            Self::Shape => {
+                "they do not make a convex quadrilateral with plausible sides and angles"
+            }
+            Self::Perspective => {
+                "no camera could see the workspace rectangle as the quadrilateral they make \
+                 (one of them is not a corner of this sheet)"
+            }
+            Self::TableSizes => "seen through the sheet's geometry, their sizes disagree",
+            Self::Appearance => "the sheet's white centre is not between them",
+        })
     }
-    // Keep the search small: the 12 candidates with the most rings and the largest radius.
+}
+
+/// Smallest interior angle of a sheet's quadrilateral in the image, degrees (a camera tilted
+/// 60° from straight down still sees more than this).
+const MIN_CORNER_ANGLE_DEG: f64 = 25.0;
+/// Opposite sides of the quadrilateral differ by at most this factor.
+const MAX_OPPOSITE_SIDE_RATIO: f64 = 3.0;
+/// Markers of one sheet differ in image radius by at most this factor.
+const MAX_RADIUS_RATIO: f64 = 2.5;
+/// At most this many candidates (the most rings, the largest) are combined four at a time.
+const MAX_CANDIDATES: usize = 12;
+
+/// Four markers in sheet order: upper-left (the reference), upper-right, lower-left,
+/// lower-right; both assignments of the two neighbours of the reference (a mirror order gives
+/// no valid camera, so the caller tries both), the more likely first.
+pub type CornerOrders = [[MarkerObservation; 4]; 2];
+
+/// Every set of four markers that can be one sheet seen by a camera, best first (the most
+/// rings, the most similar sizes), or the furthest check that every set failed.
+///
+/// With fewer than four markers there is nothing to combine: the caller says so.
+pub fn sheet_candidates(markers: &[MarkerObservation]) -> Result<Vec<CornerOrders>, SheetCheck> {
     let mut candidates = markers.to_vec();
     candidates.sort_by(|a, b| {
         b.rings
             .cmp(&a.rings)
             .then(b.radius_px.total_cmp(&a.radius_px))
     });
-    candidates.truncate(12);
+    candidates.truncate(MAX_CANDIDATES);
     let n = candidates.len();
-    let mut best: Option<(f64, [MarkerObservation; 4], usize)> = None;
+    let mut passed: Vec<(f64, CornerOrders)> = Vec::new();
+    let mut furthest = SheetCheck::Reference;
     for a in 0..n {
         for b in a + 1..n {
             for c in b + 1..n {
                 for d in c + 1..n {
                     let four = [candidates[a], candidates[b], candidates[c], candidates[d]];
-                    let Some(origin) = odd_one_out(&four) else {
-                        continue;
-                    };
-                    let radii = four.map(|m| m.radius_px);
-                    let (r_min, r_max) = radii
-                        .iter()
-                        .fold((f64::MAX, 0f64), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
-                    if r_max > 2.5 * r_min {
-                        continue;
-                    }
-                    // Markers sit at the corners of a sheet many radii across.
-                    let o = four[origin].centre_px;
-                    let far = four
-                        .iter()
-                        .map(|m| (m.centre_px[0] - o[0]).hypot(m.centre_px[1] - o[1]))
-                        .fold(0f64, f64::max);
-                    if far < 4.0 * r_max {
-                        continue;
-                    }
-                    let rings: u32 = four.iter().map(|m| u32::from(m.rings)).sum();
-                    let score = f64::from(rings) - r_max / r_min;
-                    if best.as_ref().is_none_or(|(s, _, _)| score > *s) {
-                        best = Some((score, four, origin));
+                    match order_as_sheet(&four) {
+                        Ok(found) => passed.push(found),
+                        Err(check) => furthest = furthest.max(check),
                     }
                 }
             }
         }
     }
-    let (_, four, origin_index) = best?;
+    if passed.is_empty() {
+        return Err(furthest);
+    }
+    passed.sort_by(|x, y| y.0.total_cmp(&x.0));
+    Ok(passed.into_iter().map(|(_, orders)| orders).collect())
+}
+
+/// Four markers as a sheet, with a score, or the check they fail.
+fn order_as_sheet(four: &[MarkerObservation; 4]) -> Result<(f64, CornerOrders), SheetCheck> {
+    let origin_index = odd_one_out(four).ok_or(SheetCheck::Reference)?;
+    let (r_min, r_max) = four.iter().fold((f64::MAX, 0f64), |(lo, hi), m| {
+        (lo.min(m.radius_px), hi.max(m.radius_px))
+    });
+    if r_max > MAX_RADIUS_RATIO * r_min {
+        return Err(SheetCheck::MarkerSizes);
+    }
     let origin = four[origin_index];
     let dist = |m: &MarkerObservation| {
         (m.centre_px[0] - origin.centre_px[0]).hypot(m.centre_px[1] - origin.centre_px[1])
@@ -274,10 +362,59 @@ pub fn assign_corners(markers: &[MarkerObservation]) -> Option<[[MarkerObservati
         .filter(|&i| i != origin_index)
         .map(|i| four[i])
         .collect();
-    others.sort_by(|a, b| dist(a).total_cmp(&dist(b)));
-    let diagonal = others[2];
-    let (a, b) = (others[0], others[1]);
-    Some([[origin, a, b, diagonal], [origin, b, a, diagonal]])
+    others.sort_by(|x, y| dist(x).total_cmp(&dist(y)));
+    let (a, b, diagonal) = (others[0], others[1], others[2]);
+    // Around the edge: origin, a, diagonal, b.
+    let ring = [
+        origin.centre_px,
+        a.centre_px,
+        diagonal.centre_px,
+        b.centre_px,
+    ];
+    if !plausible_quadrilateral(&ring, r_max) {
+        return Err(SheetCheck::Shape);
+    }
+    let rings: u32 = four.iter().map(|m| u32::from(m.rings)).sum();
+    let score = f64::from(rings) - r_max / r_min;
+    Ok((score, [[origin, a, b, diagonal], [origin, b, a, diagonal]]))
+}
+
+/// Whether four image points, in order around the edge, make a quadrilateral a camera can
+/// see a sheet as: convex, no corner sharper than [`MIN_CORNER_ANGLE_DEG`] (or flatter than
+/// its supplement), opposite sides within [`MAX_OPPOSITE_SIDE_RATIO`], every side many marker
+/// radii long (markers sit at the corners of a sheet far larger than they are).
+fn plausible_quadrilateral(ring: &[[f64; 2]; 4], marker_radius: f64) -> bool {
+    let side = |i: usize| {
+        let (p, q) = (ring[i], ring[(i + 1) % 4]);
+        (q[0] - p[0]).hypot(q[1] - p[1])
+    };
+    let sides = [side(0), side(1), side(2), side(3)];
+    if sides.iter().any(|s| *s < 4.0 * marker_radius) {
+        return false;
+    }
+    for (x, y) in [(sides[0], sides[2]), (sides[1], sides[3])] {
+        if x > MAX_OPPOSITE_SIDE_RATIO * y || y > MAX_OPPOSITE_SIDE_RATIO * x {
+            return false;
+        }
+    }
+    let mut sign = 0.0;
+    let min_sin = MIN_CORNER_ANGLE_DEG.to_radians().sin();
+    for i in 0..4 {
+        let (p, q, r) = (ring[(i + 3) % 4], ring[i], ring[(i + 1) % 4]);
+        let (ux, uy) = (p[0] - q[0], p[1] - q[1]);
+        let (vx, vy) = (r[0] - q[0], r[1] - q[1]);
+        let cross = ux * vy - uy * vx;
+        let sine = cross / (ux.hypot(uy) * vx.hypot(vy));
+        if !sine.is_finite() || sine.abs() < min_sin {
+            return false;
+        }
+        if sign == 0.0 {
+            sign = sine.signum();
+        } else if sine.signum() != sign {
+            return false; // not convex
+        }
+    }
+    true
 }
 
 #[cfg(test)]
@@ -323,7 +460,7 @@ mod tests {
         let mut finder = MarkerFinder::new();
         let markers = finder.find_markers(&img, w, h);
         assert_eq!(markers.len(), 4, "{markers:?}");
-        let [first, _] = assign_corners(&markers).unwrap();
+        let [first, _] = sheet_candidates(&markers).unwrap()[0];
         assert!(first[0].white_centre);
         assert!((first[0].centre_px[0] - 30.0).abs() < 0.2);
         assert!((first[3].centre_px[0] - 168.0).abs() < 0.2, "diagonal last");
@@ -335,8 +472,30 @@ mod tests {
             .filter(|m| !m.white_centre)
             .copied()
             .collect();
-        assert!(assign_corners(&no_origin).is_none());
+        assert_eq!(sheet_candidates(&no_origin), Err(SheetCheck::Reference));
         assert!(finder.find_markers(&[245; 30], 5, 2).is_empty());
+    }
+
+    #[test]
+    fn a_dark_rimmed_cube_with_a_spot_beside_a_marker_is_not_a_marker() {
+        let (w, h) = (200, 150);
+        let mut img = vec![245u8; w * h * 3];
+        draw_marker(&mut img, w, [30.0, 30.0], 12.0, true);
+        draw_marker(&mut img, w, [170.0, 32.0], 12.0, false);
+        draw_marker(&mut img, w, [28.0, 120.0], 12.0, false);
+        // Where the fourth marker should be: a cube seen from above, its dark rim (shadowed
+        // sides) around a lighter top with a dark knot in the middle.
+        for v in 104..132 {
+            for u in 154..182 {
+                let edge = (v - 104).min(131 - v).min(u - 154).min(181 - u);
+                let knot = (v as i32 - 118).abs() <= 2 && (u as i32 - 168).abs() <= 2;
+                let value = if edge < 4 || knot { 25 } else { 200 };
+                img[(v * w + u) * 3..][..3].fill(value);
+            }
+        }
+        let mut finder = MarkerFinder::new();
+        let markers = finder.find_markers(&img, w, h);
+        assert_eq!(markers.len(), 3, "{markers:?}");
     }
 
     /// A real Niryo marker: dark between the given radii (fractions of `r`) on light grey.
@@ -387,7 +546,7 @@ mod tests {
         let mut finder = MarkerFinder::new();
         let markers = finder.find_markers(&img, w, h);
         assert_eq!(markers.len(), 4, "{markers:?}");
-        let [first, _] = assign_corners(&markers).unwrap();
+        let [first, _] = sheet_candidates(&markers).unwrap()[0];
         assert!((first[0].centre_px[0] - 60.0).abs() < 0.5, "{first:?}");
         assert!((first[0].centre_px[1] - 50.0).abs() < 0.5, "{first:?}");
         assert!(first[0].rings < first[1].rings);

@@ -8,8 +8,9 @@
 
 use crate::camera::Camera;
 use crate::detector::{DetectError, Detector, FrameView, SheetView};
-use crate::markers::{assign_corners, MarkerFinder, MarkerObservation};
+use crate::markers::{sheet_candidates, MarkerFinder, MarkerObservation, SheetCheck};
 use crate::plane::TablePlane;
+use crate::sheet::{verify_sheet, Intrinsics as SheetIntrinsics};
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::location::WorkspacePoint;
@@ -33,10 +34,18 @@ pub enum PipelineError {
 pub enum SheetStatus {
     /// The sheet was found and the detector ran.
     Found,
-    /// Not all four markers (with exactly one origin marker) were seen.
+    /// Fewer than four ring markers were seen.
     MarkersMissing {
-        /// How many markers were seen.
+        /// How many markers were seen (0 to 3).
         seen: usize,
+    },
+    /// Four or more ring markers were seen, but no four of them pass every check that makes
+    /// them the sheet; `failed` is the furthest check any four reached.
+    NotASheet {
+        /// How many ring markers were seen.
+        seen: usize,
+        /// The check that failed.
+        failed: SheetCheck,
     },
     /// The markers were seen but give no sensible camera pose.
     Degenerate,
@@ -55,6 +64,11 @@ impl std::fmt::Display for SheetStatus {
                 "no workspace in view: only {seen} of the 4 workspace markers were found (one \
                  may be covered by an object, in shadow or out of the picture)"
             ),
+            Self::NotASheet { seen, failed } => write!(
+                f,
+                "no workspace in view: {seen} ring markers were found, but no four of them \
+                 make the workspace sheet: {failed}"
+            ),
             Self::Degenerate => write!(
                 f,
                 "the 4 markers are in view but do not give a sensible camera pose (are they \
@@ -72,6 +86,10 @@ pub struct Pipeline {
     detector: Box<dyn Detector>,
     /// The sheet found in the last frame [`Pipeline::process`] ran (`None`: not found).
     last_sheet: Option<(TablePlane, WorkspaceInfo)>,
+    /// How many distinct sheets the last marker search saw (the nearest is used).
+    sheets_in_view: usize,
+    /// Whether the camera's intrinsics are calibrated or a guess.
+    intrinsics_known: SheetIntrinsics,
 }
 
 impl std::fmt::Debug for Pipeline {
@@ -114,6 +132,8 @@ impl Pipeline {
             markers: MarkerFinder::new(),
             detector,
             last_sheet: None,
+            sheets_in_view: 0,
+            intrinsics_known: SheetIntrinsics::Known,
         })
     }
 
@@ -176,7 +196,7 @@ impl Pipeline {
         workspace: &WorkspaceInfo,
     ) -> Result<TablePlane, SheetStatus> {
         let markers = self.find_markers(frame);
-        self.plane_from_markers(&markers, workspace)
+        self.plane_from_markers(frame, &markers, workspace)
             .map(|(plane, _)| plane)
     }
 
@@ -186,28 +206,88 @@ impl Pipeline {
             .find_markers(frame.rgb, frame.width, frame.height)
     }
 
-    /// The table plane of `workspace` from the markers found in a frame, with the four markers
+    /// Says that the intrinsics given to [`Pipeline::new`] are a guess (a photo from an unknown
+    /// camera): the focal length is then searched when a sheet is verified.
+    pub fn with_guessed_intrinsics(mut self) -> Self {
+        self.intrinsics_known = SheetIntrinsics::Guessed;
+        self
+    }
+
+    /// How many distinct sheets the last marker search found (0 when none; with more than
+    /// one, the nearest, the largest in the image, was used).
+    pub fn sheets_in_view(&self) -> usize {
+        self.sheets_in_view
+    }
+
+    /// The table plane of `workspace` from the markers found in `frame`, with the four markers
     /// used (upper-left = the origin, upper-right, lower-left, lower-right).
+    ///
+    /// A sheet is reported only when its geometry proves it ([`crate::sheet`]): four ring
+    /// markers in a plausible quadrilateral, one of them the reference, that a pinhole camera
+    /// can see as the configured rectangle, whose sizes on the table agree, with the sheet's
+    /// white centre between them. With several sheets in view, the nearest is used.
     pub fn plane_from_markers(
-        &self,
+        &mut self,
+        frame: &FrameView<'_>,
         markers: &[MarkerObservation],
         workspace: &WorkspaceInfo,
     ) -> Result<(TablePlane, [MarkerObservation; 4]), SheetStatus> {
-        let Some(orders) = assign_corners(markers) else {
-            return Err(SheetStatus::MarkersMissing {
-                seen: markers.len(),
-            });
-        };
+        self.sheets_in_view = 0;
+        let seen = markers.len();
+        if seen < 4 {
+            return Err(SheetStatus::MarkersMissing { seen });
+        }
+        let candidates =
+            sheet_candidates(markers).map_err(|failed| SheetStatus::NotASheet { seen, failed })?;
         let world = corner_points(workspace);
-        for order in orders {
-            let ideal = order.map(|m| self.camera.ideal_of(m.centre_px));
-            if let Some(plane) =
-                TablePlane::from_correspondences(&ideal, &world, self.camera.intrinsics())
-            {
-                return Ok((plane, order));
+        let mut furthest: Option<SheetCheck> = None;
+        // Each verified four, in the candidates' order (best first).
+        let mut verified: Vec<(TablePlane, [MarkerObservation; 4])> = Vec::new();
+        for orders in candidates {
+            for order in orders {
+                let ideal = order.map(|m| self.camera.ideal_of(m.centre_px));
+                let Some(plane) =
+                    TablePlane::from_correspondences(&ideal, &world, self.camera.intrinsics())
+                else {
+                    continue;
+                };
+                match verify_sheet(
+                    &self.camera,
+                    self.intrinsics_known,
+                    frame,
+                    &plane,
+                    &order,
+                    &world,
+                ) {
+                    Ok(()) => {
+                        verified.push((plane, order));
+                        break;
+                    }
+                    Err(check) => furthest = Some(furthest.map_or(check, |f| f.max(check))),
+                }
             }
         }
-        Err(SheetStatus::Degenerate)
+        // Distinct sheets: the best four of each group sharing markers.
+        let mut sheets: Vec<(TablePlane, [MarkerObservation; 4])> = Vec::new();
+        for (plane, four) in verified {
+            let shares = |other: &[MarkerObservation; 4]| {
+                four.iter()
+                    .any(|m| other.iter().any(|o| o.centre_px == m.centre_px))
+            };
+            if !sheets.iter().any(|(_, other)| shares(other)) {
+                sheets.push((plane, four));
+            }
+        }
+        self.sheets_in_view = sheets.len();
+        let mean_radius =
+            |four: &[MarkerObservation; 4]| four.iter().map(|m| m.radius_px).sum::<f64>();
+        sheets
+            .into_iter()
+            .max_by(|a, b| mean_radius(&a.1).total_cmp(&mean_radius(&b.1)))
+            .ok_or(match furthest {
+                Some(failed) => SheetStatus::NotASheet { seen, failed },
+                None => SheetStatus::Degenerate,
+            })
     }
 
     /// The table plane of a frame that is already the workspace square, warped so that the

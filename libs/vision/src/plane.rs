@@ -89,6 +89,70 @@ impl TablePlane {
         })
     }
 
+    /// How far the plane is from what any pinhole camera could see of the table rectangle:
+    /// the smallest, over focal lengths from `f_min` to `f_max` pixels (and `f_hint`), of the
+    /// relative difference in length plus the cosine between the two table axes as the
+    /// camera sees them (`K⁻¹·H = λ·[r₁ r₂ t]`: `r₁`, `r₂` must be orthonormal). The principal
+    /// point is taken at `(cx, cy)`; pixels are `aspect` (fy/fx) times as tall as wide.
+    ///
+    /// Four points always fit a homography, so this is the check that four image points can be
+    /// the four corners of the configured rectangle at all: a quadrilateral through a wrong
+    /// point (an object taken for a marker), or the corners of two different sheets, has no
+    /// focal length that makes it a rectangle of the right proportions. 0 is a perfect fit; a
+    /// real sheet through a real lens scores a few hundredths.
+    pub fn pinhole_misfit(
+        &self,
+        (cx, cy): (f64, f64),
+        aspect: f64,
+        f_hint: f64,
+        (f_min, f_max): (f64, f64),
+    ) -> f64 {
+        let h = &self.world_to_pixel;
+        let column = |j: usize| {
+            [
+                h[(0, j)] - cx * h[(2, j)],
+                h[(1, j)] - cy * h[(2, j)],
+                h[(2, j)],
+            ]
+        };
+        let (m1, m2) = (column(0), column(1));
+        let misfit = |f: f64| {
+            let fy = f * aspect;
+            let a1 = Vector3::new(m1[0] / f, m1[1] / fy, m1[2]);
+            let a2 = Vector3::new(m2[0] / f, m2[1] / fy, m2[2]);
+            let (n1, n2) = (a1.norm(), a2.norm());
+            if !(n1 > 0.0 && n2 > 0.0) {
+                return f64::INFINITY;
+            }
+            2.0 * (n1 - n2).abs() / (n1 + n2) + (a1.dot(&a2) / (n1 * n2)).abs()
+        };
+        let mut best = misfit(f_hint);
+        if f_min > 0.0 && f_max > f_min {
+            const STEPS: usize = 96;
+            let ratio = (f_max / f_min).ln();
+            for k in 0..=STEPS {
+                let f = f_min * (ratio * k as f64 / STEPS as f64).exp();
+                best = best.min(misfit(f));
+            }
+        }
+        if best.is_finite() {
+            best
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// How many raw-image pixels a metre of table spans around table point `(x, y)`, along x
+    /// and along y (mean): the local scale of the view.
+    pub fn pixels_per_metre_at(&self, x_m: f64, y_m: f64) -> f64 {
+        let d = 0.005;
+        let p = self.table_to_pixel(x_m, y_m);
+        let px = self.table_to_pixel(x_m + d, y_m);
+        let py = self.table_to_pixel(x_m, y_m + d);
+        let along = |q: [f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) / d;
+        0.5 * (along(px) + along(py))
+    }
+
     /// The camera centre (x, y, z) in the base frame, metres.
     pub fn camera_centre(&self) -> [f64; 3] {
         [self.camera.x, self.camera.y, self.camera.z]
@@ -228,6 +292,58 @@ mod tests {
         // Mirror order (two corners swapped) is refused.
         let mirrored = [pixels[0], pixels[2], pixels[1], pixels[3]];
         assert!(TablePlane::from_correspondences(&mirrored, &world, &k).is_none());
+    }
+
+    #[test]
+    fn only_a_rectangle_of_the_right_proportions_fits_a_pinhole() {
+        let k = Intrinsics {
+            distortion: [0.0; 5],
+            ..Intrinsics::ned2()
+        };
+        let inv = camera_looking_down([0.2, 0.03, 0.3], 0.4).inverse();
+        let px = |x: f64, y: f64| {
+            let p = k.project(&inv, &Point3::new(x, y, 0.0)).unwrap();
+            [p.x, p.y]
+        };
+        let world = [
+            [0.337, 0.087],
+            [0.337, -0.087],
+            [0.163, 0.087],
+            [0.163, -0.087],
+        ];
+        let fit = |pixels: [[f64; 2]; 4]| {
+            TablePlane::from_correspondences(&pixels, &world, &k)
+                .map(|p| p.pinhole_misfit((k.cx, k.cy), k.fy / k.fx, k.fx, (100.0, 5000.0)))
+        };
+        let fixed = |pixels: [[f64; 2]; 4]| {
+            TablePlane::from_correspondences(&pixels, &world, &k)
+                .map(|p| p.pinhole_misfit((k.cx, k.cy), k.fy / k.fx, k.fx, (0.0, 0.0)))
+        };
+        let truth = world.map(|[x, y]| px(x, y));
+        assert!(fit(truth).unwrap() < 1e-6, "{:?}", fit(truth));
+        assert!(fixed(truth).unwrap() < 1e-6, "{:?}", fixed(truth));
+        // The same square, but one corner is really an object 3 cm in from it.
+        let mut moved = truth;
+        moved[3] = px(0.163 + 0.03, -0.087 + 0.03);
+        let fixed = |pixels: [[f64; 2]; 4]| {
+            TablePlane::from_correspondences(&pixels, &world, &k)
+                .map(|p| p.pinhole_misfit((k.cx, k.cy), k.fy / k.fx, k.fx, (0.0, 0.0)))
+        };
+        // A free focal length explains some of that away; the camera's own does not.
+        assert!(fit(moved).unwrap() > 0.01, "{:?}", fit(moved));
+        let misfit = fixed(moved).unwrap();
+        assert!(misfit > 0.15, "{misfit}");
+        let mut one_cm = truth;
+        one_cm[3] = px(0.163 + 0.01, -0.087);
+        assert!(fixed(one_cm).unwrap() > 0.08, "{:?}", fixed(one_cm));
+        // Two corners of this sheet and two of a second one beside it: a 2:1 rectangle.
+        let wide = [
+            px(0.337, 0.087),
+            px(0.337, -0.261),
+            px(0.163, 0.087),
+            px(0.163, -0.261),
+        ];
+        assert!(fixed(wide).map_or(true, |m| m > 0.3), "{:?}", fixed(wide));
     }
 
     #[test]

@@ -1,0 +1,251 @@
+//! Is a marker candidate really a ring marker? Rays from its centre tell.
+//!
+//! The blob stage ([`crate::markers`]) proposes a candidate wherever a hollow dark blob has
+//! another dark blob inside it around the same centre. Many things on a table come close: a
+//! cube with a dark rim and a dark spot, a letter "O" of the sheet's logo with a speck inside,
+//! a roll of tape. A Niryo marker is more than that: concentric rings, so that *every* line
+//! from its centre outwards crosses the same alternation of dark and light, at the same
+//! fractions of the marker's radius (perspective turns the circles into ellipses, which keeps
+//! those fractions along each line through the centre).
+//!
+//! [`ring_profile`] samples [`RAYS`] rays from the candidate's centre to a little beyond its
+//! outer radius on the dark/light map the blob stage made, and accepts the candidate only when:
+//! - on nearly every ray the outer edge is found, and inside it at least two dark elements
+//!   (an outer ring and a second ring, disc or dot): three or more dark/light changes;
+//! - the rays agree on where the outer ring's inner edge is, as a fraction of the ray's outer
+//!   edge (a ring has one width all round; a blob's rim does not);
+//! - the outer edges lie on an ellipse around the centre (a circle in perspective; a square
+//!   rim's corners stick out of any ellipse), no ray more than [`MAX_ELLIPSE_RATIO`] times
+//!   longer than another (a camera tilted up to ~65°).
+//!
+//! ```
+//! use robotd_vision::rings::ring_profile;
+//!
+//! // A target of three dark rings of 20 px on a light background...
+//! let dark = |u: i64, v: i64| {
+//!     let d = ((u - 50) as f64).hypot((v - 50) as f64) / 20.0;
+//!     Some(d <= 1.0 && ((d * 6.0) as i64) % 2 == 1 || d < 0.17)
+//! };
+//! assert!(ring_profile(&dark, [50.0, 50.0], 20.0).is_some());
+//! // ...but a dark square with a dark dot in it is not a marker.
+//! let square = |u: i64, v: i64| {
+//!     let (a, b) = ((u - 50).abs(), (v - 50).abs());
+//!     Some(a.max(b) <= 20 && (a.max(b) >= 17 || a.max(b) <= 2))
+//! };
+//! assert!(ring_profile(&square, [50.0, 50.0], 20.0).is_none());
+//! ```
+
+/// How many rays are cast from a candidate's centre.
+pub const RAYS: usize = 16;
+/// How many rays must show the ring structure.
+const MIN_GOOD_RAYS: usize = 13;
+/// The rays' outer edges may differ by this factor at most (an ellipse seen at up to ~65°).
+pub const MAX_ELLIPSE_RATIO: f64 = 2.5;
+/// The inner edge of the outer ring, as a fraction of each ray's outer edge, may spread by
+/// this much (standard deviation) across the rays.
+const MAX_RING_SPREAD: f64 = 0.09;
+/// The outer edges may be this far (root mean square, relative) from the best ellipse.
+const MAX_ELLIPSE_MISFIT: f64 = 0.05;
+/// Rays go this far beyond the candidate's radius (its blob's box may be a pixel short).
+const REACH: f64 = 1.35;
+
+/// What the rays saw of a candidate that passed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RingProfile {
+    /// Dark/light changes along a typical ray, the outer edge included (3 or more).
+    pub changes: u8,
+    /// Where the outer ring's inner edge lies, as a fraction of the outer edge (median).
+    pub ring_inner_fraction: f64,
+    /// Median distance from the centre to the outer edge, pixels.
+    pub outer_radius_px: f64,
+}
+
+/// The changes along one ray: radii (pixels) where dark turns light or light turns dark,
+/// from the centre outwards, and whether the ray starts dark.
+fn changes_along(
+    dark: &impl Fn(i64, i64) -> Option<bool>,
+    centre: [f64; 2],
+    direction: [f64; 2],
+    reach: f64,
+    step: f64,
+    out: &mut Vec<f64>,
+) -> Option<bool> {
+    out.clear();
+    let sample = |r: f64| {
+        dark(
+            (centre[0] + direction[0] * r).round() as i64,
+            (centre[1] + direction[1] * r).round() as i64,
+        )
+    };
+    let first = sample(0.0)?;
+    let mut state = first;
+    // A change counts once two samples in a row agree on it (one stray pixel is noise).
+    let mut pending: Option<f64> = None;
+    let mut r = step;
+    while r <= reach {
+        let here = sample(r)?;
+        if here != state {
+            match pending {
+                Some(at) => {
+                    out.push(at);
+                    state = here;
+                    pending = None;
+                }
+                None => pending = Some(r),
+            }
+        } else {
+            pending = None;
+        }
+        r += step;
+    }
+    Some(first)
+}
+
+/// The ring structure of a candidate centred at `centre` with outer radius about `radius_px`,
+/// on a dark/light map (`dark(u, v)`, `None` outside the image). `None` when it is not a ring
+/// marker (or reaches out of the image).
+pub fn ring_profile(
+    dark: &impl Fn(i64, i64) -> Option<bool>,
+    centre: [f64; 2],
+    radius_px: f64,
+) -> Option<RingProfile> {
+    if !(radius_px.is_finite() && radius_px >= 3.0) {
+        return None;
+    }
+    let reach = radius_px * REACH;
+    let step = (radius_px / 48.0).clamp(0.35, 2.0);
+    let mut changes = Vec::new();
+    let mut outer = Vec::with_capacity(RAYS);
+    let mut inner_fraction = Vec::with_capacity(RAYS);
+    let mut counts = Vec::with_capacity(RAYS);
+    let mut angles = Vec::with_capacity(RAYS);
+    for k in 0..RAYS {
+        let angle = (k as f64 + 0.5) * std::f64::consts::TAU / RAYS as f64;
+        let direction = [angle.cos(), angle.sin()];
+        let Some(starts_dark) = changes_along(dark, centre, direction, reach, step, &mut changes)
+        else {
+            continue;
+        };
+        // The outer edge: the last change from dark to light. Changes alternate, so the
+        // changes from dark to light are the even ones when the ray starts dark.
+        let dark_to_light = |i: usize| (i % 2 == 0) == starts_dark;
+        let Some(edge) = (0..changes.len()).rev().find(|&i| dark_to_light(i)) else {
+            continue;
+        };
+        // At least an outer ring and a second dark element inside it: three changes up to
+        // the outer edge (ring's outer edge, ring's inner edge, the next element's edge).
+        if edge < 2 {
+            continue;
+        }
+        let edge_radius = changes[edge];
+        if edge_radius < 0.5 * radius_px {
+            continue;
+        }
+        outer.push(edge_radius);
+        angles.push(angle);
+        inner_fraction.push(changes[edge - 1] / edge_radius);
+        counts.push(edge + 1);
+    }
+    if outer.len() < MIN_GOOD_RAYS {
+        return None;
+    }
+    let (lo, hi) = outer
+        .iter()
+        .fold((f64::MAX, 0f64), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
+    if hi > MAX_ELLIPSE_RATIO * lo || ellipse_misfit(&angles, &outer)? > MAX_ELLIPSE_MISFIT {
+        return None;
+    }
+    let mean = inner_fraction.iter().sum::<f64>() / inner_fraction.len() as f64;
+    let spread = (inner_fraction
+        .iter()
+        .map(|f| (f - mean) * (f - mean))
+        .sum::<f64>()
+        / inner_fraction.len() as f64)
+        .sqrt();
+    if spread > MAX_RING_SPREAD || !(0.3..0.97).contains(&mean) {
+        return None;
+    }
+    counts.sort_unstable();
+    outer.sort_by(f64::total_cmp);
+    inner_fraction.sort_by(f64::total_cmp);
+    Some(RingProfile {
+        changes: counts[counts.len() / 2].min(255) as u8,
+        ring_inner_fraction: inner_fraction[inner_fraction.len() / 2],
+        outer_radius_px: outer[outer.len() / 2],
+    })
+}
+
+/// How far (root mean square of the relative radius error) the points at `radii` along
+/// `angles` from a centre are from the best ellipse centred there: `1/r² = a·cos² + b·sin² +
+/// c·cos·sin`, fitted by least squares. `None` when the fit is degenerate.
+fn ellipse_misfit(angles: &[f64], radii: &[f64]) -> Option<f64> {
+    use nalgebra::{Matrix3, Vector3};
+    let mut normal = Matrix3::<f64>::zeros();
+    let mut rhs = Vector3::<f64>::zeros();
+    for (a, r) in angles.iter().zip(radii) {
+        let (s, c) = a.sin_cos();
+        let row = Vector3::new(c * c, s * s, c * s);
+        normal += row * row.transpose();
+        rhs += row / (r * r);
+    }
+    let coefficients = normal.try_inverse()? * rhs;
+    let mut sum = 0.0;
+    for (a, r) in angles.iter().zip(radii) {
+        let (s, c) = a.sin_cos();
+        let inverse_square = coefficients.dot(&Vector3::new(c * c, s * s, c * s));
+        if inverse_square <= 0.0 {
+            return None;
+        }
+        let fitted = inverse_square.sqrt().recip();
+        sum += ((fitted - r) / r).powi(2);
+    }
+    Some((sum / radii.len() as f64).sqrt())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A dark/light map of concentric bands (inner, outer fractions of `r`), squashed along v
+    /// by `squash` (a tilted view).
+    fn target(
+        bands: &'static [(f64, f64)],
+        r: f64,
+        squash: f64,
+    ) -> impl Fn(i64, i64) -> Option<bool> {
+        move |u, v| {
+            if !(0..200).contains(&u) || !(0..200).contains(&v) {
+                return None;
+            }
+            let d = ((u - 100) as f64).hypot((v - 100) as f64 / squash) / r;
+            Some(bands.iter().any(|(a, b)| (*a..=*b).contains(&d)))
+        }
+    }
+
+    #[test]
+    fn simulator_and_real_markers_pass_even_tilted() {
+        let sim_origin: &[(f64, f64)] = &[(0.2, 0.45), (0.7, 1.0)];
+        let sim_other: &[(f64, f64)] = &[(0.0, 0.45), (0.7, 1.0)];
+        let real_reference: &[(f64, f64)] = &[(0.0, 0.3), (0.5, 0.7), (0.85, 1.0)];
+        for bands in [sim_origin, sim_other, real_reference] {
+            for (r, squash) in [(12.0, 1.0), (30.0, 1.0), (20.0, 0.55)] {
+                let p = ring_profile(&target(bands, r, squash), [100.0, 100.0], r);
+                assert!(p.is_some(), "{bands:?} r {r} squash {squash}");
+                assert!(p.unwrap().changes >= 3);
+            }
+        }
+    }
+
+    #[test]
+    fn discs_rings_alone_and_off_centre_points_fail() {
+        let disc: &[(f64, f64)] = &[(0.0, 1.0)];
+        let one_ring: &[(f64, f64)] = &[(0.7, 1.0)];
+        let marker: &[(f64, f64)] = &[(0.0, 0.45), (0.7, 1.0)];
+        assert!(ring_profile(&target(disc, 20.0, 1.0), [100.0, 100.0], 20.0).is_none());
+        assert!(ring_profile(&target(one_ring, 20.0, 1.0), [100.0, 100.0], 20.0).is_none());
+        // A true marker, but the candidate's centre is a third of its radius off.
+        assert!(ring_profile(&target(marker, 20.0, 1.0), [107.0, 100.0], 20.0).is_none());
+        // Out of the image.
+        assert!(ring_profile(&target(marker, 20.0, 1.0), [190.0, 100.0], 20.0).is_none());
+    }
+}

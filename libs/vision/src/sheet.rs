@@ -1,0 +1,150 @@
+//! Proving a sheet: the checks four markers must pass through the homography they give.
+//!
+//! Four points always fit a homography, so four blobs in a plausible quadrilateral
+//! ([`crate::markers::sheet_candidates`]) are not yet a workspace: a robot that trusted them
+//! would place objects wherever a wrong blob sent it. [`verify_sheet`] asks what is true of
+//! every real view of the sheet, whatever its design (the simulator's plain sheet, Niryo's
+//! classic striped one, the Ned2's black-framed one):
+//!
+//! 1. **A camera can see it.** The homography must be what a pinhole camera (square pixels,
+//!    principal point at the image centre, any focal length) sees of the configured
+//!    rectangle: the two table axes come out orthogonal and of equal scale
+//!    ([`TablePlane::pinhole_misfit`]). One point 1 cm from its corner breaks this when the
+//!    camera's intrinsics are known; with a guessed focal length the check is weaker.
+//! 2. **The markers are one size on the table.** Each marker's image radius over the view's
+//!    scale at its corner is its size on the table: the four agree, and are a plausible
+//!    fraction of the sheet.
+//! 3. **The sheet's white centre is between them.** Every design has plain white paper in the
+//!    middle: most of a grid of points there (objects cover some) must be about as light and
+//!    as grey as the paper around the markers.
+
+use crate::camera::Camera;
+use crate::detector::FrameView;
+use crate::markers::{MarkerObservation, SheetCheck};
+use crate::plane::TablePlane;
+
+/// Largest pinhole misfit of a real sheet seen by a camera of known intrinsics: marker
+/// centres a pixel off stay well under it; a corner 1 cm off does not.
+pub const MAX_PINHOLE_MISFIT: f64 = 0.08;
+/// The same for a camera whose focal length is a guess (a photo from an unknown camera): the
+/// focal length is searched, which explains some wrong corners away, so this check is weaker
+/// there and the others carry more.
+pub const MAX_PINHOLE_MISFIT_GUESSED: f64 = 0.12;
+
+/// How much is known of the camera that took a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Intrinsics {
+    /// Its intrinsics are calibrated (a configured camera, the simulator).
+    #[default]
+    Known,
+    /// Its focal length is a guess (a photo from an unknown camera).
+    Guessed,
+}
+/// The four markers' sizes on the table may differ by this factor (blur and perspective make
+/// the far ones look a little larger or smaller).
+const MAX_TABLE_SIZE_RATIO: f64 = 1.6;
+/// A marker's radius on the table, as a fraction of the sheet's shorter side, lies in this
+/// range (Niryo's sheets: about 0.06).
+const MARKER_SIZE_FRACTION: std::ops::Range<f64> = 0.015..0.2;
+/// The grid of points sampled in the sheet's centre, per side.
+const GRID: usize = 9;
+/// The grid covers this middle part of the rectangle between the markers (clear of the
+/// markers and of the classic sheet's striped border).
+const GRID_SPAN: (f64, f64) = (0.22, 0.78);
+/// At least this share of the grid points in view must look like the sheet's paper.
+const MIN_PAPER_SHARE: f64 = 0.35;
+
+/// Checks that `four` markers (upper-left, upper-right, lower-left, lower-right), giving
+/// `plane`, are the sheet whose marker centres are at `world` on the table. `Err` names the
+/// first check that failed.
+pub fn verify_sheet(
+    camera: &Camera,
+    intrinsics: Intrinsics,
+    frame: &FrameView<'_>,
+    plane: &TablePlane,
+    four: &[MarkerObservation; 4],
+    world: &[[f64; 2]; 4],
+) -> Result<(), SheetCheck> {
+    let k = camera.intrinsics();
+    let size = f64::from(k.width.max(k.height));
+    let (search, limit) = match intrinsics {
+        Intrinsics::Known => ((0.0, 0.0), MAX_PINHOLE_MISFIT),
+        Intrinsics::Guessed => ((0.2 * size, 8.0 * size), MAX_PINHOLE_MISFIT_GUESSED),
+    };
+    let misfit = plane.pinhole_misfit((k.cx, k.cy), k.fy / k.fx, k.fx, search);
+    if misfit > limit {
+        return Err(SheetCheck::Perspective);
+    }
+
+    let sizes: Vec<f64> = four
+        .iter()
+        .zip(world)
+        .map(|(m, p)| m.radius_px / plane.pixels_per_metre_at(p[0], p[1]))
+        .collect();
+    let (lo, hi) = sizes
+        .iter()
+        .fold((f64::MAX, 0f64), |(lo, hi), s| (lo.min(*s), hi.max(*s)));
+    let xs = world.map(|p| p[0]);
+    let ys = world.map(|p| p[1]);
+    let span = |v: [f64; 4]| {
+        v.iter().copied().fold(f64::MIN, f64::max) - v.iter().copied().fold(f64::MAX, f64::min)
+    };
+    let shorter_side = span(xs).min(span(ys));
+    let fraction = |s: f64| s / shorter_side;
+    if !(lo > 0.0 && hi <= MAX_TABLE_SIZE_RATIO * lo)
+        || !MARKER_SIZE_FRACTION.contains(&fraction(lo))
+        || !MARKER_SIZE_FRACTION.contains(&fraction(hi))
+    {
+        return Err(SheetCheck::TableSizes);
+    }
+
+    if paper_share(camera, frame, plane, four, world) < MIN_PAPER_SHARE {
+        return Err(SheetCheck::Appearance);
+    }
+    Ok(())
+}
+
+/// The share of a grid of points in the middle of the sheet that look like its paper: at
+/// least 55 % as bright as the paper around the markers (shade and vignetting allowed) and
+/// about grey (tinted light allowed). Points out of the frame do not count; with too few in
+/// the frame, 0 (a sheet is found only when it is seen).
+fn paper_share(
+    camera: &Camera,
+    frame: &FrameView<'_>,
+    plane: &TablePlane,
+    four: &[MarkerObservation; 4],
+    world: &[[f64; 2]; 4],
+) -> f64 {
+    let paper = f64::from(four.iter().map(|m| m.paper_grey).min().unwrap_or(0));
+    let (x0, x1) = (world[3][0], world[0][0]);
+    let (y0, y1) = (world[3][1], world[0][1]);
+    let (mut inside, mut light) = (0usize, 0usize);
+    for i in 0..GRID {
+        for j in 0..GRID {
+            let t =
+                |k: usize| GRID_SPAN.0 + (GRID_SPAN.1 - GRID_SPAN.0) * k as f64 / (GRID - 1) as f64;
+            let (x, y) = (x0 + (x1 - x0) * t(i), y0 + (y1 - y0) * t(j));
+            let raw = camera.raw_of(plane.table_to_pixel(x, y));
+            let (u, v) = (raw[0].round(), raw[1].round());
+            if !(u >= 0.0 && v >= 0.0 && u < frame.width as f64 && v < frame.height as f64) {
+                continue;
+            }
+            let at = (v as usize * frame.width + u as usize) * 3;
+            let Some(p) = frame.rgb.get(at..at + 3) else {
+                continue;
+            };
+            inside += 1;
+            let max = f64::from(p[0].max(p[1]).max(p[2]));
+            let min = f64::from(p[0].min(p[1]).min(p[2]));
+            let grey =
+                (f64::from(p[0]) * 77.0 + f64::from(p[1]) * 150.0 + f64::from(p[2]) * 29.0) / 256.0;
+            if grey >= 0.55 * paper && max - min <= (0.3 * max).max(25.0) {
+                light += 1;
+            }
+        }
+    }
+    if inside < GRID * GRID / 4 {
+        return 0.0;
+    }
+    light as f64 / inside as f64
+}
