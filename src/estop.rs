@@ -4,6 +4,10 @@
 //! and `POST /estop`; the arm halts within one control tick. Returns once the arm reports the
 //! new state on `arm/state`. Releasing is its own flag, never a side effect. Fails when no arm
 //! listens on the configured bus namespace or none confirms.
+//!
+//! Engaging never fails on the command line's form: `main` drops what clap cannot read after
+//! `estop` (an unknown option, a stray value) and passes it here as notes, which the reply
+//! prints. A release with such notes is refused instead: nothing changes.
 
 use anyhow::{bail, Context, Result};
 use robotd_config::Config;
@@ -17,12 +21,33 @@ use std::time::{Duration, Instant};
 const CONFIRM_WAIT: Duration = Duration::from_secs(5);
 
 /// Engages (or, with `release`, releases) the e-stop of the robotd on `config`'s bus.
-pub fn run(config: &Config, reason: Option<&str>, release: bool) -> Result<String> {
-    tokio::runtime::Builder::new_current_thread()
+/// `notes` say what was wrong with the command line (and was ignored): an engage goes ahead
+/// and reports them; a release is refused, since releasing must be deliberate.
+pub fn run(
+    config: &Config,
+    reason: Option<&str>,
+    release: bool,
+    notes: &[String],
+) -> Result<String> {
+    if release && !notes.is_empty() {
+        bail!(
+            "nothing was released: releasing the emergency stop is a deliberate act, and this \
+             command line had problems ({}); run exactly `robotd estop --release`",
+            notes.join("; ")
+        );
+    }
+    let done = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .context("starting the tokio runtime")?
-        .block_on(send(config, reason, release))
+        .block_on(send(config, reason, release))?;
+    Ok(match notes {
+        [] => done,
+        notes => format!(
+            "{done}; note: the command line was not well formed, and this was ignored: {}",
+            notes.join("; ")
+        ),
+    })
 }
 
 async fn send(config: &Config, reason: Option<&str>, release: bool) -> Result<String> {

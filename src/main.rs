@@ -150,8 +150,9 @@ struct CallArgs {
 
 #[derive(Debug, Args)]
 struct EstopArgs {
-    /// Why (shown in every refusal until release).
-    reason: Option<String>,
+    /// Why (shown in every refusal until release; several words are joined). A mistyped
+    /// option is ignored with a note: the e-stop engages whatever the command line.
+    reason: Vec<String>,
     /// Release the emergency stop instead (a deliberate act: only after the cause was dealt
     /// with).
     #[arg(long)]
@@ -268,6 +269,7 @@ struct ReplayArgs {
     /// The MCAP file to replay.
     file: std::path::PathBuf,
     /// Comma-separated topics to publish; default camera/frames, arm/state, gripper/state.
+    /// Safety topics (safety/estop) are never replayed.
     #[arg(long)]
     topics: Option<String>,
     /// Pace relative to the recording: 1 = as recorded, 2 = twice as fast, 0 = as fast as
@@ -428,8 +430,85 @@ fn main() -> std::process::ExitCode {
     }
 }
 
+/// The global options that take a value (`--namespace NAME`), for finding the subcommand.
+const GLOBAL_VALUE_OPTIONS: [&str; 5] = ["--config", "--set", "--namespace", "--http", "--redis"];
+
+/// Where the subcommand is in `argv`, and its name.
+fn subcommand_of(argv: &[std::ffi::OsString]) -> Option<(usize, String)> {
+    let mut i = 1;
+    while i < argv.len() {
+        let word = argv[i].to_string_lossy();
+        if GLOBAL_VALUE_OPTIONS.contains(&word.as_ref()) {
+            i += 2;
+        } else if word.starts_with('-') {
+            i += 1;
+        } else {
+            return Some((i, word.into_owned()));
+        }
+    }
+    None
+}
+
+/// Parses the command line. `robotd estop` engages whatever follows it: an argument clap
+/// does not know is dropped and named in a note (and a command line it still cannot read is
+/// cut after `estop`), so a mistyped e-stop still stops. The notes say what was ignored.
+fn parse_cli() -> (Cli, Vec<String>) {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    let mut argv: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let mut notes = Vec::new();
+    loop {
+        let error = match Cli::try_parse_from(&argv) {
+            Ok(cli) => return (cli, notes),
+            Err(error) => error,
+        };
+        let estop = subcommand_of(&argv).filter(|(_, name)| name == "estop");
+        let (Some((at, _)), false) = (
+            estop,
+            matches!(
+                error.kind(),
+                ErrorKind::DisplayHelp
+                    | ErrorKind::DisplayVersion
+                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ),
+        ) else {
+            error.exit()
+        };
+        let bad = match error.get(ContextKind::InvalidArg) {
+            Some(ContextValue::String(bad)) => Some(bad.clone()),
+            _ => None,
+        };
+        let position = bad.as_ref().and_then(|bad| {
+            let option = bad.split([' ', '=']).next().unwrap_or(bad);
+            (at + 1..argv.len()).find(|&i| {
+                let word = argv[i].to_string_lossy();
+                word == *bad || word == option || word.starts_with(&format!("{option}="))
+            })
+        });
+        match position {
+            Some(i) => {
+                let word = argv.remove(i).to_string_lossy().into_owned();
+                notes.push(format!("unknown argument '{word}' ignored"));
+            }
+            None if at + 1 >= argv.len() => error.exit(),
+            None => {
+                let ignored: Vec<String> = argv
+                    .drain(at + 1..)
+                    .map(|w| w.to_string_lossy().into_owned())
+                    .collect();
+                let first_line = error.to_string();
+                let first_line = first_line.lines().next().unwrap_or_default().to_owned();
+                notes.push(format!(
+                    "the arguments '{}' were not understood ({}) and were ignored",
+                    ignored.join(" "),
+                    first_line.trim_start_matches("error: ")
+                ));
+            }
+        }
+    }
+}
+
 fn run() -> Result<std::process::ExitCode> {
-    let cli = Cli::parse();
+    let (cli, notes) = parse_cli();
     // iceoryx2 logs to stderr on its own; keep it to warnings about real problems.
     iceoryx2::prelude::set_log_level(iceoryx2::prelude::LogLevel::Error);
     match cli.command.unwrap_or(Command::Serve) {
@@ -506,7 +585,8 @@ fn run() -> Result<std::process::ExitCode> {
         }
         Command::Estop(args) => {
             let config = load_config(&cli.config)?;
-            let done = estop::run(&config, args.reason.as_deref(), args.release)?;
+            let reason = args.reason.join(" ");
+            let done = estop::run(&config, Some(reason.as_str()), args.release, &notes)?;
             eprintln!("robotd: {done}");
             Ok(std::process::ExitCode::SUCCESS)
         }

@@ -4,7 +4,9 @@
 //! `robotd replay` refuses to publish a robot's topics (camera frames, arm and gripper state)
 //! onto a bus where a robotd runs: that robotd's own camera and arm publish them too, and the
 //! two would mix. Running robotd on a recording is the replay driver's job
-//! (`robot.driver = "replay"`, `drivers/replay`).
+//! (`robot.driver = "replay"`, `drivers/replay`). It never publishes a safety topic
+//! (`safety/estop`), even when `--topics` names it: a recorded e-stop or release must not act
+//! on a live robot.
 
 use anyhow::{bail, Context, Result};
 use robotd_config::Config;
@@ -188,6 +190,15 @@ pub fn replay(config: &Config, path: &Path, topics: Option<&str>, speed: f64) ->
         speed,
         topics: topics.map(|t| topic_list(t, true)).transpose()?,
     };
+    // Before touching the bus: a safety topic is never replayed (the library refuses it too).
+    if let Some(topic) = options
+        .topics
+        .iter()
+        .flatten()
+        .find(|t| robotd_foxglove::replay::is_safety_topic(t))
+    {
+        return Err(robotd_foxglove::replay::ReplayError::SafetyTopic(topic.clone()).into());
+    }
     let chosen: Vec<String> = match &options.topics {
         Some(list) => list.clone(),
         None => robotd_foxglove::replay::DEFAULT_TOPICS

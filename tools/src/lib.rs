@@ -59,6 +59,16 @@ use std::time::Duration;
 use tokio::sync::{mpsc, watch};
 use tokio_util::sync::CancellationToken;
 
+/// The argument name under which an edge hands a tool that must act whatever it is sent
+/// ([`ALWAYS_ACTS`]) arguments that were not a JSON object (`"arguments": 5`). No tool declares
+/// it, so any other tool refuses it as an unknown argument.
+pub const ARGUMENTS_NOT_AN_OBJECT: &str = "(arguments)";
+
+/// The tools that act whatever their arguments: an edge passes them a call it would refuse
+/// for its form (arguments that are not an object), wrapped under [`ARGUMENTS_NOT_AN_OBJECT`].
+/// Only `emergency_stop`: a request to stop is never refused.
+pub const ALWAYS_ACTS: &[&str] = &["emergency_stop"];
+
 /// Extra status for `get_system_status` (actor health, restarts, e-stop), as JSON.
 pub type StatusSource = Arc<dyn Fn() -> serde_json::Value + Send + Sync>;
 

@@ -19,6 +19,10 @@
 //! `gripper/state` — and the running robotd computes the rest (detections, objects) again;
 //! `--topics` chooses others. Replaying commands (`agent/request`, `speech/speak`) makes the
 //! running robotd act on them: choose them on purpose.
+//!
+//! Safety topics (`safety/…`, such as `safety/estop`) are never replayed, even when asked for
+//! ([`ReplayError::SafetyTopic`]): a recorded e-stop or release must not act on a live robot.
+//! Engaging and releasing are done through robotd's own entry points (docs/safety.md).
 
 use crate::topics::{self, JsonPublisher};
 use robotd_recording::camera::{FramePairer, RecordedFrame};
@@ -41,9 +45,21 @@ pub enum ReplayError {
     /// A topic asked for is not one of robotd's.
     #[error("unknown topic '{0}': choose from camera/frames and the bus topics ({1})")]
     UnknownTopic(String, String),
+    /// A safety topic was asked for: never replayed.
+    #[error(
+        "'{0}' is never replayed: a recorded e-stop or release must not act on a live robot \
+         (engage or release with robotd estop, POST /estop or the MCP tools); drop it from \
+         --topics"
+    )]
+    SafetyTopic(String),
     /// The bus refused a port.
     #[error(transparent)]
     Bus(#[from] BusError),
+}
+
+/// Whether `topic` is a safety topic (`safety/…`), which a replay never publishes.
+pub fn is_safety_topic(topic: &str) -> bool {
+    topic.starts_with("safety/")
 }
 
 /// What a replay did.
@@ -83,6 +99,9 @@ pub async fn replay(
         None => DEFAULT_TOPICS.iter().map(|t| (*t).to_owned()).collect(),
     };
     let known: Vec<String> = topics::all().iter().map(|t| t.name().to_owned()).collect();
+    if let Some(topic) = wanted.iter().find(|t| is_safety_topic(t)) {
+        return Err(ReplayError::SafetyTopic(topic.clone()));
+    }
     let mut publishers: BTreeMap<String, Box<dyn JsonPublisher>> = BTreeMap::new();
     let mut camera = None;
     for topic in &wanted {

@@ -17,7 +17,8 @@
 //!    ([`check_bind`]), whether MCP is on or off: the port also serves the e-stop, health and
 //!    metrics.
 //! 4. **Body size** (`[mcp] max_body_bytes`): a larger `Content-Length` is 413 before the body
-//!    is read, and streamed bodies are cut at the same limit.
+//!    is read, and streamed bodies are cut at the same limit; except `POST /estop`, which
+//!    engages whatever its body (it reads only the first bytes, [`crate::safety`]).
 
 use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
@@ -239,11 +240,15 @@ fn refusal(guard: &HttpGuard, request: &Request) -> Option<Response> {
             );
         }
     }
-    let too_long = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<usize>().ok())
-        .is_some_and(|n| n > guard.max_body_bytes);
+    // A request to stop is never refused for its body: `POST /estop` reads at most what it
+    // needs and engages whatever the rest (`crate::safety`).
+    let estop = request.method() == axum::http::Method::POST && request.uri().path() == "/estop";
+    let too_long = !estop
+        && headers
+            .get(header::CONTENT_LENGTH)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.parse::<usize>().ok())
+            .is_some_and(|n| n > guard.max_body_bytes);
     if too_long {
         return Some(
             (

@@ -3,15 +3,17 @@
 //! | route | does |
 //! |---|---|
 //! | `GET /estop` | `{"engaged": bool, "reason": …}` |
-//! | `POST /estop` | engages the e-stop (body optional: `{"reason": "…"}`); the arm halts within one control tick |
+//! | `POST /estop` | engages the e-stop whatever the body (optional: `{"reason": "…"}`; a body that is not that is ignored and the reply's `notes` say what was wrong); the arm halts within one control tick |
 //! | `POST /estop/release` | releases it; the body must be `{"confirm": "release"}` (a deliberate act, never a side effect) |
 //! | `GET /approvals` | motions waiting for a human's yes, oldest first |
 //! | `POST /approvals/{id}` | `{"approve": true\|false, "by": "name"}` answers one |
 //!
 //! Engaging and releasing go through the bus topic `safety/estop`, like every other entry
 //! point (MCP tools, `robotd estop`, bus clients), so all of them act the same way. The
-//! routes sit behind the same guard as the MCP edge (bearer token off loopback, Origin
-//! checks).
+//! routes sit behind the same guard as the MCP edge (`Host` and `Origin` checks, and the
+//! bearer token whenever one is configured, which it must be off loopback): a request the
+//! guard refuses engages nothing. Past the guard, engaging never fails on the request's
+//! form; only a bus with no arm listening makes it fail (503).
 
 use axum::body::Bytes;
 use axum::extract::{Path, State};
@@ -80,10 +82,58 @@ async fn estop_state(State(api): State<SafetyApi>) -> Response {
     Json(state(&api)).into_response()
 }
 
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct EngageBody {
-    reason: Option<String>,
+/// At most this many characters of a bad body or value are quoted back.
+const QUOTE_MAX: usize = 60;
+
+fn quote(text: &str) -> String {
+    if text.chars().count() <= QUOTE_MAX {
+        printable(text, QUOTE_MAX)
+    } else {
+        format!("{}…", printable(text, QUOTE_MAX))
+    }
+}
+
+/// The reason an engage body gives, and what was wrong with the body (ignored). Never fails:
+/// a request to stop is not refused for its form.
+fn engage_body(bytes: &Bytes) -> (Option<String>, Vec<String>) {
+    if bytes.iter().all(u8::is_ascii_whitespace) {
+        return (None, Vec::new());
+    }
+    let value = match serde_json::from_slice::<serde_json::Value>(bytes) {
+        Ok(value) => value,
+        Err(e) => {
+            return (
+                None,
+                vec![format!(
+                    "the body is not JSON ({e}): {}",
+                    quote(&String::from_utf8_lossy(bytes))
+                )],
+            )
+        }
+    };
+    let serde_json::Value::Object(fields) = value else {
+        return (
+            None,
+            vec![format!(
+                "the body must be a JSON object such as {{\"reason\": \"…\"}}, got {}",
+                quote(&value.to_string())
+            )],
+        );
+    };
+    let mut notes = Vec::new();
+    let mut reason = None;
+    for (name, value) in &fields {
+        match (name.as_str(), value) {
+            ("reason", serde_json::Value::String(text)) => reason = Some(text.clone()),
+            ("reason", serde_json::Value::Null) => {}
+            ("reason", other) => notes.push(format!(
+                "field 'reason' must be a string, got {}",
+                quote(&other.to_string())
+            )),
+            (other, _) => notes.push(format!("unknown field '{}'", quote(other))),
+        }
+    }
+    (reason, notes)
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -109,12 +159,21 @@ fn publish(api: &SafetyApi, estop: &EmergencyStop) -> Result<usize, ApiError> {
     }
 }
 
-async fn engage(State(api): State<SafetyApi>, bytes: Bytes) -> Response {
-    let body: EngageBody = match body(&bytes) {
-        Ok(b) => b,
-        Err(r) => return r.into_response(),
+/// The most of an engage body that is read; the rest is ignored (and said so).
+const ENGAGE_BODY_MAX: usize = 16 * 1024;
+
+async fn engage(State(api): State<SafetyApi>, body: axum::body::Body) -> Response {
+    let (reason, notes) = match axum::body::to_bytes(body, ENGAGE_BODY_MAX).await {
+        Ok(bytes) => engage_body(&bytes),
+        Err(error) => (
+            None,
+            vec![format!(
+                "the body could not be read ({}); a reason is at most {ENGAGE_BODY_MAX} bytes of JSON",
+                quote(&error.to_string())
+            )],
+        ),
     };
-    let reason = printable(body.reason.as_deref().unwrap_or_default(), 500);
+    let reason = printable(reason.as_deref().unwrap_or_default(), 500);
     let reason = match reason.trim() {
         "" => "engaged over HTTP".to_owned(),
         text => text.to_owned(),
@@ -127,8 +186,17 @@ async fn engage(State(api): State<SafetyApi>, bytes: Bytes) -> Response {
     if let Err(r) = publish(&api, &estop) {
         return r.into_response();
     }
-    tracing::warn!(%reason, "emergency stop engaged over HTTP");
-    Json(serde_json::json!({"engaged": true, "reason": estop.reason})).into_response()
+    tracing::warn!(%reason, ?notes, "emergency stop engaged over HTTP");
+    let mut reply = serde_json::json!({"engaged": true, "reason": estop.reason});
+    if !notes.is_empty() {
+        reply["note"] = format!(
+            "the request was not well formed, and this was ignored: {}",
+            notes.join("; ")
+        )
+        .into();
+        reply["notes"] = notes.into();
+    }
+    Json(reply).into_response()
 }
 
 async fn release(State(api): State<SafetyApi>, bytes: Bytes) -> Response {

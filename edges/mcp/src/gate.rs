@@ -13,7 +13,12 @@
 //!   motion cannot start in a half-open session;
 //! - a request to a method MCP defines whose params do not fit it (rmcp would take it for an
 //!   unknown custom method and answer `-32601`) is answered `-32602` (Invalid params), naming
-//!   the method.
+//!   the method;
+//! - except a `tools/call` of a tool that acts whatever it is sent
+//!   ([`robotd_tools::ALWAYS_ACTS`]: `emergency_stop`) whose `arguments` are not an object: it
+//!   is passed on as a call with those arguments wrapped under
+//!   [`robotd_tools::ARGUMENTS_NOT_AN_OBJECT`], so the stop engages and its reply says what was
+//!   wrong ([`always_acting_call`]).
 //!
 //! Every transport (legacy SSE, streamable HTTP, stdio) serves through this gate. The
 //! session's "initialized" state is shared ([`InitGate::initialized_flag`]) so the direct
@@ -56,6 +61,59 @@ const MCP_METHODS: &[&str] = &[
 /// Whether `method` is one MCP defines for a client to call.
 pub fn is_mcp_method(method: &str) -> bool {
     MCP_METHODS.contains(&method)
+}
+
+/// A `tools/call` of a tool that acts whatever it is sent ([`robotd_tools::ALWAYS_ACTS`]) whose
+/// params rmcp could not read because its `arguments` are not an object: the same call, with
+/// the arguments wrapped under [`robotd_tools::ARGUMENTS_NOT_AN_OBJECT`] (the tool says what
+/// was wrong). `None` for anything else.
+pub fn always_acting_call(
+    method: &str,
+    params: Option<&serde_json::Value>,
+) -> Option<serde_json::Value> {
+    if method != "tools/call" {
+        return None;
+    }
+    let params = params?.as_object()?;
+    let name = params.get("name")?.as_str()?;
+    if !robotd_tools::ALWAYS_ACTS.contains(&name) {
+        return None;
+    }
+    let mut params = params.clone();
+    match params.get("arguments") {
+        None | Some(serde_json::Value::Null) | Some(serde_json::Value::Object(_)) => {}
+        Some(other) => {
+            let wrapped = serde_json::json!({ robotd_tools::ARGUMENTS_NOT_AN_OBJECT: other });
+            params.insert("arguments".into(), wrapped);
+        }
+    }
+    Some(serde_json::Value::Object(params))
+}
+
+/// `message` with an [`always_acting_call`] made readable; any other message unchanged.
+fn readable(message: ClientJsonRpcMessage) -> ClientJsonRpcMessage {
+    let JsonRpcMessage::Request(request) = &message else {
+        return message;
+    };
+    let ClientRequest::CustomRequest(custom) = &request.request else {
+        return message;
+    };
+    let Some(params) = always_acting_call(&custom.method, custom.params.as_ref()) else {
+        return message;
+    };
+    let value = serde_json::json!({
+        "jsonrpc": "2.0",
+        "id": request.id,
+        "method": custom.method,
+        "params": params,
+    });
+    match serde_json::from_value::<ClientJsonRpcMessage>(value) {
+        Ok(call @ JsonRpcMessage::Request(_)) => {
+            tracing::warn!(method = %custom.method, "a malformed call of a tool that always acts, passed on");
+            call
+        }
+        _ => message,
+    }
 }
 
 /// The `-32602` error for params that do not fit MCP `method`.
@@ -209,7 +267,7 @@ impl<T: Transport<RoleServer>> Transport<RoleServer> for InitGate<T> {
 
     async fn receive(&mut self) -> Option<ClientJsonRpcMessage> {
         loop {
-            let message = self.inner.receive().await?;
+            let message = readable(self.inner.receive().await?);
             match self.verdict(&message) {
                 Verdict::Pass => return Some(message),
                 Verdict::Drop => tracing::trace!("MCP message dropped by the session gate"),
@@ -277,6 +335,45 @@ mod tests {
         assert_eq!(answer(&mut gate, call), None);
         let bad = serde_json::json!({"jsonrpc": "2.0", "id": 4, "method": "tools/call", "params": {"x": 1}});
         assert_eq!(answer(&mut gate, bad).unwrap()["error"]["code"], -32602);
+    }
+
+    #[test]
+    fn an_estop_whose_arguments_are_not_an_object_is_passed_on_wrapped() {
+        for arguments in [
+            serde_json::json!(5),
+            serde_json::json!("stop"),
+            serde_json::json!([1]),
+        ] {
+            let call = message(
+                serde_json::json!({"jsonrpc": "2.0", "id": 9, "method": "tools/call",
+                "params": {"name": "emergency_stop", "arguments": arguments}}),
+            );
+            let JsonRpcMessage::Request(r) = readable(call) else {
+                panic!("not a request")
+            };
+            assert_eq!(r.id, rmcp::model::RequestId::Number(9));
+            let ClientRequest::CallToolRequest(c) = r.request else {
+                panic!("not a call: {:?}", r.request)
+            };
+            assert_eq!(c.params.name, "emergency_stop");
+            assert_eq!(
+                c.params.arguments.unwrap()[robotd_tools::ARGUMENTS_NOT_AN_OBJECT],
+                arguments
+            );
+        }
+        // Another tool's bad arguments stay a params error.
+        let call = message(
+            serde_json::json!({"jsonrpc": "2.0", "id": 9, "method": "tools/call",
+            "params": {"name": "speak", "arguments": 5}}),
+        );
+        let JsonRpcMessage::Request(r) = readable(call) else {
+            panic!("not a request")
+        };
+        assert!(
+            matches!(r.request, ClientRequest::CustomRequest(_)),
+            "{:?}",
+            r.request
+        );
     }
 
     #[test]

@@ -126,6 +126,13 @@ pub(crate) trait Tool {
         hooks: CallHooks,
     ) -> impl Future<Output = Result<Reply<Self::Data>, String>> + Send;
 
+    /// Reads a call's arguments: strictly by default, every problem refused (see
+    /// [`crate::args`]). A tool that must act whatever it is sent (`emergency_stop`) reads
+    /// what it can and keeps the problems for its reply.
+    fn read(arguments: &Map<String, Value>) -> Result<Self::Args, Vec<FieldError>> {
+        from_args::<Self::Args>(arguments)
+    }
+
     /// The reply to arguments with problems.
     fn invalid(errors: &[FieldError]) -> String {
         validation_text(Self::NAME, errors)
@@ -166,7 +173,7 @@ impl Entry {
             fields: crate::args::fields_of::<T::Args>,
             call: call::<T>,
             #[cfg(test)]
-            parse: |args| from_args::<T::Args>(args).map(|a| format!("{a:?}")),
+            parse: |args| T::read(args).map(|a| format!("{a:?}")),
         }
     }
 }
@@ -177,7 +184,7 @@ fn call<'a, T: Tool>(
     arguments: &'a Map<String, Value>,
     hooks: CallHooks,
 ) -> CallFuture<'a> {
-    let args = from_args::<T::Args>(arguments);
+    let args = T::read(arguments);
     Box::pin(async move {
         let args = match args {
             Ok(args) => args,

@@ -90,7 +90,11 @@ fn an_argument_object_with_every_field_set_arrives_whole() {
 
 #[test]
 fn unknown_and_renamed_arguments_are_refused_by_every_tool() {
-    for t in TOOLS {
+    // Except a request to stop, which acts whatever it is sent (below).
+    for t in TOOLS
+        .iter()
+        .filter(|t| !crate::ALWAYS_ACTS.contains(&t.name))
+    {
         let mut args = Map::new();
         for (name, schema) in props(t) {
             args.insert(name.clone(), sample(&name, &schema).0);
@@ -115,6 +119,45 @@ fn unknown_and_renamed_arguments_are_refused_by_every_tool() {
             t.name
         );
     }
+}
+
+#[test]
+fn emergency_stop_reads_any_arguments_and_keeps_what_was_wrong() {
+    let stop = find("emergency_stop").unwrap();
+    let read = |args: Value| (stop.parse)(args.as_object().unwrap()).unwrap();
+    assert_eq!(
+        read(json!({"reason": " smoke "})),
+        "Args { reason: Some(\"smoke\"), problems: [] }"
+    );
+    assert_eq!(read(json!({})), "Args { reason: None, problems: [] }");
+    let bad_reason = read(json!({"reason": 5}));
+    assert!(
+        bad_reason.contains("reason: None")
+            && bad_reason.contains("argument 'reason': Input should be a valid string (got 5)"),
+        "{bad_reason}"
+    );
+    let extra = read(json!({"reason": "smoke", "colour": "red"}));
+    assert!(
+        extra.contains("reason: Some(\"smoke\")")
+            && extra.contains("argument 'colour': Extra inputs are not permitted"),
+        "{extra}"
+    );
+    let mut wrapped = Map::new();
+    wrapped.insert(crate::ARGUMENTS_NOT_AN_OBJECT.into(), json!([1, "x"]));
+    let not_an_object = (stop.parse)(&wrapped).unwrap();
+    assert!(
+        not_an_object.contains("the arguments must be an object")
+            && not_an_object.contains("[1,\\\"x\\\"]"),
+        "{not_an_object}"
+    );
+    // Any other tool refuses the wrapper like any unknown argument.
+    let speak = (find("speak").unwrap().parse)(&wrapped).unwrap_err();
+    assert!(
+        speak
+            .iter()
+            .any(|e| e.field == crate::ARGUMENTS_NOT_AN_OBJECT),
+        "{speak:?}"
+    );
 }
 
 #[test]
