@@ -358,6 +358,16 @@ struct BenchPerceptionArgs {
     /// Frames sent through the bus for the frame-to-objects latency.
     #[arg(long, default_value_t = 100)]
     bus_frames: usize,
+    /// Instead: N randomized frames (sheet designs, light, lens, camera pose, distractors),
+    /// scored against ground truth.
+    #[arg(long, value_name = "N")]
+    randomized: Option<usize>,
+    /// Seed of the randomized frames.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// With --randomized: write the frames that went wrong to this folder as PNG files.
+    #[arg(long, value_name = "DIR")]
+    dump: Option<std::path::PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -699,6 +709,14 @@ fn run() -> Result<std::process::ExitCode> {
         Command::Bench {
             what: BenchCommand::Perception(args),
         } => {
+            if let Some(frames) = args.randomized {
+                let report = bench::perception_randomized::run(
+                    frames.max(1),
+                    args.seed,
+                    args.dump.as_deref(),
+                )?;
+                return print_figures(args.json, &report, report.table());
+            }
             let figures = bench::perception::run(args.scenes.max(1), args.bus_frames.max(1))?;
             print_figures(args.json, &figures, figures.table())
         }

@@ -11,6 +11,7 @@ pub mod mcp_raw;
 pub mod mcp_raw_sse;
 pub mod niryo;
 pub mod perception;
+pub mod perception_randomized;
 pub mod ping;
 pub mod redis;
 pub mod safety;

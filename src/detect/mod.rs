@@ -3,7 +3,8 @@
 //!
 //! The image goes through the same [`Pipeline`] the perception actor runs on every frame:
 //! the ring markers, the table plane they fix, the colour detector. The command reports what
-//! each step found ([`report`]) and can draw it ([`draw`], written as a PNG by [`png`]).
+//! each step found ([`report`]) and can draw it ([`draw`], written as a PNG by the `image`
+//! crate).
 //!
 //! Two kinds of image are accepted:
 //! - a camera view of the sheet with its four markers (the normal case). The camera is
@@ -24,7 +25,6 @@
 mod annotate;
 mod camera;
 mod draw;
-mod png;
 pub mod report;
 
 use anyhow::{Context, Result};
@@ -45,7 +45,7 @@ use std::time::Instant;
 /// Arguments of `robotd detect`.
 #[derive(Debug, Args)]
 pub struct DetectArgs {
-    /// The image file (JPEG).
+    /// The image file (JPEG or PNG).
     pub image: PathBuf,
     /// Camera intrinsics file (JSON or TOML: width, height, fx, fy, cx, cy, distortion).
     #[arg(long, value_name = "FILE", conflicts_with = "camera")]
@@ -204,8 +204,15 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
     if let Some(out) = &args.out {
         let mut rgb = image.rgb.clone();
         annotate::annotate(&mut rgb, &report, &workspace, plane_for_drawing.as_ref());
-        std::fs::write(out, png::encode_rgb(&rgb, width as u32, height as u32))
-            .with_context(|| format!("writing {}", out.display()))?;
+        image::save_buffer_with_format(
+            out,
+            &rgb,
+            width as u32,
+            height as u32,
+            image::ExtendedColorType::Rgb8,
+            image::ImageFormat::Png,
+        )
+        .with_context(|| format!("writing {}", out.display()))?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

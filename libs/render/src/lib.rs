@@ -17,6 +17,9 @@
 //! - **Appearance**: flat shading keeps each solid's hue but darkens faces turned away from a
 //!   light above (a box's top is brighter than its sides); edges are anti-aliased; Gaussian
 //!   sensor noise; optionally the lens's barrel distortion through a precomputed remap.
+//! - **Testing perception**: [`sheet_art`] draws Niryo's printed sheet designs (classic
+//!   striped, Ned2 black-framed) and [`photo`] what a real room and lens do to a frame (light,
+//!   white balance, vignetting, glare, blur), for the randomized perception benchmark.
 //! - **Frames**: [`Renderer::render_into`] writes straight into a shared-memory frame buffer
 //!   and allocates nothing per frame; [`encode_jpeg`] makes the JPEGs the edges publish.
 //!
@@ -66,8 +69,10 @@ pub mod annotate;
 mod intrinsics;
 mod mesh;
 mod noise;
+pub mod photo;
 mod render;
 mod scene;
+pub mod sheet_art;
 
 pub use intrinsics::Intrinsics;
 pub use render::Renderer;

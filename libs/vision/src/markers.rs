@@ -21,7 +21,7 @@
 //! then checks each four through the homography it gives ([`SheetCheck`]).
 
 use crate::components::{Blob, Components};
-use crate::rings::ring_profile;
+use crate::rings::{ring_profile, RingProfile};
 use crate::shade::LocalMean;
 
 /// Class of dark pixels in the class map.
@@ -40,9 +40,11 @@ pub struct MarkerObservation {
     pub centre_px: [f64; 2],
     /// Outer radius, pixels (half the mean bounding-box side of the outer ring).
     pub radius_px: f64,
-    /// Whether its centre is white (the simulated sheet's origin marker).
+    /// Whether it is light an eighth of its radius from the centre (the simulated sheet's
+    /// origin marker; the printed sheets' markers other than the reference).
     pub white_centre: bool,
-    /// How many concentric dark blobs it has (rings plus a centre disc or dot).
+    /// Dark rings (or disc) a ray from its centre crosses, counted from an eighth of its
+    /// radius outwards: the same for the four markers of one sheet.
     pub rings: u8,
     /// Dark/light changes along a ray from its centre to beyond its outer ring
     /// ([`crate::rings`]): 3 or more for a real marker.
@@ -111,112 +113,164 @@ impl MarkerFinder {
             .copied()
             .collect();
 
-        // Group blobs sharing a centre; the largest of a group is its outer ring.
-        let mut used = vec![false; blobs.len()];
-        let mut order: Vec<usize> = (0..blobs.len()).collect();
-        order.sort_by_key(|&i| std::cmp::Reverse(blobs[i].box_width() * blobs[i].box_height()));
-        let mut markers = Vec::new();
-        for &outer in &order {
-            if used[outer] {
+        // Blobs whose boxes come within a few pixels are one candidate: the rings of one
+        // marker, even when blur and compression break a thin ring into arcs.
+        let clusters = cluster_blobs(&blobs, CLUSTER_GAP_PX, max_side);
+        let mut markers: Vec<MarkerObservation> = Vec::new();
+        for cluster in clusters {
+            let (w, h) = (
+                cluster.u_max - cluster.u_min + 1,
+                cluster.v_max - cluster.v_min + 1,
+            );
+            let size = 0.5 * f64::from(w + h);
+            if cluster.blobs < 2 || size < 6.0 || w > 3 * h || h > 3 * w {
                 continue;
             }
-            let o = &blobs[outer];
-            let size = 0.5 * f64::from(o.box_width() + o.box_height());
-            // A ring is hollow: it covers well under the π/4 of its box that a disc would.
-            let box_area = f64::from(o.box_width() * o.box_height());
-            if f64::from(o.area) > 0.7 * box_area {
-                continue;
-            }
-            let tolerance = (0.12 * size).max(1.5);
-            let inner: Vec<usize> = order
-                .iter()
-                .copied()
-                .filter(|&i| {
-                    i != outer
-                        && !used[i]
-                        && (blobs[i].u_mean - o.u_mean).abs() <= tolerance
-                        && (blobs[i].v_mean - o.v_mean).abs() <= tolerance
-                        && blobs[i].box_width() < o.box_width()
-                        && blobs[i].box_height() < o.box_height()
-                        && blobs[i].u_min > o.u_min
-                        && blobs[i].u_max < o.u_max
-                        && blobs[i].v_min > o.v_min
-                        && blobs[i].v_max < o.v_max
-                })
-                .collect();
-            if inner.is_empty() || size < 6.0 {
-                continue;
-            }
-            let mut area = f64::from(o.area);
-            let mut su = o.u_mean * area;
-            let mut sv = o.v_mean * area;
-            for &i in &inner {
-                let a = f64::from(blobs[i].area);
-                su += blobs[i].u_mean * a;
-                sv += blobs[i].v_mean * a;
-                area += a;
-            }
-            let centre = [su / area, sv / area];
-            // Nested dark blobs are only a candidate: a marker has rings all round.
-            let classes = &self.classes;
-            let dark = |u: i64, v: i64| {
-                (u >= 0 && v >= 0 && (u as usize) < width && (v as usize) < height)
-                    .then(|| classes[v as usize * width + u as usize] == DARK)
-            };
-            let Some(profile) = ring_profile(&dark, centre, size / 2.0) else {
+            let radius = size / 2.0;
+            let seed = [cluster.u_sum / cluster.area, cluster.v_sum / cluster.area];
+            let Some((profile, paper)) = self.ring_check(width, height, seed, radius) else {
                 continue;
             };
-            used[outer] = true;
-            for &i in &inner {
-                used[i] = true;
+            // One marker may be seeded twice (a ring and its inside in two clusters).
+            let duplicate = markers.iter().any(|m| {
+                (m.centre_px[0] - profile.centre[0]).hypot(m.centre_px[1] - profile.centre[1])
+                    < 0.5 * m.radius_px.max(radius)
+            });
+            if duplicate {
+                continue;
             }
             markers.push(MarkerObservation {
-                centre_px: centre,
-                radius_px: size / 2.0,
-                white_centre: self.is_bright(width, height, centre),
-                rings: (inner.len() + 1).min(255) as u8,
+                centre_px: profile.centre,
+                radius_px: profile.outer_radius_px,
+                white_centre: !profile.centre_dark,
+                rings: profile.dark_runs,
                 ring_changes: profile.changes,
-                paper_grey: self.paper_grey(width, height, centre, size / 2.0),
+                paper_grey: paper,
             });
         }
         markers
     }
 
-    /// The grey level of the paper around a marker: the 90th percentile of the grey levels
-    /// on a circle just outside its outer ring and between its rings.
-    fn paper_grey(&self, width: usize, height: usize, centre: [f64; 2], radius: f64) -> u8 {
-        let mut greys: Vec<u8> = Vec::with_capacity(64);
-        for &reach in &[0.6, 1.25, 1.5] {
-            for k in 0..16 {
-                let a = k as f64 * std::f64::consts::TAU / 16.0;
+    /// The ring structure around `seed` (radius about `radius` pixels), judged on the grey
+    /// levels with a threshold of the candidate's own: halfway between its ink (10th
+    /// percentile) and its paper (90th), so thin rings that blur has turned grey still count.
+    /// With the paper's grey level; `None` when it is no ring marker.
+    fn ring_check(
+        &self,
+        width: usize,
+        height: usize,
+        seed: [f64; 2],
+        radius: f64,
+    ) -> Option<(RingProfile, u8)> {
+        let mut greys: Vec<u8> = Vec::with_capacity(256);
+        for k in 0..16 {
+            let a = k as f64 * std::f64::consts::TAU / 16.0;
+            let mut r = 0.0;
+            while r <= 1.3 * radius {
                 let (u, v) = (
-                    (centre[0] + reach * radius * a.cos()).round(),
-                    (centre[1] + reach * radius * a.sin()).round(),
+                    (seed[0] + r * a.cos()).round(),
+                    (seed[1] + r * a.sin()).round(),
                 );
                 if u >= 0.0 && v >= 0.0 && (u as usize) < width && (v as usize) < height {
                     greys.push(self.shade.grey(u as usize, v as usize));
                 }
+                r += (radius / 16.0).max(0.5);
             }
         }
-        if greys.is_empty() {
-            return 0;
+        if greys.len() < 32 {
+            return None;
         }
         greys.sort_unstable();
-        greys[(greys.len() * 9 / 10).min(greys.len() - 1)]
-    }
-
-    /// Whether the 3×3 pixels around `at` are brighter than the neighbourhood's mean (which the
-    /// marker's dark rings pull down): a white centre.
-    fn is_bright(&self, width: usize, height: usize, at: [f64; 2]) -> bool {
-        let (cu, cv) = (at[0].round(), at[1].round());
-        if !(cu >= 1.0 && cv >= 1.0 && cu + 1.0 < width as f64 && cv + 1.0 < height as f64) {
-            return false;
+        let ink = greys[greys.len() / 10];
+        let paper = greys[greys.len() * 9 / 10];
+        if paper < ink.saturating_add(MIN_RING_CONTRAST) {
+            return None;
         }
-        let (u, v) = (cu as usize, cv as usize);
-        let (centre, count) = self.shade.sum(u, v, 1);
-        let (local, local_count) = self.shade.sum(u, v, neighbourhood(width, height));
-        centre * local_count > local * count
+        let threshold = (u16::from(ink) + u16::from(paper)) / 2;
+        let shade = &self.shade;
+        let dark = |u: i64, v: i64| {
+            (u >= 0 && v >= 0 && (u as usize) < width && (v as usize) < height)
+                .then(|| u16::from(shade.grey(u as usize, v as usize)) < threshold)
+        };
+        ring_profile(&dark, seed, radius).map(|p| (p, paper))
     }
+}
+
+/// Blobs whose boxes come this close (pixels) are one marker candidate.
+const CLUSTER_GAP_PX: u32 = 2;
+/// A marker's ink and paper differ by at least this many grey levels.
+const MIN_RING_CONTRAST: u8 = 40;
+
+/// Dark blobs near each other: their joint box, pixel count and dark-pixel sums.
+#[derive(Debug, Clone, Copy)]
+struct Cluster {
+    u_min: u32,
+    u_max: u32,
+    v_min: u32,
+    v_max: u32,
+    area: f64,
+    u_sum: f64,
+    v_sum: f64,
+    blobs: usize,
+}
+
+/// Groups blobs whose boxes come within `gap` pixels of each other; groups larger than
+/// `max_side` are dropped (a dark frame, a cable).
+fn cluster_blobs(blobs: &[Blob], gap: u32, max_side: u32) -> Vec<Cluster> {
+    let n = blobs.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut by_u: Vec<usize> = (0..n).collect();
+    by_u.sort_by_key(|&i| blobs[i].u_min);
+    for (k, &i) in by_u.iter().enumerate() {
+        for &j in &by_u[k + 1..] {
+            if blobs[j].u_min > blobs[i].u_max + gap {
+                break;
+            }
+            let near =
+                blobs[j].v_min <= blobs[i].v_max + gap && blobs[i].v_min <= blobs[j].v_max + gap;
+            if near {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                if a != b {
+                    parent[a.max(b)] = a.min(b);
+                }
+            }
+        }
+    }
+    let mut clusters: Vec<Option<Cluster>> = vec![None; n];
+    for (i, b) in blobs.iter().enumerate() {
+        let r = root(&mut parent, i);
+        let area = f64::from(b.area);
+        let c = clusters[r].get_or_insert(Cluster {
+            u_min: b.u_min,
+            u_max: b.u_max,
+            v_min: b.v_min,
+            v_max: b.v_max,
+            area: 0.0,
+            u_sum: 0.0,
+            v_sum: 0.0,
+            blobs: 0,
+        });
+        c.u_min = c.u_min.min(b.u_min);
+        c.u_max = c.u_max.max(b.u_max);
+        c.v_min = c.v_min.min(b.v_min);
+        c.v_max = c.v_max.max(b.v_max);
+        c.area += area;
+        c.u_sum += b.u_mean * area;
+        c.v_sum += b.v_mean * area;
+        c.blobs += 1;
+    }
+    clusters
+        .into_iter()
+        .flatten()
+        .filter(|c| c.u_max - c.u_min < max_side && c.v_max - c.v_min < max_side)
+        .collect()
 }
 
 /// Half-side of the neighbourhood "dark" is judged against: a good deal larger than a marker
@@ -225,33 +279,23 @@ fn neighbourhood(width: usize, height: usize) -> usize {
     (width.min(height) / 12).max(12)
 }
 
-/// Of four markers, the origin: the one drawn differently from the other three, which agree
-/// (the only white centre, or the only one with fewer rings). `None` when no one stands out.
+/// Of four markers, the reference (origin): the one whose centre differs from the other
+/// three, which agree (the simulator's reference has a white centre where the others' is
+/// black; Niryo's printed reference a solid centre where the others have rings round a dot),
+/// the four having the same number of rings (one design). `None` when no one stands out, or
+/// the signs disagree: then the sheet's orientation is unknown, and guessing it would give a
+/// workspace turned by a quarter.
 fn odd_one_out(four: &[MarkerObservation; 4]) -> Option<usize> {
-    let differs = |key: &dyn Fn(&MarkerObservation) -> u8| {
-        let keys = four.map(|m| key(&m));
-        (0..4).find(|&i| {
-            let others: Vec<u8> = (0..4).filter(|&j| j != i).map(|j| keys[j]).collect();
-            others.iter().all(|k| *k == others[0] && *k != keys[i])
-        })
+    let whites = four.iter().filter(|m| m.white_centre).count();
+    let odd = match whites {
+        1 => four.iter().position(|m| m.white_centre)?,
+        3 => four.iter().position(|m| !m.white_centre)?,
+        _ => return None,
     };
-    let fewest = four.iter().map(|m| m.rings).min()?;
-    let with_fewest: Vec<usize> = (0..4).filter(|&i| four[i].rings == fewest).collect();
-    // One ring fewer than the other three, which agree: the real sheet's origin.
-    if let Some(i) = differs(&|m| m.rings) {
-        if four[i].rings == fewest {
-            return Some(i);
-        }
-    }
-    // The only white centre: the simulated sheet's origin.
-    if four.iter().filter(|m| m.white_centre).count() == 1 {
-        return four.iter().position(|m| m.white_centre);
-    }
-    // Fewer rings than the others, which differ by a centre dot too small to be seen in some.
-    if with_fewest.len() == 1 {
-        return Some(with_fewest[0]);
-    }
-    differs(&|m| u8::from(m.white_centre))
+    let (lo, hi) = four.iter().fold((u8::MAX, 0), |(lo, hi), m| {
+        (lo.min(m.rings), hi.max(m.rings))
+    });
+    (hi <= lo + 1).then_some(odd)
 }
 
 /// The check that four ring markers failed to make the workspace sheet, in the order they
@@ -519,7 +563,7 @@ mod tests {
     }
 
     #[test]
-    fn the_real_sheets_reference_has_one_ring_fewer_even_in_shade() {
+    fn the_real_sheets_reference_has_a_solid_centre_even_in_shade() {
         let (w, h) = (320, 240);
         let mut img = vec![0u8; w * h * 3];
         // Lit from the left: the sheet goes from 230 down to 120.
@@ -549,7 +593,7 @@ mod tests {
         let [first, _] = sheet_candidates(&markers).unwrap()[0];
         assert!((first[0].centre_px[0] - 60.0).abs() < 0.5, "{first:?}");
         assert!((first[0].centre_px[1] - 50.0).abs() < 0.5, "{first:?}");
-        assert!(first[0].rings < first[1].rings);
+        assert!(!first[0].white_centre && first[1].white_centre, "{first:?}");
         assert!((first[3].centre_px[0] - 262.0).abs() < 0.5, "diagonal last");
     }
 }

@@ -343,7 +343,7 @@ mod tests {
             px(0.163, 0.087),
             px(0.163, -0.261),
         ];
-        assert!(fixed(wide).map_or(true, |m| m > 0.3), "{:?}", fixed(wide));
+        assert!(fixed(wide).is_none_or(|m| m > 0.3), "{:?}", fixed(wide));
     }
 
     #[test]

@@ -52,12 +52,35 @@ const REACH: f64 = 1.35;
 /// What the rays saw of a candidate that passed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RingProfile {
+    /// The marker's centre, refined from where the rays met its outer edge.
+    pub centre: [f64; 2],
     /// Dark/light changes along a typical ray, the outer edge included (3 or more).
     pub changes: u8,
+    /// Dark rings (or disc) crossed by a typical ray from an eighth of the radius outwards.
+    pub dark_runs: u8,
+    /// Whether the marker is dark an eighth of its radius from the centre (a solid centre
+    /// disc; the simulator's non-reference markers), on most rays.
+    pub centre_dark: bool,
     /// Where the outer ring's inner edge lies, as a fraction of the outer edge (median).
     pub ring_inner_fraction: f64,
     /// Median distance from the centre to the outer edge, pixels.
     pub outer_radius_px: f64,
+}
+
+/// What one ray saw.
+#[derive(Debug, Clone, Copy)]
+struct Ray {
+    angle: f64,
+    /// Distance to the outer edge (the last change from dark to light), pixels.
+    outer: f64,
+    /// The outer ring's inner edge over `outer`.
+    inner_fraction: f64,
+    /// Changes up to and including the outer edge.
+    changes: usize,
+    /// Dark runs from an eighth of the radius out to the outer edge.
+    dark_runs: usize,
+    /// Dark an eighth of the radius from the centre.
+    centre_dark: bool,
 }
 
 /// The changes along one ray: radii (pixels) where dark turns light or light turns dark,
@@ -101,9 +124,79 @@ fn changes_along(
     Some(first)
 }
 
-/// The ring structure of a candidate centred at `centre` with outer radius about `radius_px`,
-/// on a dark/light map (`dark(u, v)`, `None` outside the image). `None` when it is not a ring
-/// marker (or reaches out of the image).
+/// Casts the rays from `centre`; `None` for a ray that leaves the image or shows no ring.
+fn cast(
+    dark: &impl Fn(i64, i64) -> Option<bool>,
+    centre: [f64; 2],
+    radius_px: f64,
+) -> Vec<Option<Ray>> {
+    let reach = radius_px * REACH;
+    let step = (radius_px / 48.0).clamp(0.35, 2.0);
+    let core = radius_px / 8.0;
+    let mut changes = Vec::new();
+    (0..RAYS)
+        .map(|k| {
+            let angle = (k as f64 + 0.5) * std::f64::consts::TAU / RAYS as f64;
+            let direction = [angle.cos(), angle.sin()];
+            let starts_dark = changes_along(dark, centre, direction, reach, step, &mut changes)?;
+            // Changes alternate: from dark to light are the even ones when the ray starts dark.
+            let dark_to_light = |i: usize| i.is_multiple_of(2) == starts_dark;
+            let edge = (0..changes.len()).rev().find(|&i| dark_to_light(i))?;
+            // At least an outer ring and a second dark element inside it: three changes up to
+            // the outer edge (ring's outer edge, ring's inner edge, the next element's edge).
+            if edge < 2 || changes[edge] < 0.5 * radius_px {
+                return None;
+            }
+            let dark_at = |r: f64| {
+                let before = changes[..=edge].iter().filter(|c| **c <= r).count();
+                before.is_multiple_of(2) == starts_dark
+            };
+            let centre_dark = dark_at(core);
+            let dark_runs = usize::from(centre_dark)
+                + (0..=edge)
+                    .filter(|&i| !dark_to_light(i) && changes[i] > core)
+                    .count();
+            Some(Ray {
+                angle,
+                outer: changes[edge],
+                inner_fraction: changes[edge - 1] / changes[edge],
+                changes: edge + 1,
+                dark_runs,
+                centre_dark,
+            })
+        })
+        .collect()
+}
+
+/// How far the true centre is from `centre`, from opposite rays' outer edges: along each
+/// line through the centre, the edges are equally far on both sides of the true centre.
+fn centre_correction(rays: &[Option<Ray>]) -> Option<[f64; 2]> {
+    let half = RAYS / 2;
+    let (mut a, mut b, mut c, mut rx, mut ry, mut pairs) = (0.0, 0.0, 0.0, 0.0, 0.0, 0);
+    for k in 0..half {
+        let (Some(p), Some(q)) = (rays[k], rays[k + half]) else {
+            continue;
+        };
+        let (dx, dy) = (p.angle.cos(), p.angle.sin());
+        let shift = 0.5 * (p.outer - q.outer);
+        a += dx * dx;
+        b += dx * dy;
+        c += dy * dy;
+        rx += dx * shift;
+        ry += dy * shift;
+        pairs += 1;
+    }
+    let det = a * c - b * b;
+    if pairs < 4 || det.abs() < 1e-9 {
+        return None;
+    }
+    Some([(c * rx - b * ry) / det, (a * ry - b * rx) / det])
+}
+
+/// The ring structure of a candidate centred about `centre` with outer radius about
+/// `radius_px`, on a dark/light map (`dark(u, v)`, `None` outside the image). The centre is
+/// refined first (twice at most) from where opposite rays meet the outer edge. `None` when it
+/// is not a ring marker (or reaches out of the image).
 pub fn ring_profile(
     dark: &impl Fn(i64, i64) -> Option<bool>,
     centre: [f64; 2],
@@ -112,66 +205,57 @@ pub fn ring_profile(
     if !(radius_px.is_finite() && radius_px >= 3.0) {
         return None;
     }
-    let reach = radius_px * REACH;
-    let step = (radius_px / 48.0).clamp(0.35, 2.0);
-    let mut changes = Vec::new();
-    let mut outer = Vec::with_capacity(RAYS);
-    let mut inner_fraction = Vec::with_capacity(RAYS);
-    let mut counts = Vec::with_capacity(RAYS);
-    let mut angles = Vec::with_capacity(RAYS);
-    for k in 0..RAYS {
-        let angle = (k as f64 + 0.5) * std::f64::consts::TAU / RAYS as f64;
-        let direction = [angle.cos(), angle.sin()];
-        let Some(starts_dark) = changes_along(dark, centre, direction, reach, step, &mut changes)
-        else {
-            continue;
+    let mut centre = centre;
+    let mut rays = cast(dark, centre, radius_px);
+    for _ in 0..2 {
+        let Some(shift) = centre_correction(&rays) else {
+            break;
         };
-        // The outer edge: the last change from dark to light. Changes alternate, so the
-        // changes from dark to light are the even ones when the ray starts dark.
-        let dark_to_light = |i: usize| (i % 2 == 0) == starts_dark;
-        let Some(edge) = (0..changes.len()).rev().find(|&i| dark_to_light(i)) else {
-            continue;
-        };
-        // At least an outer ring and a second dark element inside it: three changes up to
-        // the outer edge (ring's outer edge, ring's inner edge, the next element's edge).
-        if edge < 2 {
-            continue;
+        if shift[0].hypot(shift[1]) < 0.25 || shift[0].hypot(shift[1]) > 0.4 * radius_px {
+            break;
         }
-        let edge_radius = changes[edge];
-        if edge_radius < 0.5 * radius_px {
-            continue;
-        }
-        outer.push(edge_radius);
-        angles.push(angle);
-        inner_fraction.push(changes[edge - 1] / edge_radius);
-        counts.push(edge + 1);
+        centre = [centre[0] + shift[0], centre[1] + shift[1]];
+        rays = cast(dark, centre, radius_px);
     }
-    if outer.len() < MIN_GOOD_RAYS {
+    let good: Vec<Ray> = rays.into_iter().flatten().collect();
+    if good.len() < MIN_GOOD_RAYS {
         return None;
     }
+    let outer: Vec<f64> = good.iter().map(|r| r.outer).collect();
+    let angles: Vec<f64> = good.iter().map(|r| r.angle).collect();
     let (lo, hi) = outer
         .iter()
         .fold((f64::MAX, 0f64), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
     if hi > MAX_ELLIPSE_RATIO * lo || ellipse_misfit(&angles, &outer)? > MAX_ELLIPSE_MISFIT {
         return None;
     }
-    let mean = inner_fraction.iter().sum::<f64>() / inner_fraction.len() as f64;
-    let spread = (inner_fraction
+    let fractions: Vec<f64> = good.iter().map(|r| r.inner_fraction).collect();
+    let mean = fractions.iter().sum::<f64>() / fractions.len() as f64;
+    let spread = (fractions
         .iter()
         .map(|f| (f - mean) * (f - mean))
         .sum::<f64>()
-        / inner_fraction.len() as f64)
+        / fractions.len() as f64)
         .sqrt();
     if spread > MAX_RING_SPREAD || !(0.3..0.97).contains(&mean) {
         return None;
     }
-    counts.sort_unstable();
-    outer.sort_by(f64::total_cmp);
-    inner_fraction.sort_by(f64::total_cmp);
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let median_count = |mut v: Vec<usize>| {
+        v.sort_unstable();
+        v[v.len() / 2].min(255) as u8
+    };
+    let dark_centres = good.iter().filter(|r| r.centre_dark).count();
     Some(RingProfile {
-        changes: counts[counts.len() / 2].min(255) as u8,
-        ring_inner_fraction: inner_fraction[inner_fraction.len() / 2],
-        outer_radius_px: outer[outer.len() / 2],
+        centre,
+        changes: median_count(good.iter().map(|r| r.changes).collect()),
+        dark_runs: median_count(good.iter().map(|r| r.dark_runs).collect()),
+        centre_dark: 2 * dark_centres > good.len(),
+        ring_inner_fraction: median(fractions),
+        outer_radius_px: median(outer),
     })
 }
 
@@ -243,8 +327,12 @@ mod tests {
         let marker: &[(f64, f64)] = &[(0.0, 0.45), (0.7, 1.0)];
         assert!(ring_profile(&target(disc, 20.0, 1.0), [100.0, 100.0], 20.0).is_none());
         assert!(ring_profile(&target(one_ring, 20.0, 1.0), [100.0, 100.0], 20.0).is_none());
-        // A true marker, but the candidate's centre is a third of its radius off.
-        assert!(ring_profile(&target(marker, 20.0, 1.0), [107.0, 100.0], 20.0).is_none());
+        // A true marker seeded 3 px off its centre: found, centre refined.
+        let p = ring_profile(&target(marker, 20.0, 1.0), [103.0, 98.0], 20.0).unwrap();
+        assert!(
+            (p.centre[0] - 100.0).abs() < 0.6 && (p.centre[1] - 100.0).abs() < 0.6,
+            "{p:?}"
+        );
         // Out of the image.
         assert!(ring_profile(&target(marker, 20.0, 1.0), [190.0, 100.0], 20.0).is_none());
     }

@@ -91,10 +91,10 @@ pub fn verify_sheet(
     };
     let shorter_side = span(xs).min(span(ys));
     let fraction = |s: f64| s / shorter_side;
-    if !(lo > 0.0 && hi <= MAX_TABLE_SIZE_RATIO * lo)
-        || !MARKER_SIZE_FRACTION.contains(&fraction(lo))
-        || !MARKER_SIZE_FRACTION.contains(&fraction(hi))
-    {
+    let agree = lo > 0.0 && hi <= MAX_TABLE_SIZE_RATIO * lo;
+    let plausible = MARKER_SIZE_FRACTION.contains(&fraction(lo))
+        && MARKER_SIZE_FRACTION.contains(&fraction(hi));
+    if !(agree && plausible) {
         return Err(SheetCheck::TableSizes);
     }
 

@@ -1,7 +1,7 @@
 //! Still images from files: what `robotd detect` and the real-photo tests feed the pipeline.
 //!
 //! The camera actor gets raw RGB frames from the driver; a photo on disk first has to be
-//! decoded. [`load`] reads a JPEG file into the row-major RGB8 buffer the pipeline takes, and
+//! decoded. [`load`] reads a JPEG or PNG file into the row-major RGB8 buffer the pipeline takes, and
 //! turns every way that can go wrong — a missing or unreadable file, bytes that are not an
 //! image, a format robotd does not decode, an image too large to hold — into a
 //! [`StillError`] that says which file and why, never a panic. Decoding is bounded before any
@@ -36,7 +36,7 @@ pub enum StillError {
         reason: String,
     },
     /// The bytes are not an image robotd decodes.
-    #[error("{path} is not an image robotd can read ({reason}); robotd reads JPEG files")]
+    #[error("{path} is not an image robotd can read ({reason}); robotd reads JPEG and PNG files")]
     NotAnImage {
         /// The file.
         path: String,
@@ -67,7 +67,7 @@ pub fn load(path: &Path) -> Result<StillImage, StillError> {
     decode(&bytes, &name)
 }
 
-/// Decodes image bytes (JPEG) into RGB8; `name` names them in errors.
+/// Decodes image bytes (JPEG or PNG; grey, RGBA and 16-bit PNGs are converted) into RGB8; `name` names them in errors.
 pub fn decode(bytes: &[u8], name: &str) -> Result<StillImage, StillError> {
     let not_an_image = |reason: String| StillError::NotAnImage {
         path: name.to_owned(),
@@ -137,6 +137,31 @@ mod tests {
             err.contains("8192") || err.contains("not an image"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn a_png_decodes_to_rgb_whatever_its_colour_type() {
+        let mut rgba = Vec::new();
+        for i in 0..(12 * 5) {
+            rgba.extend_from_slice(&[200, (i % 256) as u8, 10, 255]);
+        }
+        let mut png = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::png::PngEncoder::new(&mut png),
+            &rgba,
+            12,
+            5,
+            image::ExtendedColorType::Rgba8,
+        )
+        .unwrap();
+        let image = decode(&png, "frame.png").unwrap();
+        assert_eq!((image.width, image.height), (12, 5));
+        assert_eq!(&image.rgb[..6], &[200, 0, 10, 200, 1, 10]);
+        // A truncated PNG is an error naming the file, not a panic.
+        let err = decode(&png[..png.len() / 2], "cut.png")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("cut.png"), "{err}");
     }
 
     #[test]

@@ -5,7 +5,10 @@
 //! rule names, at a random size within the rule, turned at random, placed apart on the
 //! sheet), renders them with the simulated wrist camera at the workspace's observation pose,
 //! runs the [`Pipeline`] on the pixels, and scores the detections against where the objects
-//! really are.
+//! really are. [`randomized`] does the same on thousands of frames varied as the world varies
+//! them: sheet designs, light, lens, camera pose and distractors.
+
+pub mod randomized;
 
 use crate::detector::{ColourDetector, ColourDetectorSettings, FrameView, SQUARE_SYMMETRY_ASPECT};
 use crate::labels::{HeightRule, LabelTable, ShapeClass};
