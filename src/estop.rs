@@ -1,9 +1,13 @@
 //! `robotd estop [REASON]` and `robotd estop --release`: the emergency stop from a terminal.
 //!
-//! Sends on the running robotd's bus topic `safety/estop`, the same path as the MCP tools
-//! and `POST /estop`; the arm halts within one control tick. Returns once the arm reports the
-//! new state on `arm/state`. Releasing is its own flag, never a side effect. Fails when no arm
-//! listens on the configured bus namespace or none confirms.
+//! Engaging sends on the running robotd's bus topic `safety/estop`, the same path as the MCP
+//! tool and `POST /estop`; the arm halts within one control tick. Returns once the arm reports
+//! the new state on `arm/state`. Fails when no arm listens on the configured bus namespace or
+//! none confirms.
+//!
+//! Releasing is its own flag, never a side effect: a request to the safety policy's service
+//! `safety/release` (origin `cli`), like the MCP tool's and `POST /estop/release`; the policy
+//! answers once it is released.
 //!
 //! Engaging never fails on the command line's form: `main` drops what clap cannot read after
 //! `estop` (an unknown option, a stray value) and passes it here as notes, which the reply
@@ -11,10 +15,11 @@
 
 use anyhow::{bail, Context, Result};
 use robotd_config::Config;
-use robotd_protocol::health::EmergencyStop;
-use robotd_protocol::safety::printable;
+use robotd_protocol::health::{EStopRelease, EmergencyStop};
+use robotd_protocol::safety::{printable, Origin, OriginKind};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{ARM_STATE, SAFETY_ESTOP};
+use robotd_runtime::catalog::{ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE};
+use robotd_runtime::origin::with_origin;
 use std::time::{Duration, Instant};
 
 /// How long to wait for robotd's arm to confirm the new e-stop state on `arm/state`.
@@ -53,21 +58,23 @@ pub fn run(
 async fn send(config: &Config, reason: Option<&str>, release: bool) -> Result<String> {
     let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd-estop"))
         .with_context(|| format!("joining the bus '{}'", config.bus.namespace))?;
+    if release {
+        return send_release(config, &bus).await;
+    }
     let publisher = bus
         .publisher(&SAFETY_ESTOP)
         .context("opening safety/estop")?;
     let mut states = bus.subscriber(&ARM_STATE).context("opening arm/state")?;
     let user = std::env::var("USER").unwrap_or_else(|_| "a terminal user".into());
     let reason = printable(
-        &match (release, reason) {
-            (true, _) => format!("released by {user} (robotd estop --release)"),
-            (false, Some(text)) if !text.trim().is_empty() => text.to_owned(),
-            (false, _) => format!("engaged by {user} (robotd estop)"),
+        &match reason {
+            Some(text) if !text.trim().is_empty() => text.to_owned(),
+            _ => format!("engaged by {user} (robotd estop)"),
         },
         500,
     );
     let estop = EmergencyStop {
-        engaged: !release,
+        engaged: true,
         reason: reason.clone(),
         source: "cli".into(),
     };
@@ -82,10 +89,9 @@ async fn send(config: &Config, reason: Option<&str>, release: bool) -> Result<St
         let until = tokio::time::Instant::now() + Duration::from_millis(500);
         loop {
             match tokio::time::timeout_at(until, states.recv()).await {
-                Ok(Ok(state)) if state.body.estop_engaged != release => {
-                    let what = if release { "released" } else { "engaged" };
+                Ok(Ok(state)) if state.body.estop_engaged => {
                     return Ok(format!(
-                        "emergency stop {what} on bus '{}': {reason}",
+                        "emergency stop engaged on bus '{}': {reason}",
                         config.bus.namespace
                     ));
                 }
@@ -106,4 +112,34 @@ async fn send(config: &Config, reason: Option<&str>, release: bool) -> Result<St
         "no robotd arm listens on bus namespace '{}' (is robotd serve running with this namespace?)",
         config.bus.namespace
     )
+}
+
+/// Asks the safety policy to release the e-stop (`safety/release`, origin `cli`): the policy
+/// records who released it and answers with the new state.
+async fn send_release(config: &Config, bus: &Bus) -> Result<String> {
+    let client = bus
+        .client(&SAFETY_RELEASE)
+        .context("opening safety/release")?;
+    if !client.wait_for_server(CONFIRM_WAIT).await {
+        bail!(
+            "no robotd serves the e-stop on bus namespace '{}' (is robotd serve running with \
+             this namespace?)",
+            config.bus.namespace
+        );
+    }
+    let user = std::env::var("USER").unwrap_or_else(|_| "a terminal user".into());
+    let request = EStopRelease {
+        confirm: "release".into(),
+        by: printable(&format!("{user} (robotd estop --release)"), 200),
+    };
+    let state = with_origin(
+        Origin::new(OriginKind::Cli),
+        client.request(&request, CONFIRM_WAIT),
+    )
+    .await
+    .context("releasing the emergency stop")?;
+    Ok(format!(
+        "emergency stop released on bus '{}': {}",
+        config.bus.namespace, state.reason
+    ))
 }

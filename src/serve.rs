@@ -345,13 +345,15 @@ impl Runtime {
         self.hardware.camera_intrinsics.clone()
     }
 
-    /// The safety routes' state: the policy and an e-stop publisher on this runtime's bus.
+    /// The safety routes' state: the policy, an e-stop publisher and a client of the policy's
+    /// release service on this runtime's bus.
     pub fn safety_api(&self) -> Result<robotd_http::safety::SafetyApi> {
         Ok(robotd_http::safety::SafetyApi {
             safety: self.hardware.safety.clone(),
             estop: Arc::new(Mutex::new(
                 self.bus.publisher(&robotd_runtime::catalog::SAFETY_ESTOP)?,
             )),
+            release: Arc::new(self.bus.client(&robotd_runtime::catalog::SAFETY_RELEASE)?),
         })
     }
 

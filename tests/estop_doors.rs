@@ -3,6 +3,10 @@
 //! - a malformed e-stop still stops: any MCP `emergency_stop` call, any `POST /estop` and any
 //!   `robotd estop` engages, whatever its arguments, body or command line, and the reply says
 //!   what was wrong;
+//! - only a deliberate release releases: a bare `engaged: false` on `safety/estop` (from
+//!   anyone, a replayed recording) is ignored and audited; `release_emergency_stop` with
+//!   `confirm` (schema `const: "release"`), `POST /estop/release` and `robotd estop --release`
+//!   release at once, after any e-stop sent before them, and are recorded with their origin;
 //! - `robotd replay` never publishes a safety topic, even when asked to.
 
 mod common;
@@ -389,4 +393,220 @@ fn replay_never_publishes_a_safety_topic_even_when_asked() {
             assert!(got.is_none(), "{topics}: replay published {got:?}");
         }
     });
+}
+
+/// The events recorded in the audit log at `path` (none while it does not exist).
+fn audit_records(path: &std::path::Path) -> Vec<Value> {
+    std::fs::read_to_string(path)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|line| serde_json::from_str::<Value>(line).ok())
+        .map(|line| line["event"].clone())
+        .collect()
+}
+
+/// The first record of the audit log at `path` that `matches`, waiting up to 10 s for it (the
+/// log is written by a thread of its own, behind a queue).
+fn until_audited(path: &std::path::Path, matches: impl Fn(&Value) -> bool) -> Option<Value> {
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    loop {
+        if let Some(found) = audit_records(path).into_iter().find(&matches) {
+            return Some(found);
+        }
+        if std::time::Instant::now() > deadline {
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn estop_message(engaged: bool, reason: &str, source: &str) -> EmergencyStop {
+    EmergencyStop {
+        engaged,
+        reason: reason.into(),
+        source: source.into(),
+    }
+}
+
+fn engaged_now(port: u16) -> bool {
+    let (status, state) = common::http_get(port, "/estop");
+    assert_eq!(status, 200, "{state}");
+    let state: Value = serde_json::from_str(&state).unwrap();
+    state["engaged"].as_bool().unwrap()
+}
+
+#[test]
+fn a_bare_release_on_the_bus_releases_nothing_and_is_audited() {
+    let namespace = common::fresh_namespace("estop-bare");
+    let port = common::free_port();
+    let dir = tempfile::tempdir().unwrap();
+    let audit = dir.path().join("audit.jsonl");
+    let audit_path = format!("safety.audit.path={}", audit.display());
+    let _robotd = common::start_robotd(&namespace, port, &["--set", &audit_path]);
+    common::runtime().block_on(async {
+        let bus = Bus::open(BusOptions::new(&namespace, "estop-bare-test")).unwrap();
+        let arm = bus.client(&ARM_COMMAND).unwrap();
+        let mut states = bus.subscriber(&ARM_STATE).unwrap();
+        let estop = bus.publisher(&SAFETY_ESTOP).unwrap();
+        estop
+            .publish(&estop_message(true, "smoke", "test"))
+            .unwrap();
+        until_estop(&mut states, true, "engage on the bus").await;
+
+        // Anyone's engaged=false (a client mirroring the state, a replayed recording).
+        estop
+            .publish(&estop_message(false, "replayed release", "someone"))
+            .unwrap();
+        let ignored = until_audited(&audit, |r| r["event"] == "estop_release_ignored");
+        assert!(
+            engaged_now(port),
+            "a bare engaged=false on safety/estop released the e-stop"
+        );
+        let ignored = ignored.expect("the ignored release is not in the audit log");
+        assert_eq!(ignored["source"], "someone", "{ignored}");
+        assert_eq!(ignored["reason"], "replayed release", "{ignored}");
+        let refused = arm
+            .request(&ArmCommand::move_to(down(0.25, 0.0, 0.10)), TIMEOUT)
+            .await
+            .unwrap();
+        assert!(
+            matches!(
+                refused,
+                ArmReply::Error {
+                    error: ArmError::EStopped { .. }
+                }
+            ),
+            "{refused:?}"
+        );
+
+        // The MCP tool's schema pins the word, and nothing else releases.
+        let mcp = connect(&format!("http://127.0.0.1:{port}/mcp"), None)
+            .await
+            .unwrap();
+        let tools = mcp.list_all_tools().await.unwrap();
+        let release = tools
+            .iter()
+            .find(|t| t.name == "release_emergency_stop")
+            .expect("release_emergency_stop is listed");
+        let confirm = &release.input_schema["properties"]["confirm"];
+        assert_eq!(confirm["const"], "release", "{confirm}");
+        let (text, _) = call(&mcp, "release_emergency_stop", json!({"confirm": "yes"})).await;
+        assert!(
+            text.starts_with('❌') && text.contains("Input should be 'release'"),
+            "{text}"
+        );
+        let (status, body) = common::http_request(
+            port,
+            "POST",
+            "/estop/release",
+            &[],
+            br#"{"confirm": "yes"}"#,
+        );
+        assert_eq!(status, 400, "{body}");
+        assert!(engaged_now(port));
+        let (text, failed) = call(
+            &mcp,
+            "release_emergency_stop",
+            json!({"confirm": "release", "note": "smoke cleared"}),
+        )
+        .await;
+        assert!(
+            !failed && text.starts_with("✓ Emergency stop released"),
+            "{text}"
+        );
+        assert!(
+            !engaged_now(port),
+            "the release was answered before it was made"
+        );
+        mcp.cancel().await.unwrap();
+    });
+}
+
+#[test]
+fn each_deliberate_release_releases_at_once_and_is_recorded_with_its_origin() {
+    let namespace = common::fresh_namespace("estop-release");
+    let port = common::free_port();
+    let dir = tempfile::tempdir().unwrap();
+    let audit = dir.path().join("audit.jsonl");
+    let audit_path = format!("safety.audit.path={}", audit.display());
+    let _robotd = common::start_robotd(&namespace, port, &["--set", &audit_path]);
+    common::runtime().block_on(async {
+        let bus = Bus::open(BusOptions::new(&namespace, "estop-release-test")).unwrap();
+        let arm = bus.client(&ARM_COMMAND).unwrap();
+        let estop = bus.publisher(&SAFETY_ESTOP).unwrap();
+        let mcp = connect(&format!("http://127.0.0.1:{port}/mcp"), None)
+            .await
+            .unwrap();
+        let targets = [down(0.25, 0.0, 0.12), down(0.22, 0.03, 0.12)];
+        for (i, entry) in ["mcp", "http", "cli"].into_iter().enumerate() {
+            // An e-stop, and at once a release: the release is not overtaken by it.
+            estop
+                .publish(&estop_message(
+                    true,
+                    &format!("before the {entry} release"),
+                    "test",
+                ))
+                .unwrap();
+            match entry {
+                "mcp" => {
+                    let (text, failed) = call(
+                        &mcp,
+                        "release_emergency_stop",
+                        json!({"confirm": "release"}),
+                    )
+                    .await;
+                    assert!(!failed, "{text}");
+                }
+                "http" => {
+                    let (status, body) = common::http_request(
+                        port,
+                        "POST",
+                        "/estop/release",
+                        &[],
+                        br#"{"confirm": "release", "by": "ana"}"#,
+                    );
+                    assert_eq!(status, 200, "{body}");
+                    assert!(body.contains(r#""engaged":false"#), "{body}");
+                }
+                _ => {
+                    let out = robotd_cli(&namespace, &["estop", "--release"]);
+                    let said = String::from_utf8_lossy(&out.stderr).to_string();
+                    assert!(out.status.success(), "{said}");
+                    assert!(said.contains("emergency stop released"), "{said}");
+                }
+            }
+            // Released when the entry point answered: a motion runs at once.
+            assert!(
+                !engaged_now(port),
+                "{entry}: still engaged after its release"
+            );
+            let reply = arm
+                .request(&ArmCommand::move_to(targets[i % 2]), TIMEOUT)
+                .await
+                .unwrap();
+            assert!(matches!(reply, ArmReply::Ok { .. }), "{entry}: {reply:?}");
+        }
+        mcp.cancel().await.unwrap();
+    });
+    // Each release is in the audit log with who asked.
+    for (kind, by) in [
+        ("mcp", "an MCP client"),
+        ("http", "ana"),
+        ("cli", "robotd estop --release"),
+    ] {
+        let released = until_audited(&audit, |r| {
+            r["event"] == "estop_released" && r["origin"]["kind"] == kind
+        })
+        .unwrap_or_else(|| panic!("no release by {kind} in {:#?}", audit_records(&audit)));
+        assert!(
+            released["by"].as_str().unwrap_or_default().contains(by),
+            "{released}"
+        );
+        assert_eq!(released["was_engaged"], true, "{released}");
+    }
+    let engaged = audit_records(&audit)
+        .into_iter()
+        .filter(|r| r["event"] == "estop_engaged")
+        .count();
+    assert_eq!(engaged, 3, "{:#?}", audit_records(&audit));
 }

@@ -12,9 +12,9 @@ use robotd_mcp::client::{connect, McpClient};
 use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, ArmState};
 use robotd_protocol::diagnostics::{SimObjectState, SimWorldRequest};
 use robotd_protocol::geometry::Pose;
-use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::health::{EStopRelease, EmergencyStop};
 use robotd_runtime::bus::{Bus, BusOptions, Client, Subscriber};
-use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP, SIM_WORLD};
+use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE, SIM_WORLD};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 
@@ -248,13 +248,21 @@ fn a_bus_client_elsewhere_cannot_pass_the_limits_and_the_estop_latches_from_ever
             assert!(t.starts_with("❌ Validation Error in release_emergency_stop"), "{t}");
             match (i + 1) % 4 {
                 0 => {
-                    estop
-                        .publish(&EmergencyStop {
-                            engaged: false,
-                            reason: "test over".into(),
-                            source: "test".into(),
-                        })
+                    // A bus client releases by asking the policy (an `engaged: false` on
+                    // safety/estop releases nothing: tests/estop_doors.rs).
+                    let state = bus
+                        .client(&SAFETY_RELEASE)
+                        .unwrap()
+                        .request(
+                            &EStopRelease {
+                                confirm: "release".into(),
+                                by: "test over".into(),
+                            },
+                            TIMEOUT,
+                        )
+                        .await
                         .unwrap();
+                    assert!(!state.engaged, "{state:?}");
                 }
                 1 => {
                     let (status, body) = common::http_request(

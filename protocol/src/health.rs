@@ -3,8 +3,10 @@
 //! Supervisors publish an [`ActorHealth`] (`"health.actor"`) whenever an actor changes state
 //! and a [`RestartEvent`] (`"health.restart"`) for every restart attempt — after the failed
 //! actor was driven to its safe state (motion stopped, holding). An [`EmergencyStop`]
-//! (`"safety.estop"`) engages or releases the e-stop; while engaged, hardware actors refuse
-//! motion. [`SystemStatus`] (`"health.status"`) is the whole picture, the data of
+//! (`"safety.estop"`) with `engaged: true` engages the e-stop from anyone; while engaged,
+//! hardware actors refuse motion. Only an [`EStopRelease`] (`"safety.estop_release"`), a
+//! request to the safety policy's own service `safety/release`, releases it; the policy
+//! answers with the [`EStopState`] (`"safety.estop_state"`). [`SystemStatus`] (`"health.status"`) is the whole picture, the data of
 //! `get_system_status` and of the dashboard.
 //!
 //! ```
@@ -114,10 +116,11 @@ impl Message for RestartEvent {
     const TYPE: &'static str = "health.restart";
 }
 
-/// Engage or release the emergency stop (and, published by the safety actor, its state).
+/// Engage the emergency stop (`safety/estop`). A message with `engaged: false` releases
+/// nothing: it is ignored and written to the audit log; releasing is an [`EStopRelease`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct EmergencyStop {
-    /// True: stop all motion and refuse new motion. False: release.
+    /// True: stop all motion and refuse new motion. False: ignored (and audited).
     pub engaged: bool,
     /// Why.
     pub reason: String,
@@ -127,6 +130,33 @@ pub struct EmergencyStop {
 
 impl Message for EmergencyStop {
     const TYPE: &'static str = "safety.estop";
+}
+
+/// A deliberate release of the emergency stop, asked of the safety policy (`safety/release`).
+/// The request's origin says who asks; the policy records it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EStopRelease {
+    /// Must be exactly `release`: the cause of the stop was dealt with.
+    pub confirm: String,
+    /// Who releases it and why (recorded).
+    pub by: String,
+}
+
+impl Message for EStopRelease {
+    const TYPE: &'static str = "safety.estop_release";
+}
+
+/// The emergency stop's state, as the safety policy answers a release.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EStopState {
+    /// Whether it is engaged now.
+    pub engaged: bool,
+    /// Why it is engaged, or how it was released.
+    pub reason: String,
+}
+
+impl Message for EStopState {
+    const TYPE: &'static str = "safety.estop_state";
 }
 
 /// The state of the whole robot.

@@ -119,6 +119,8 @@ pub const MESSAGE_TYPES: &[(&str, u16)] = &[
     entry::<health::ActorHealth>(),
     entry::<health::RestartEvent>(),
     entry::<health::EmergencyStop>(),
+    entry::<health::EStopRelease>(),
+    entry::<health::EStopState>(),
     entry::<health::SystemStatus>(),
     entry::<diagnostics::Ping>(),
     entry::<diagnostics::Pong>(),

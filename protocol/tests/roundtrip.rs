@@ -12,7 +12,9 @@ use robotd_protocol::envelope::{
 };
 use robotd_protocol::geometry::{JointState, Point2, Point3, Pose, PoseDelta, RobotModel};
 use robotd_protocol::gripper::{GripperCommand, GripperError, GripperReply, GripperState};
-use robotd_protocol::health::{ActorHealth, ActorState, EmergencyStop, RestartEvent, SystemStatus};
+use robotd_protocol::health::{
+    ActorHealth, ActorState, EStopRelease, EStopState, EmergencyStop, RestartEvent, SystemStatus,
+};
 use robotd_protocol::location::{Direction, Location, WorkspacePoint};
 use robotd_protocol::objects::{
     DetectedObject, Detections, Dimensions, ImageCoordinates, ObjectPosition, RelBox, RelPoint,
@@ -602,6 +604,14 @@ fn emergency_stop() -> impl Strategy<Value = EmergencyStop> {
     })
 }
 
+fn estop_release() -> impl Strategy<Value = EStopRelease> {
+    (text(), text()).prop_map(|(confirm, by)| EStopRelease { confirm, by })
+}
+
+fn estop_state() -> impl Strategy<Value = EStopState> {
+    (any::<bool>(), text()).prop_map(|(engaged, reason)| EStopState { engaged, reason })
+}
+
 fn system_status() -> impl Strategy<Value = SystemStatus> {
     (
         text(),
@@ -720,6 +730,8 @@ round_trip_tests! {
     actor_health_round_trips: actor_health();
     restart_event_round_trips: restart_event();
     emergency_stop_round_trips: emergency_stop();
+    estop_release_round_trips: estop_release();
+    estop_state_round_trips: estop_state();
     system_status_round_trips: system_status();
     ping_round_trips: ping();
     pong_round_trips: pong();

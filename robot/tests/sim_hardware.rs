@@ -9,12 +9,12 @@ use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, PathKind};
 use robotd_protocol::geometry::{Pose, PoseDelta, RobotModel};
 use robotd_protocol::gripper::{GripperCommand, GripperReply};
-use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::health::{EStopRelease, EmergencyStop};
 use robotd_render::Intrinsics;
 use robotd_robot::Hardware;
 use robotd_runtime::bus::{Bus, BusError, BusOptions, FaultKind};
 use robotd_runtime::catalog::{
-    ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, GRIPPER_COMMAND, SAFETY_ESTOP,
+    ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, GRIPPER_COMMAND, SAFETY_ESTOP, SAFETY_RELEASE,
 };
 use robotd_runtime::supervision::{observer_fn, SupervisionEvent};
 use std::f64::consts::FRAC_PI_2;
@@ -220,14 +220,21 @@ async fn the_emergency_stop_halts_a_motion_within_one_control_tick() {
         ),
         "{reply:?}"
     );
-    estop
-        .publish(&EmergencyStop {
-            engaged: false,
-            reason: "test over".into(),
-            source: "test".into(),
-        })
+    // Released only by a request to the policy, which answers once it is released.
+    let state = bus
+        .client(&SAFETY_RELEASE)
+        .unwrap()
+        .request(
+            &EStopRelease {
+                confirm: "release".into(),
+                by: "test over".into(),
+            },
+            TIMEOUT,
+        )
+        .await
         .unwrap();
-    tokio::time::sleep(Duration::from_millis(50)).await;
+    assert!(!state.engaged, "{state:?}");
+    assert!(hardware.safety.estop().is_none());
     let reply = arm.request(&ArmCommand::GetPose, TIMEOUT).await.unwrap();
     assert!(matches!(reply, ArmReply::Ok { .. }));
     hardware.shutdown().await;

@@ -55,10 +55,19 @@ pub const GRIPPER_STATE: crate::bus::Topic<robotd_protocol::gripper::GripperStat
 /// newest frame, never an old one.
 pub const CAMERA_FRAMES: FrameTopic = FrameTopic::new("camera/frames", Overflow::latest_wins(2));
 
-/// Engage or release the emergency stop. Back-pressure: an e-stop is never dropped; the
-/// sender gets an error if the arm cannot take it.
+/// Engage the emergency stop, from anyone. Back-pressure: an e-stop is never dropped; the
+/// sender gets an error if the arm cannot take it. A message with `engaged: false` releases
+/// nothing (it is ignored and audited): releasing is [`SAFETY_RELEASE`].
 pub const SAFETY_ESTOP: crate::bus::Topic<robotd_protocol::health::EmergencyStop> =
     crate::bus::Topic::new("safety/estop", Overflow::back_pressure(16));
+
+/// Release the emergency stop: a deliberate request to the safety policy, with
+/// `confirm: "release"` and who releases it; the policy records it with the request's origin
+/// and answers with the new state.
+pub const SAFETY_RELEASE: Service<
+    robotd_protocol::health::EStopRelease,
+    robotd_protocol::health::EStopState,
+> = Service::new("safety/release");
 
 /// Objects found in each processed camera frame (built-in detector, or an external detector
 /// through the Redis edge), in world coordinates, with the frame id they came from. Latest
@@ -147,6 +156,7 @@ pub fn entries() -> Vec<Entry> {
         GRIPPER_STATE.describe(),
         CAMERA_FRAMES.describe(),
         SAFETY_ESTOP.describe(),
+        SAFETY_RELEASE.describe(),
         PERCEPTION_DETECTIONS.describe(),
         PERCEPTION_PIXEL_DETECTIONS.describe(),
         WORKSPACE_QUERY.describe(),

@@ -238,8 +238,8 @@ pub fn run(commands: usize) -> Result<SafetyFigures> {
 /// returns the control tick.
 async fn estop_latencies(trials: usize) -> Result<(Vec<(Duration, Duration)>, Duration)> {
     use robotd_protocol::arm::ArmCommand;
-    use robotd_protocol::health::EmergencyStop;
-    use robotd_runtime::catalog::{ARM_COMMAND, SAFETY_ESTOP};
+    use robotd_protocol::health::{EStopRelease, EmergencyStop};
+    use robotd_runtime::catalog::{ARM_COMMAND, SAFETY_ESTOP, SAFETY_RELEASE};
     let mut config = robotd_config::Config::default();
     config.bus.namespace = format!("bench-estop-{}", std::process::id());
     config.robot.time_scale = 1.0;
@@ -259,6 +259,7 @@ async fn estop_latencies(trials: usize) -> Result<(Vec<(Duration, Duration)>, Du
         .clone()
         .context("the benchmark needs the simulated arm")?;
     let estop = bus.publisher(&SAFETY_ESTOP)?;
+    let release = bus.client(&SAFETY_RELEASE)?;
     let down = |x, y| Pose::new(x, y, 0.05, 0.0, std::f64::consts::FRAC_PI_2, 0.0);
     let targets = [down(0.33, 0.08), down(0.18, -0.08)];
     let mut out = Vec::with_capacity(trials);
@@ -305,15 +306,17 @@ async fn estop_latencies(trials: usize) -> Result<(Vec<(Duration, Duration)>, Du
         }
         out.push((last_change - sent, halted.unwrap_or(Duration::MAX)));
         let _ = motion.await;
-        estop.publish(&EmergencyStop {
-            engaged: false,
-            reason: "bench: next trial".into(),
-            source: "bench".into(),
-        })?;
-        let released = Instant::now() + Duration::from_secs(5);
-        while hardware.safety.estop().is_some() && Instant::now() < released {
-            tokio::time::sleep(Duration::from_millis(1)).await;
-        }
+        // Released the deliberate way, by a request to the policy (an `engaged: false` on
+        // `safety/estop` releases nothing); it answers once released.
+        release
+            .request(
+                &EStopRelease {
+                    confirm: "release".into(),
+                    by: "robotd bench safety: next trial".into(),
+                },
+                Duration::from_secs(5),
+            )
+            .await?;
     }
     let tick = config.robot.control_period();
     hardware.shutdown().await;

@@ -45,7 +45,7 @@ mod view;
 pub use definitions::ToolInfo;
 
 use robotd_protocol::arm::{ArmCommand, ArmReply, ArmState};
-use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::health::{EStopRelease, EStopState, EmergencyStop};
 use robotd_protocol::skills::{SkillCancel, SkillProgress, SkillReply, SkillRequest};
 use robotd_protocol::speech::{SpeakRequest, TextOverlay};
 use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply};
@@ -206,6 +206,7 @@ struct Inner {
     arm: Client<ArmCommand, ArmReply>,
     cancel: Mutex<Publisher<SkillCancel>>,
     estop: Mutex<Publisher<EmergencyStop>>,
+    release: Client<EStopRelease, EStopState>,
     speak: Mutex<Publisher<SpeakRequest>>,
     overlay: Mutex<Publisher<TextOverlay>>,
     arm_rest: watch::Receiver<Option<ArmRest>>,
@@ -298,6 +299,7 @@ impl Registry {
                 arm: bus.client(&catalog::ARM_COMMAND)?,
                 cancel: Mutex::new(bus.publisher(&catalog::SKILLS_CANCEL)?),
                 estop: Mutex::new(bus.publisher(&catalog::SAFETY_ESTOP)?),
+                release: bus.client(&catalog::SAFETY_RELEASE)?,
                 speak: Mutex::new(bus.publisher(&catalog::SPEECH_SPEAK)?),
                 overlay: Mutex::new(bus.publisher(&catalog::OVERLAY_TEXT)?),
                 arm_rest: rest_rx,

@@ -16,7 +16,8 @@
 //! `GetCollisionState`) are answered by the serving loop itself at once, even while a motion
 //! runs: a stop must never wait behind the motion it is meant to stop, and it cancels every
 //! motion received before it, queued or running. The emergency stop arrives on
-//! `safety/estop` and halts the motion within one control tick.
+//! `safety/estop` and halts the motion within one control tick; the policy's release service
+//! (`safety/release`, [`robotd_safety::estop`]) runs beside it.
 //! [`publish_arm_state`] publishes joint states and the tool pose on `arm/state`.
 
 use kameo::prelude::*;
@@ -27,7 +28,7 @@ use robotd_kinematics::{isometry_to_pose, pose_to_isometry, Kinematics};
 use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, ArmState, PathKind};
 use robotd_protocol::geometry::{JointState, Pose};
 use robotd_protocol::validate::Validate;
-use robotd_runtime::bus::{BusError, Fault, Publisher, Server, Subscriber};
+use robotd_runtime::bus::{BusError, Fault, Publisher, Server};
 use robotd_runtime::host::fault_from;
 use robotd_runtime::supervision::Supervised;
 use robotd_safety::{Admission, Outcome, Safety};
@@ -645,29 +646,8 @@ pub async fn publish_arm_state(
     }
 }
 
-/// Applies emergency stops from `safety/estop`: engaging halts the arm within one control
-/// tick and refuses new motions until released.
-pub async fn watch_estop(
-    mut subscriber: Subscriber<robotd_protocol::health::EmergencyStop>,
-    context: ArmContext,
-) -> Result<(), BusError> {
-    loop {
-        let envelope = subscriber.recv().await?;
-        let estop = envelope.body;
-        context.control.set_estop(estop.engaged, &estop.reason);
-        if estop.engaged {
-            tracing::warn!(reason = %estop.reason, source = %estop.source, "emergency stop engaged");
-            if let Err(error) = context.driver.halt() {
-                tracing::error!(%error, "halting the arm for the emergency stop");
-            }
-        } else {
-            tracing::info!(source = %estop.source, "emergency stop released");
-        }
-    }
-}
-
 /// The running arm: the supervised actor and its bus tasks (`arm/command`, `arm/state`,
-/// `safety/estop`).
+/// `safety/estop` and `safety/release`).
 pub struct RunningArm {
     /// The supervised actor.
     pub actor: Supervised<ArmActor>,
@@ -677,14 +657,14 @@ pub struct RunningArm {
 
 /// Puts the arm on the bus: the actor under `supervisor` (whose safe state halts the arm
 /// through the driver, not through the dead actor), `arm/command`, `arm/state` every
-/// `state_period`, and the e-stop watcher.
+/// `state_period`, and the e-stop (engage on `safety/estop`, release on `safety/release`).
 pub async fn start(
     bus: &robotd_runtime::bus::Bus,
     supervisor: robotd_runtime::supervision::Supervisor,
     context: ArmContext,
     state_period: Duration,
 ) -> Result<RunningArm, robotd_runtime::host::ActorStartError> {
-    use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP};
+    use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE};
     let halt_driver = context.driver.clone();
     let actor_context = context.clone();
     let actor = supervisor
@@ -715,10 +695,20 @@ pub async fn start(
             tracing::error!(%error, "arm/state stopped publishing");
         }
     }));
+    // The e-stop: engaged from anyone on `safety/estop`, released only by a request to the
+    // policy on `safety/release` (`robotd_safety::estop`).
     let estop = bus.subscriber(&SAFETY_ESTOP)?;
+    let releases = bus.server(&SAFETY_RELEASE)?;
+    let halt = context.driver.clone();
     tasks.push(tokio::spawn(async move {
-        if let Err(error) = watch_estop(estop, context).await {
-            tracing::error!(%error, "safety/estop stopped being watched");
+        let halt = move || {
+            if let Err(error) = halt.halt() {
+                tracing::error!(%error, "halting the arm for the emergency stop");
+            }
+        };
+        if let Err(error) = robotd_safety::estop::serve(estop, releases, context.safety, halt).await
+        {
+            tracing::error!(%error, "the emergency stop stopped being served");
         }
     }));
     Ok(RunningArm { actor, tasks })

@@ -21,14 +21,16 @@
 //! and a reason with the values, e.g. "the tool centre would go to z -0.030 m, below the table
 //! floor 0.000 m".
 //!
-//! The emergency stop itself lives in the arm's [`MotionControl`]: engaged from any entry
-//! point through the `safety/estop` topic, it halts the arm within one control tick, survives
-//! restarts of the actors (the control outlives them) and is released only by a release
-//! message, never by a new command.
+//! The emergency stop's latch lives in the arm's [`MotionControl`]: engaged from any entry
+//! point through the `safety/estop` topic, it halts the arm within one control tick and
+//! survives restarts of the actors (the control outlives them). It is released only by a
+//! deliberate request to this policy (`safety/release`, [`estop`]), never by a new command
+//! nor by an `engaged: false` message on the topic (ignored and audited).
 
 pub mod approval;
 pub mod audit;
 pub mod config;
+pub mod estop;
 pub mod fence;
 pub mod path;
 pub mod rate;

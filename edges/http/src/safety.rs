@@ -4,12 +4,14 @@
 //! |---|---|
 //! | `GET /estop` | `{"engaged": bool, "reason": …}` |
 //! | `POST /estop` | engages the e-stop whatever the body (optional: `{"reason": "…"}`; a body that is not that is ignored and the reply's `notes` say what was wrong); the arm halts within one control tick |
-//! | `POST /estop/release` | releases it; the body must be `{"confirm": "release"}` (a deliberate act, never a side effect) |
+//! | `POST /estop/release` | releases it; the body must be `{"confirm": "release"}` (a deliberate act, never a side effect), optionally with `"by"` |
 //! | `GET /approvals` | motions waiting for a human's yes, oldest first |
 //! | `POST /approvals/{id}` | `{"approve": true\|false, "by": "name"}` answers one |
 //!
-//! Engaging and releasing go through the bus topic `safety/estop`, like every other entry
-//! point (MCP tools, `robotd estop`, bus clients), so all of them act the same way. The
+//! Engaging goes through the bus topic `safety/estop`, like every other entry point (MCP
+//! tools, `robotd estop`, bus clients); releasing is a request to the safety policy's own
+//! service `safety/release` (with origin `http`), like the MCP tool's and the CLI's, so all of
+//! them act the same way. The
 //! routes sit behind the same guard as the MCP edge (`Host` and `Origin` checks, and the
 //! bearer token whenever one is configured, which it must be off loopback): a request the
 //! guard refuses engages nothing. Past the guard, engaging never fails on the request's
@@ -21,9 +23,9 @@ use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use robotd_protocol::health::EmergencyStop;
-use robotd_protocol::safety::printable;
-use robotd_runtime::bus::Publisher;
+use robotd_protocol::health::{EStopRelease, EStopState, EmergencyStop};
+use robotd_protocol::safety::{printable, Origin, OriginKind};
+use robotd_runtime::bus::{BusError, Client, FaultKind, Publisher};
 use robotd_safety::Safety;
 use serde::Deserialize;
 use std::sync::{Arc, Mutex};
@@ -35,7 +37,12 @@ pub struct SafetyApi {
     pub safety: Safety,
     /// `safety/estop` publisher.
     pub estop: Arc<Mutex<Publisher<EmergencyStop>>>,
+    /// `safety/release` client: the policy's own release service.
+    pub release: Arc<Client<EStopRelease, EStopState>>,
 }
+
+/// How long the policy may take to answer a release.
+const RELEASE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// The routes above, over `api`.
 pub fn router(api: SafetyApi) -> Router {
@@ -212,15 +219,32 @@ async fn release(State(api): State<SafetyApi>, bytes: Bytes) -> Response {
         .into_response();
     }
     let by = printable(body.by.as_deref().unwrap_or("http"), 100);
-    let estop = EmergencyStop {
-        engaged: false,
-        reason: format!("released by {by}"),
-        source: "http".into(),
+    let request = EStopRelease {
+        confirm: "release".into(),
+        by,
     };
-    if let Err(r) = publish(&api, &estop) {
-        return r.into_response();
+    // A request to the policy's own service, like every release: it records the release with
+    // this origin and answers with the new state.
+    let asked = robotd_runtime::origin::with_origin(
+        Origin::new(OriginKind::Http),
+        api.release.request(&request, RELEASE_TIMEOUT),
+    )
+    .await;
+    match asked {
+        Ok(state) => {
+            tracing::warn!(reason = %state.reason, "emergency stop released over HTTP");
+            Json(serde_json::json!({"engaged": state.engaged, "reason": state.reason}))
+                .into_response()
+        }
+        Err(BusError::Remote { fault, .. }) if fault.kind == FaultKind::Refused => {
+            error(StatusCode::BAD_REQUEST, fault.message).into_response()
+        }
+        Err(e) => error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!("the release could not be sent to the safety policy: {e}"),
+        )
+        .into_response(),
     }
-    Json(serde_json::json!({"engaged": false, "reason": estop.reason})).into_response()
 }
 
 async fn approvals(State(api): State<SafetyApi>) -> Response {

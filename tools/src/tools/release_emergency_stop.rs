@@ -1,14 +1,23 @@
 //! `release_emergency_stop`: release the emergency stop; a deliberate act, never a side
-//! effect: the call must say `confirm = "release"`.
+//! effect: the call must say `confirm = "release"` (its schema says `const: "release"`).
+//!
+//! The release is a request to the safety policy's own service `safety/release` (not a
+//! message on `safety/estop`, where `engaged: false` releases nothing): the policy checks the
+//! confirmation, records the release with the call's origin (MCP session and request) and
+//! answers with the new state.
 
-use super::emergency_stop::{send, EStopState};
+use super::emergency_stop::EStopState;
 use super::{Reply, Tool};
 use crate::args::{self, validation_text, FieldError};
 use crate::{CallHooks, Registry};
-use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::health::EStopRelease;
 use robotd_protocol::safety::printable;
 use schemars::JsonSchema;
 use serde::Deserialize;
+use std::time::Duration;
+
+/// How long the policy may take to answer a release.
+const RELEASE_TIMEOUT: Duration = Duration::from_secs(5);
 
 pub(crate) struct ReleaseEmergencyStop;
 
@@ -17,6 +26,7 @@ pub(crate) struct ReleaseEmergencyStop;
 pub(crate) struct Args {
     /// Must be exactly `release`: confirms that the cause of the stop was dealt with.
     #[serde(deserialize_with = "args::text")]
+    #[schemars(extend("const" = "release"))]
     confirm: String,
     /// Who releases it and why (recorded).
     #[serde(default, deserialize_with = "args::opt_text")]
@@ -43,22 +53,26 @@ impl Tool for ReleaseEmergencyStop {
                 }],
             ));
         }
-        let reason = match a.note {
-            Some(note) => format!("released by an MCP client: {}", printable(&note, 200)),
-            None => "released by an MCP client".to_owned(),
+        let by = match a.note {
+            Some(note) => format!("an MCP client: {}", printable(&note, 200)),
+            None => "an MCP client".to_owned(),
         };
-        let estop = EmergencyStop {
-            engaged: false,
-            reason: reason.clone(),
-            source: "mcp".into(),
+        let request = EStopRelease {
+            confirm: a.confirm,
+            by,
         };
-        send(registry, &estop).map_err(|e| format!("❌ Emergency stop release not sent: {e}"))?;
-        tracing::warn!(%reason, "emergency stop released by an MCP client");
+        let state = registry
+            .inner
+            .release
+            .request(&request, RELEASE_TIMEOUT)
+            .await
+            .map_err(|e| format!("❌ Emergency stop not released: {e}"))?;
+        tracing::warn!(reason = %state.reason, "emergency stop released by an MCP client");
         Ok(Reply::new(
             "✓ Emergency stop released; motions are accepted again",
             EStopState {
-                engaged: false,
-                reason,
+                engaged: state.engaged,
+                reason: state.reason,
             },
         ))
     }
