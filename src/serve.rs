@@ -249,6 +249,7 @@ impl Runtime {
                 &hardware,
                 workspaces.clone(),
                 labels.clone(),
+                config.perception.detector_settings(),
             )?)
         } else {
             tracing::info!("[redis] trust = \"external\": the built-in detector does not run");
@@ -710,8 +711,9 @@ fn start_perception(
     hardware: &Hardware,
     workspaces: Vec<WorkspaceInfo>,
     labels: LabelTable,
+    settings: ColourDetectorSettings,
 ) -> Result<Perception> {
-    let detector = ColourDetector::new(labels.clone(), ColourDetectorSettings::default());
+    let detector = ColourDetector::new(labels.clone(), settings);
     let pipeline = Pipeline::new(&hardware.camera_intrinsics, workspaces, Box::new(detector))
         .context("setting up perception")?;
     Ok(Perception::start(bus, pipeline, labels)?)

@@ -134,7 +134,8 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
     };
 
     // The sheet from its markers (setting up the camera's undistortion table is not timed).
-    let mut pipeline = pipeline_for(&intrinsics, &workspace, &table)?;
+    let settings = config.perception.detector_settings();
+    let mut pipeline = pipeline_for(&intrinsics, &workspace, &table, &settings)?;
     if args.camera.is_none() && args.intrinsics.is_none() {
         pipeline = pipeline.with_guessed_intrinsics();
     }
@@ -164,7 +165,12 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
             let across_m = (workspace.upper_left.y_m - workspace.lower_right.y_m).abs();
             let height_m = workspace.observation_pose.z_m.max(0.05);
             let f = height_m * width as f64 / across_m.max(1e-3);
-            let warped = pipeline_for(&pinhole_with(width, height, f), &workspace, &table)?;
+            let warped = pipeline_for(
+                &pinhole_with(width, height, f),
+                &workspace,
+                &table,
+                &settings,
+            )?;
             match warped.warped_plane(&workspace) {
                 Some(plane) => {
                     report.mode = "warped".into();
@@ -230,8 +236,9 @@ fn pipeline_for(
     intrinsics: &CameraIntrinsics,
     workspace: &WorkspaceInfo,
     table: &LabelTable,
+    settings: &ColourDetectorSettings,
 ) -> Result<Pipeline> {
-    let detector = ColourDetector::new(table.clone(), ColourDetectorSettings::default());
+    let detector = ColourDetector::new(table.clone(), settings.clone());
     Ok(Pipeline::new(
         intrinsics,
         vec![workspace.clone()],

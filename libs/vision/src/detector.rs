@@ -23,6 +23,7 @@
 //!    Unknown objects are measured on all their pixels and reported as [`UNKNOWN_LABEL`] with
 //!    their geometry, for an external detector or the user to name.
 
+use crate::background::SheetBackground;
 use crate::camera::Camera;
 use crate::components::Components;
 use crate::footprint::{measure, Footprint, Sighting};
@@ -106,8 +107,15 @@ pub struct ColourDetectorSettings {
     /// Objects whose centre lies farther than this outside the workspace are dropped, metres.
     pub outside_tolerance_m: f64,
     /// Dark objects are looked for only this far inside the workspace rectangle, metres,
-    /// where the sheet is plain white (clear of the markers and the border's stripes).
+    /// where the sheet is plain white (clear of the markers and the border's stripes), or
+    /// farther when the sheet's printed border is measured wider in the frame.
     pub plain_inset_m: f64,
+    /// Nothing smaller than this along its longer side is an object, metres.
+    pub min_size_m: f64,
+    /// Nothing thinner than this is an object, metres (pencil and pen lines, paper edges,
+    /// printing): twice the area over the outline's length, which is a line's width and half
+    /// a square's side.
+    pub min_thickness_m: f64,
 }
 
 impl Default for ColourDetectorSettings {
@@ -119,6 +127,8 @@ impl Default for ColourDetectorSettings {
             unknown_height_m: 0.02,
             outside_tolerance_m: 0.01,
             plain_inset_m: 0.012,
+            min_size_m: 0.008,
+            min_thickness_m: 0.0025,
         }
     }
 }
@@ -180,7 +190,9 @@ impl ColourDetector {
         (self.table.colours.len() + 1).min(255) as u8
     }
 
-    fn classify_pixels(&mut self, frame: &FrameView<'_>) {
+    /// Classifies the pixels inside the sheet; colours are judged after `gains` (the white
+    /// balance that makes the sheet's paper grey).
+    fn classify_pixels(&mut self, frame: &FrameView<'_>, gains: [f32; 3]) {
         let (w, h) = (frame.width, frame.height);
         self.classes.clear();
         self.classes.resize(w * h, 0);
@@ -193,10 +205,15 @@ impl ColourDetector {
             for u in start as usize..end as usize {
                 let i = row + u;
                 let p = &frame.rgb[i * 3..i * 3 + 3];
-                let max = p[0].max(p[1]).max(p[2]);
-                let min = p[0].min(p[1]).min(p[2]);
+                let q = [
+                    (f32::from(p[0]) * gains[0]).min(255.0),
+                    (f32::from(p[1]) * gains[1]).min(255.0),
+                    (f32::from(p[2]) * gains[2]).min(255.0),
+                ];
+                let max = q[0].max(q[1]).max(q[2]);
+                let min = q[0].min(q[1]).min(q[2]);
                 let chroma = max - min;
-                if chroma < MIN_CHROMA || u32::from(chroma) * 4 < u32::from(max) {
+                if chroma < f32::from(MIN_CHROMA) || chroma * 4.0 < max {
                     // No hue: the white sheet, its grey stripes and logo, shadows — or a dark
                     // object, far darker than the sheet around it (only where the sheet is
                     // plain: inside its markers, clear of the stripes and the markers).
@@ -210,12 +227,8 @@ impl ColourDetector {
                     }
                     continue;
                 }
-                let inv = 1.0 / f32::from(chroma);
-                let s = [
-                    f32::from(p[0] - min) * inv,
-                    f32::from(p[1] - min) * inv,
-                    f32::from(p[2] - min) * inv,
-                ];
+                let inv = 1.0 / chroma;
+                let s = [(q[0] - min) * inv, (q[1] - min) * inv, (q[2] - min) * inv];
                 let mut best = (0usize, f32::MAX);
                 for (k, r) in signatures.iter().enumerate() {
                     let d = (r[0] - s[0]).powi(2) + (r[1] - s[1]).powi(2) + (r[2] - s[2]).powi(2);
@@ -256,6 +269,22 @@ fn pixels_per_metre(sheet: &SheetView<'_>) -> f64 {
     } else {
         1000.0
     }
+}
+
+/// Twice the area over the outline's length, pixels: the width of a line, half the side of a
+/// square. The outline is the pixels with a 4-neighbour that is no object (class 0).
+fn thickness_px(classes: &[u8], width: usize, height: usize, pixels: &[u32]) -> f64 {
+    let mut outline = 0usize;
+    for &i in pixels {
+        let i = i as usize;
+        let (u, v) = (i % width, i / width);
+        let open = |j: usize| classes.get(j).is_none_or(|c| *c == 0);
+        let at_frame_edge = u == 0 || v == 0 || u + 1 == width || v + 1 == height;
+        if at_frame_edge || open(i - 1) || open(i + 1) || open(i - width) || open(i + width) {
+            outline += 1;
+        }
+    }
+    2.0 * pixels.len() as f64 / outline.max(1) as f64
 }
 
 /// The pixels of a blob that belong to its top face: nearly as bright and as saturated as the
@@ -320,15 +349,15 @@ impl Detector for ColourDetector {
                 ),
             });
         }
+        // The sheet itself, measured in this frame: its paper's colour and its printed border.
+        let background = SheetBackground::measure(frame, sheet);
+        let gains = background.map_or([1.0; 3], |b| b.gains);
+        let inset = background.map_or(self.settings.plain_inset_m, |b| {
+            b.border_m.max(self.settings.plain_inset_m)
+        });
         sheet_spans(sheet, self.settings.sheet_margin_m, w, h, &mut self.spans);
-        sheet_spans(
-            sheet,
-            -self.settings.plain_inset_m,
-            w,
-            h,
-            &mut self.inner_spans,
-        );
-        self.classify_pixels(frame);
+        sheet_spans(sheet, -inset, w, h, &mut self.inner_spans);
+        self.classify_pixels(frame, gains);
         self.components
             .label(&self.classes, w, h, self.settings.min_blob_px);
 
@@ -365,6 +394,14 @@ impl Detector for ColourDetector {
                 top_face(frame.rgb, &blob.pixels)
             };
             if top.len() < self.settings.min_top_px {
+                continue;
+            }
+            // Lines and specks are not objects: too thin, or too small, on the table.
+            let thickness_m = thickness_px(&self.classes, w, h, &blob.pixels) / px_per_m;
+            let extent_m =
+                f64::from((blob.u_max - blob.u_min + 1).max(blob.v_max - blob.v_min + 1))
+                    / px_per_m;
+            if thickness_m < self.settings.min_thickness_m || extent_m < self.settings.min_size_m {
                 continue;
             }
             let colour = usize::from(blob.class - 1);

@@ -163,11 +163,132 @@ pub fn group_fragments(
         let r = root(&mut parent, i);
         members[r].push(i);
     }
+    join_parts_of_one_object(components, &mut members, unknown, width, (gap, absorb_gap));
     members
         .into_iter()
         .filter(|m| !m.is_empty())
         .map(|m| summarise(components, &m, unknown, width))
         .collect()
+}
+
+/// A group whose box lies this much (share of its box) inside a larger group's box, within
+/// the absorbing distance of it, is part of it (printing on a wrapper, a label on a box).
+const INSIDE_SHARE: f64 = 0.6;
+/// Two touching groups that are each convex and make a convex whole (solidity at least this)
+/// are one object of two colours (a two-coloured bar, a wrapper printed in bands).
+const CONVEX_SOLIDITY: f64 = 0.85;
+
+/// Joins touching groups that are parts of one object: a smaller one lying mostly inside the
+/// other's box (printing, a label), or two convex parts whose colours meet directly (not
+/// across a shadow) and make a convex whole (an object printed in two colours). Two objects of different colours pushed flush side by side, their
+/// sides aligned, look exactly like the second case and are joined too: the price of seeing
+/// a two-coloured object as one.
+fn join_parts_of_one_object(
+    components: &Components,
+    members: &mut [Vec<usize>],
+    unknown: u8,
+    width: usize,
+    (gap, absorb_gap): (u32, u32),
+) {
+    let blobs = components.blobs();
+    let boxes: Vec<[u32; 4]> = members
+        .iter()
+        .map(|m| {
+            m.iter().fold([u32::MAX, u32::MAX, 0, 0], |b, &i| {
+                [
+                    b[0].min(blobs[i].u_min),
+                    b[1].min(blobs[i].v_min),
+                    b[2].max(blobs[i].u_max),
+                    b[3].max(blobs[i].v_max),
+                ]
+            })
+        })
+        .collect();
+    let area = |m: &[usize]| m.iter().map(|&i| blobs[i].area).sum::<u32>();
+    let pixels = |m: &[usize]| -> Vec<[f64; 2]> {
+        m.iter()
+            .flat_map(|&i| components.pixels(&blobs[i]).iter())
+            .map(|&p| [f64::from(p % width as u32), f64::from(p / width as u32)])
+            .collect()
+    };
+    let n = members.len();
+    for a in 0..n {
+        for b in 0..n {
+            if a == b || members[a].is_empty() || members[b].is_empty() {
+                continue;
+            }
+            let (ba, bb) = (boxes[a], boxes[b]);
+            let near = ba[0] <= bb[2] + absorb_gap
+                && bb[0] <= ba[2] + absorb_gap
+                && ba[1] <= bb[3] + absorb_gap
+                && bb[1] <= ba[3] + absorb_gap;
+            if !near || area(&members[a]) > area(&members[b]) {
+                continue; // each pair once: a is the smaller
+            }
+            let touch = |coloured_only: bool, within: u32| {
+                members[a].iter().any(|&i| {
+                    members[b].iter().any(|&j| {
+                        (!coloured_only || (blobs[i].class != unknown && blobs[j].class != unknown))
+                            && pixels_within(components, &blobs[i], &blobs[j], width, within)
+                    })
+                })
+            };
+            // A piece mostly inside a larger group's box, within the absorbing distance of it.
+            let inside = overlap(ba, bb) as f64 / box_area(ba) as f64 >= INSIDE_SHARE
+                && 2 * area(&members[a]) < area(&members[b])
+                && touch(false, absorb_gap);
+            if !inside && !touch(true, gap) {
+                continue;
+            }
+            // Colours that meet directly (not across a shadow) in one convex whole.
+            let one_convex_whole = !inside && {
+                let (pa, pb) = (pixels(&members[a]), pixels(&members[b]));
+                let whole: Vec<[f64; 2]> = pa.iter().chain(&pb).copied().collect();
+                solidity(&pa) >= CONVEX_SOLIDITY
+                    && solidity(&pb) >= CONVEX_SOLIDITY
+                    && solidity(&whole) >= CONVEX_SOLIDITY
+            };
+            if inside || one_convex_whole {
+                let moved = std::mem::take(&mut members[a]);
+                members[b].extend(moved);
+                return join_parts_of_one_object(
+                    components,
+                    members,
+                    unknown,
+                    width,
+                    (gap, absorb_gap),
+                );
+            }
+        }
+    }
+}
+
+fn box_area(b: [u32; 4]) -> u64 {
+    u64::from(b[2] - b[0] + 1) * u64::from(b[3] - b[1] + 1)
+}
+
+/// Pixels shared by two boxes `[u_min, v_min, u_max, v_max]`.
+fn overlap(a: [u32; 4], b: [u32; 4]) -> u64 {
+    let w = (a[2].min(b[2]) + 1).saturating_sub(a[0].max(b[0]));
+    let h = (a[3].min(b[3]) + 1).saturating_sub(a[1].max(b[1]));
+    u64::from(w) * u64::from(h)
+}
+
+/// Pixel count over the area of the convex hull of the pixel centres (grown by half a pixel
+/// all round): 1 for a convex shape, less for an L, a ring or two blobs apart.
+fn solidity(pixels: &[[f64; 2]]) -> f64 {
+    let hull = crate::rect::convex_hull(pixels);
+    if hull.len() < 3 {
+        return 1.0;
+    }
+    let (mut area, mut perimeter) = (0.0, 0.0);
+    for k in 0..hull.len() {
+        let (p, q) = (hull[k], hull[(k + 1) % hull.len()]);
+        area += p[0] * q[1] - q[0] * p[1];
+        perimeter += (q[0] - p[0]).hypot(q[1] - p[1]);
+    }
+    let grown = 0.5 * area.abs() + 0.5 * perimeter + 1.0;
+    (pixels.len() as f64 / grown).min(1.0)
 }
 
 /// Whether some pixel of `a` lies within `gap` pixels (in both directions) of a pixel of `b`.
@@ -253,7 +374,7 @@ mod tests {
     #[test]
     fn touching_fragments_join_and_distant_objects_stay_apart() {
         // A red (1) square with a dark (9) rim on its right, a blue (2) piece 1 px from the
-        // red, and a red square far away.
+        // red's corner (together no convex whole), and a red square far away.
         let (w, h) = (40, 12);
         let mut map = vec![0u8; w * h];
         let mut fill = |u0: usize, u1: usize, v0: usize, v1: usize, c: u8| {
@@ -265,7 +386,7 @@ mod tests {
         };
         fill(2, 8, 2, 8, 1);
         fill(8, 9, 2, 8, 9);
-        fill(2, 6, 9, 10, 2);
+        fill(9, 13, 9, 10, 2);
         fill(30, 36, 2, 8, 1);
         let mut c = Components::new();
         c.label(&map, w, h, 1);
@@ -283,6 +404,32 @@ mod tests {
         assert_eq!((first.u_max, first.v_max), (8 - 1, 7));
         let blue = groups.iter().find(|g| g.class == 2).unwrap();
         assert_eq!(blue.pixels.len(), 4, "two colours touching are two objects");
+        // A bar printed in two colours, red and blue halves flush: one object, measured on both.
+        let mut bar = vec![0u8; w * h];
+        for v in 2..8 {
+            for u in 2..22 {
+                bar[v * w + u] = if u < 12 { 1 } else { 2 };
+            }
+        }
+        c.label(&bar, w, h, 1);
+        let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
+        assert_eq!(groups.len(), 1, "{groups:?}");
+        assert_eq!(groups[0].pixels.len(), 120);
+        // Printing inside a wrapper: a small blue mark inside a large dark object joins it.
+        let mut wrapper = vec![0u8; w * h];
+        for v in 1..11 {
+            for u in 2..30 {
+                wrapper[v * w + u] = if (10..14).contains(&u) && (4..7).contains(&v) {
+                    2
+                } else {
+                    9
+                };
+            }
+        }
+        c.label(&wrapper, w, h, 1);
+        let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
+        assert_eq!(groups.len(), 1, "{groups:?}");
+        assert_eq!(groups[0].class, 9, "mostly dark: an unknown object");
         // A dark strip (a shadow) touching a red and a blue square joins neither to the other.
         let mut bridged = vec![0u8; w * h];
         for v in 2..8 {

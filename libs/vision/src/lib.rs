@@ -10,6 +10,8 @@
 //!   centre is between them. A workspace is found only when all of that holds;
 //! - [`plane`] fits the table plane's homography to them, recovers where the camera is, and
 //!   maps a pixel to the table — or to the height of an object's top face (parallax);
+//! - [`background`] measures the sheet itself in each frame (its paper's colour, where its
+//!   printed border ends), so that only what is not the sheet becomes an object;
 //! - a [`detector::Detector`] finds the objects; the built-in [`detector::ColourDetector`]
 //!   segments coloured objects on the white sheet and names them with the [`labels`] table;
 //! - [`footprint`] measures every object the same way whoever found it: centre of mass,
@@ -42,6 +44,7 @@
 //! assert!(pipeline.detector_labels().contains(&"pencil".to_string()));
 //! ```
 
+pub mod background;
 pub mod camera;
 pub mod components;
 pub mod detector;

@@ -38,13 +38,14 @@
 /// How many rays are cast from a candidate's centre.
 pub const RAYS: usize = 16;
 /// How many rays must show the ring structure.
-const MIN_GOOD_RAYS: usize = 13;
+const MIN_GOOD_RAYS: usize = 11;
 /// The rays' outer edges may differ by this factor at most (an ellipse seen at up to ~65°).
 pub const MAX_ELLIPSE_RATIO: f64 = 2.5;
 /// The inner edge of the outer ring, as a fraction of each ray's outer edge, may spread by
 /// this much (standard deviation) across the rays.
 const MAX_RING_SPREAD: f64 = 0.09;
-/// The outer edges may be this far (root mean square, relative) from the best ellipse.
+/// The outer edges may be this far (root mean square, relative) from the best ellipse (or
+/// a pixel over the radius, for small markers).
 const MAX_ELLIPSE_MISFIT: f64 = 0.05;
 /// Rays go this far beyond the candidate's radius (its blob's box may be a pixel short).
 const REACH: f64 = 1.35;
@@ -140,8 +141,16 @@ fn cast(
             let direction = [angle.cos(), angle.sin()];
             let starts_dark = changes_along(dark, centre, direction, reach, step, &mut changes)?;
             // Changes alternate: from dark to light are the even ones when the ray starts dark.
+            // The outer edge is the change from dark to light nearest the candidate's radius
+            // (beyond it the rays may reach a striped border or a dark pad).
             let dark_to_light = |i: usize| i.is_multiple_of(2) == starts_dark;
-            let edge = (0..changes.len()).rev().find(|&i| dark_to_light(i))?;
+            let edge = (0..changes.len())
+                .filter(|&i| dark_to_light(i))
+                .min_by(|&a, &b| {
+                    (changes[a] - radius_px)
+                        .abs()
+                        .total_cmp(&(changes[b] - radius_px).abs())
+                })?;
             // At least an outer ring and a second dark element inside it: three changes up to
             // the outer edge (ring's outer edge, ring's inner edge, the next element's edge).
             if edge < 2 || changes[edge] < 0.5 * radius_px {
@@ -218,6 +227,15 @@ pub fn ring_profile(
         rays = cast(dark, centre, radius_px);
     }
     let good: Vec<Ray> = rays.into_iter().flatten().collect();
+    if std::env::var_os("DBG").is_some() {
+        eprintln!(
+            "  good {} {:?}",
+            good.len(),
+            good.iter()
+                .map(|r| (r.outer, r.inner_fraction, r.changes))
+                .collect::<Vec<_>>()
+        );
+    }
     if good.len() < MIN_GOOD_RAYS {
         return None;
     }
@@ -226,10 +244,22 @@ pub fn ring_profile(
     let (lo, hi) = outer
         .iter()
         .fold((f64::MAX, 0f64), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
-    if hi > MAX_ELLIPSE_RATIO * lo || ellipse_misfit(&angles, &outer)? > MAX_ELLIPSE_MISFIT {
+    if std::env::var_os("DBG").is_some() {
+        eprintln!(
+            "  ratio {} misfit {:?}",
+            hi / lo,
+            ellipse_misfit(&angles, &outer)
+        );
+    }
+    // Edges are found to about a pixel: small markers get that much slack.
+    let tolerance = MAX_ELLIPSE_MISFIT.max(1.0 / radius_px);
+    if hi > MAX_ELLIPSE_RATIO * lo || ellipse_misfit(&angles, &outer)? > tolerance {
         return None;
     }
     let fractions: Vec<f64> = good.iter().map(|r| r.inner_fraction).collect();
+    if std::env::var_os("DBG").is_some() {
+        eprintln!("  passed ellipse");
+    }
     let mean = fractions.iter().sum::<f64>() / fractions.len() as f64;
     let spread = (fractions
         .iter()
