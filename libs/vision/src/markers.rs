@@ -129,9 +129,6 @@ impl MarkerFinder {
             let radius = size / 2.0;
             let seed = [cluster.u_sum / cluster.area, cluster.v_sum / cluster.area];
             let Some((profile, paper)) = self.ring_check(width, height, seed, radius) else {
-                if std::env::var_os("DBG").is_some() {
-                    eprintln!("cluster {seed:?} r {radius} blobs {} failed", cluster.blobs);
-                }
                 continue;
             };
             // One marker may be seeded twice (a ring and its inside in two clusters).

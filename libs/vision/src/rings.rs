@@ -227,15 +227,6 @@ pub fn ring_profile(
         rays = cast(dark, centre, radius_px);
     }
     let good: Vec<Ray> = rays.into_iter().flatten().collect();
-    if std::env::var_os("DBG").is_some() {
-        eprintln!(
-            "  good {} {:?}",
-            good.len(),
-            good.iter()
-                .map(|r| (r.outer, r.inner_fraction, r.changes))
-                .collect::<Vec<_>>()
-        );
-    }
     if good.len() < MIN_GOOD_RAYS {
         return None;
     }
@@ -244,22 +235,12 @@ pub fn ring_profile(
     let (lo, hi) = outer
         .iter()
         .fold((f64::MAX, 0f64), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
-    if std::env::var_os("DBG").is_some() {
-        eprintln!(
-            "  ratio {} misfit {:?}",
-            hi / lo,
-            ellipse_misfit(&angles, &outer)
-        );
-    }
     // Edges are found to about a pixel: small markers get that much slack.
     let tolerance = MAX_ELLIPSE_MISFIT.max(1.0 / radius_px);
     if hi > MAX_ELLIPSE_RATIO * lo || ellipse_misfit(&angles, &outer)? > tolerance {
         return None;
     }
     let fractions: Vec<f64> = good.iter().map(|r| r.inner_fraction).collect();
-    if std::env::var_os("DBG").is_some() {
-        eprintln!("  passed ellipse");
-    }
     let mean = fractions.iter().sum::<f64>() / fractions.len() as f64;
     let spread = (fractions
         .iter()
