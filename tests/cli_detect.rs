@@ -217,3 +217,75 @@ fn bad_input_is_refused_with_the_reason_never_a_panic() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A saved frame as a PNG (with an alpha channel, as screenshots have): the sheet and a red
+/// cube rendered from above. Needs no photo.
+#[test]
+fn a_png_frame_is_read_like_a_jpeg() {
+    use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+    use robotd_render::sheet_art::{sheet_art, SheetDesign, SheetPlacement};
+    use robotd_render::{look_at, Intrinsics, RenderOptions, RenderScene, Renderer, Shape, Solid};
+
+    let mut scene = RenderScene {
+        background: [118, 96, 72],
+        table_z_m: 0.0,
+        quads: Vec::new(),
+        discs: Vec::new(),
+        solids: vec![Solid {
+            shape: Shape::Box {
+                size_m: Vector3::new(0.03, 0.03, 0.03),
+            },
+            pose: Isometry3::from_parts(
+                Translation3::new(0.26, 0.02, 0.015),
+                UnitQuaternion::identity(),
+            ),
+            color: [200, 30, 30],
+        }],
+    };
+    let placement = SheetPlacement {
+        x_min: 0.163,
+        x_max: 0.337,
+        y_min: -0.087,
+        y_max: 0.087,
+        marker_radius_m: 0.0105,
+    };
+    sheet_art(SheetDesign::Classic, &placement, &mut scene);
+    let intrinsics = Intrinsics {
+        distortion: [0.0; 5],
+        ..Intrinsics::ned2()
+    };
+    let camera = look_at(
+        &Point3::new(0.25, 0.0, 0.3),
+        &Point3::new(0.25, 0.0, 0.0),
+        &Vector3::x(),
+    );
+    let mut rgb = vec![0u8; 640 * 480 * 3];
+    Renderer::new(intrinsics, RenderOptions::default())
+        .render_into(&scene, &camera, &mut rgb)
+        .unwrap();
+    let rgba: Vec<u8> = rgb
+        .chunks(3)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect();
+    let dir = std::env::temp_dir().join(format!("robotd-detect-png-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("frame.png");
+    image::save_buffer_with_format(
+        &png,
+        &rgba,
+        640,
+        480,
+        image::ExtendedColorType::Rgba8,
+        image::ImageFormat::Png,
+    )
+    .unwrap();
+    let report = detect(&[], &png);
+    assert_eq!(report["workspace_found"], true, "{report:#}");
+    let found = objects(&report);
+    assert_eq!(found.len(), 1, "{report:#}");
+    assert!(
+        found[0]["label"].as_str().unwrap().contains("red"),
+        "{report:#}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

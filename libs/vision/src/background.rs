@@ -5,9 +5,10 @@
 //!
 //! - **The paper's colour.** White paper under a warm lamp is orange to the camera, under a
 //!   cold one blue; the classic sheet's grey stripes then have as much "hue" as a pale object.
-//!   [`SheetBackground::measure`] takes the brightest half of a grid of points in the sheet's
-//!   centre as the paper and gives per-channel gains that make it neutral grey (white
-//!   balance by the sheet): colours are judged after them.
+//!   [`SheetBackground::measure`] takes the brightest half of the little-saturated points of
+//!   a grid over the sheet as the paper (objects are saturated, print and shadows darker) and
+//!   gives per-channel gains that make it neutral grey (white balance by the sheet): colours
+//!   are judged after them.
 //! - **Where the plain centre begins.** The sheet designs print a border inside the marker
 //!   rectangle (the classic sheet's stripes, the Ned2 sheet's black frame and ruler ticks);
 //!   dark things are objects only inside it. Walking in from each side of the marker
@@ -19,7 +20,9 @@
 use crate::detector::{FrameView, SheetView};
 
 /// Gains are kept within this range (a sheet lit by a coloured light, not a coloured sheet).
-const GAIN_RANGE: (f32, f32) = (0.6, 1.7);
+const GAIN_RANGE: (f32, f32) = (0.7, 1.45);
+/// Paper is at most this saturated ((max − min) / max of r, g, b) under a tinted light.
+const PAPER_MAX_SATURATION: f32 = 0.3;
 /// Paper continues for this long where the plain centre begins, metres.
 const PAPER_RUN_M: f64 = 0.005;
 /// Walks go in at most this far from the marker rectangle's sides, metres.
@@ -56,17 +59,25 @@ impl SheetBackground {
             Some([f32::from(p[0]), f32::from(p[1]), f32::from(p[2])])
         };
 
-        // The paper: the brightest half of a grid over the middle of the sheet.
-        let mut samples: Vec<[f32; 3]> = Vec::with_capacity(256);
-        for i in 0..16 {
-            for j in 0..16 {
-                let t = |k: usize| 0.25 + 0.5 * k as f64 / 15.0;
+        // The paper: of a grid over the sheet inside its markers, the samples with little
+        // colour (paper under any lamp is far less saturated than a coloured object), and of
+        // those the brightest half (not the grey print, not shadows).
+        let mut samples: Vec<[f32; 3]> = Vec::with_capacity(400);
+        let mut in_view = 0;
+        for i in 0..20 {
+            for j in 0..20 {
+                let t = |k: usize| 0.1 + 0.8 * k as f64 / 19.0;
                 if let Some(p) = pixel(x0 + (x1 - x0) * t(i), y0 + (y1 - y0) * t(j)) {
-                    samples.push(p);
+                    in_view += 1;
+                    let max = p[0].max(p[1]).max(p[2]);
+                    let min = p[0].min(p[1]).min(p[2]);
+                    if max - min <= PAPER_MAX_SATURATION * max {
+                        samples.push(p);
+                    }
                 }
             }
         }
-        if samples.len() < 64 {
+        if in_view < 100 || samples.len() < 40 {
             return None;
         }
         samples.sort_by(|a, b| (b[0] + b[1] + b[2]).total_cmp(&(a[0] + a[1] + a[2])));

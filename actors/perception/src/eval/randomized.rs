@@ -240,6 +240,40 @@ pub fn run(
                     case.photo.blur_px,
                     case.jpeg_quality
                 ));
+                let truth: Vec<String> = case
+                    .truth
+                    .iter()
+                    .map(|o| {
+                        format!(
+                            "{} at ({:.3}, {:.3}) {:?}",
+                            o.spec.label, o.pose.translation.x, o.pose.translation.y, o.spec.shape
+                        )
+                    })
+                    .collect();
+                let seen: Vec<String> = detections
+                    .objects
+                    .iter()
+                    .map(|d| {
+                        let c = d.position.center_of_mass;
+                        format!(
+                            "{} at ({:.3}, {:.3}) {:.0} x {:.0} mm",
+                            d.label,
+                            c.x_m,
+                            c.y_m,
+                            d.dimensions.width_m * 1e3,
+                            d.dimensions.height_m * 1e3
+                        )
+                    })
+                    .collect();
+                let _ = std::fs::write(
+                    path.with_extension("txt"),
+                    format!(
+                        "{status}\ndistractors: {:?}\ntruth:\n  {}\ndetected:\n  {}\n",
+                        case.distractors,
+                        truth.join("\n  "),
+                        seen.join("\n  ")
+                    ),
+                );
                 let _ = image::save_buffer_with_format(
                     &path,
                     &decoded.rgb,
