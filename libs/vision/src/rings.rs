@@ -12,8 +12,8 @@
 //! outer radius on the dark/light map the blob stage made, and accepts the candidate only when:
 //! - on nearly every ray the outer edge is found, and inside it at least two dark elements
 //!   (an outer ring and a second ring, disc or dot): three or more dark/light changes;
-//! - the rays agree on where the outer ring's inner edge is, as a fraction of the ray's outer
-//!   edge (a ring has one width all round; a blob's rim does not);
+//! - most rays agree on where the outer ring's inner edge is, as a fraction of the ray's
+//!   outer edge (a ring has one width all round; a blob's rim does not);
 //! - the outer edges lie on an ellipse around the centre (a circle in perspective; a square
 //!   rim's corners stick out of any ellipse), no ray more than [`MAX_ELLIPSE_RATIO`] times
 //!   longer than another (a camera tilted up to ~65°).
@@ -41,9 +41,9 @@ pub const RAYS: usize = 16;
 const MIN_GOOD_RAYS: usize = 11;
 /// The rays' outer edges may differ by this factor at most (an ellipse seen at up to ~65°).
 pub const MAX_ELLIPSE_RATIO: f64 = 2.5;
-/// The inner edge of the outer ring, as a fraction of each ray's outer edge, may spread by
-/// this much (standard deviation) across the rays.
-const MAX_RING_SPREAD: f64 = 0.09;
+/// The inner edge of the outer ring, as a fraction of each ray's outer edge, must lie this
+/// close to its median on at least [`MIN_GOOD_RAYS`] rays.
+const MAX_RING_SPREAD: f64 = 0.1;
 /// The outer edges may be this far (root mean square, relative) from the best ellipse (or
 /// a pixel over the radius, for small markers).
 const MAX_ELLIPSE_MISFIT: f64 = 0.05;
@@ -240,15 +240,17 @@ pub fn ring_profile(
     if hi > MAX_ELLIPSE_RATIO * lo || ellipse_misfit(&angles, &outer)? > tolerance {
         return None;
     }
+    // The outer ring's width agrees on most rays (a faint inner ring that blur merged with
+    // the gap may move it on a few).
     let fractions: Vec<f64> = good.iter().map(|r| r.inner_fraction).collect();
-    let mean = fractions.iter().sum::<f64>() / fractions.len() as f64;
-    let spread = (fractions
+    let mut sorted = fractions.clone();
+    sorted.sort_by(f64::total_cmp);
+    let typical = sorted[sorted.len() / 2];
+    let agreeing = fractions
         .iter()
-        .map(|f| (f - mean) * (f - mean))
-        .sum::<f64>()
-        / fractions.len() as f64)
-        .sqrt();
-    if spread > MAX_RING_SPREAD || !(0.3..0.97).contains(&mean) {
+        .filter(|f| (*f - typical).abs() <= MAX_RING_SPREAD)
+        .count();
+    if agreeing < MIN_GOOD_RAYS || !(0.3..0.97).contains(&typical) {
         return None;
     }
     let median = |mut v: Vec<f64>| {
@@ -265,7 +267,7 @@ pub fn ring_profile(
         changes: median_count(good.iter().map(|r| r.changes).collect()),
         dark_runs: median_count(good.iter().map(|r| r.dark_runs).collect()),
         centre_dark: 2 * dark_centres > good.len(),
-        ring_inner_fraction: median(fractions),
+        ring_inner_fraction: typical,
         outer_radius_px: median(outer),
     })
 }
