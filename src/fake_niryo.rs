@@ -1,11 +1,12 @@
 //! `robotd fake-niryo`: the simulator behind the Niryo Ned2's TCP protocol, for trying the
 //! `niryo` driver (and pyniryo scripts) without a robot. The scene and the motion time come
-//! from the usual `[robot]` settings (`--set robot.scene=…`, `--set robot.time_scale=…`).
+//! from the usual `[robot]` settings (`--set robot.scene=…`, `--set robot.time_scale=…`). The
+//! fake itself is the `robotd-fake-niryo` crate (`fakes/niryo/`); this is its command.
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use robotd_config::{Config, RobotDriver};
-use robotd_driver_niryo::fake::{FakeFaults, FakeNiryo};
+use robotd_fake_niryo::{FakeFaults, FakeNiryo};
 use robotd_runtime::bus::{Bus, BusOptions};
 use std::io::Write;
 

@@ -2,12 +2,14 @@
 //! a pseudo-terminal) and its camera (an MJPEG stream), for trying the `widowx` driver (and
 //! dynamixel-sdk scripts) without an arm. The scene and the motion come from the usual
 //! `[robot]` settings (`--set robot.scene=…`); the gripper's tick range from `[robot.widowx]`.
+//! The fake servo bus itself is the `robotd-fake-widowx` crate (`fakes/widowx/`); the camera
+//! stream is `robotd-driver-mjpeg`'s server.
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use robotd_config::{Config, RobotDriver};
 use robotd_driver_sim::faults::FaultInjector;
-use robotd_driver_widowx::fake::FakeServoBus;
+use robotd_fake_widowx::FakeServoBus;
 use robotd_runtime::bus::{Bus, BusOptions};
 use std::io::Write;
 use std::path::PathBuf;

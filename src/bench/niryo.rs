@@ -16,8 +16,8 @@
 use super::Latency;
 use anyhow::{Context, Result};
 use robotd_driver::RobotConfig;
-use robotd_driver_niryo::fake::{FakeFaults, FakeNiryo};
 use robotd_driver_niryo::{wire, NiryoCamera};
+use robotd_fake_niryo::{FakeFaults, FakeNiryo};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};

@@ -14,8 +14,8 @@
 use super::Latency;
 use anyhow::{bail, Context, Result};
 use robotd_driver::{Motion, MotionControl, RobotConfig};
-use robotd_driver_widowx::fake::{EchoPty, FakeServoBus};
 use robotd_driver_widowx::{bus, DxlBus};
+use robotd_fake_widowx::{EchoPty, FakeServoBus};
 use serde::Serialize;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};

@@ -108,7 +108,7 @@ pub(super) fn check_niryo(settings: Option<LinkSettings>) -> Check {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use robotd_driver_niryo::fake::{FakeFaults, FakeNiryo};
+    use robotd_fake_niryo::{FakeFaults, FakeNiryo};
     use std::time::Instant;
 
     /// A fake Ned2 on a loopback port, served by its own thread's runtime.

@@ -20,6 +20,7 @@
 
 pub mod camera_feed;
 pub mod config;
+pub mod hardware;
 pub mod niryo_config;
 pub mod replay_config;
 pub mod widowx_config;

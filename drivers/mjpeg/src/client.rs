@@ -121,7 +121,7 @@ impl MjpegCamera {
     }
 
     fn decode(&self, jpeg: &[u8]) -> Result<Vec<u8>, String> {
-        let (rgb, w, h) = robotd_render::decode_jpeg(jpeg)
+        let (rgb, w, h) = robotd_jpeg::decode_jpeg(jpeg)
             .map_err(|e| format!("a frame of {} is not usable: {e}", self.url))?;
         if (w, h) != (self.feed.intrinsics().width, self.feed.intrinsics().height) {
             return Err(format!(

@@ -111,7 +111,7 @@ async fn stream_to(
         if result.is_err() {
             continue;
         }
-        let jpeg = robotd_render::encode_jpeg(&rgb, width, height, 90)
+        let jpeg = robotd_jpeg::encode_jpeg(&rgb, width, height, 90)
             .map_err(|e| std::io::Error::other(e.to_string()))?;
         let header = format!(
             "--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",

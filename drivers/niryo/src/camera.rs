@@ -138,7 +138,7 @@ impl NiryoCamera {
 /// Decodes a `GET_IMAGE_COMPRESSED` JPEG into 640×480 RGB.
 pub fn decode(jpeg: &[u8]) -> Result<Vec<u8>, String> {
     let (rgb, width, height) =
-        robotd_render::decode_jpeg(jpeg).map_err(|e| format!("the camera sent {e}"))?;
+        robotd_jpeg::decode_jpeg(jpeg).map_err(|e| format!("the camera sent {e}"))?;
     if (width, height) != (WIDTH, HEIGHT) {
         return Err(format!(
             "the camera sent a {width}×{height} image; robotd expects the Ned2's {WIDTH}×{HEIGHT}"
@@ -153,7 +153,7 @@ impl CameraDriver for NiryoCamera {
     }
 
     fn intrinsics(&self) -> CameraIntrinsics {
-        let mut intrinsics = CameraIntrinsics::from(robotd_render::Intrinsics::ned2());
+        let mut intrinsics = robotd_driver::hardware::ned2_camera_intrinsics();
         if let Some(([fx, fy, cx, cy], distortion)) = self.link.known().intrinsics {
             intrinsics.fx = fx;
             intrinsics.fy = fy;

@@ -1,5 +1,4 @@
-//! The real Niryo Ned2 over its TCP protocol (port 40001), and a fake Ned2 that serves the
-//! simulator behind the same protocol.
+//! The real Niryo Ned2 over its TCP protocol (port 40001).
 //!
 //! `robot.driver = "niryo"` with `robot.host` selects it. [`open`] returns the arm, gripper
 //! and camera drivers at once, whether or not the robot answers: they share one [`link`]
@@ -9,14 +8,16 @@
 //! - [`wire`]: the framing and message shapes, validated both ways;
 //! - [`link`]: the one connection — commands one at a time with deadlines, stale replies
 //!   dropped, never a command sent twice, reconnection that reads the robot's state first;
-//! - [`arm`], [`gripper`], [`camera`]: the driver traits on top of it;
-//! - [`fake`]: the simulator as a Ned2 (`robotd fake-niryo`), which pyniryo accepts.
+//! - [`arm`], [`gripper`], [`camera`]: the driver traits on top of it.
+//!
+//! The crate depends on no simulator: the fake Ned2 that serves the simulator behind this
+//! protocol (`robotd fake-niryo`, and the driver's tests against it) is its own crate,
+//! `robotd-fake-niryo` in `fakes/niryo/`, which uses [`wire`] from here.
 //!
 //! The protocol and the robot's quirks the design follows: `docs/niryo-tcp.md`.
 
 pub mod arm;
 pub mod camera;
-pub mod fake;
 pub mod gripper;
 pub mod link;
 pub mod wire;

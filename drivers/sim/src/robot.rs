@@ -303,13 +303,9 @@ impl SimRobot {
     }
 }
 
-/// Widest opening of the simulated gripper of `model`, metres.
-pub fn gripper_max_width(model: RobotModel) -> f64 {
-    match model {
-        RobotModel::Ned2 => 0.040,
-        RobotModel::WidowX250 => 0.044,
-    }
-}
+/// Widest opening of the simulated gripper of `model`, metres: the real gripper's
+/// (`robotd_driver::hardware`, where the real drivers read it).
+pub use robotd_driver::hardware::gripper_max_width;
 
 /// The simulated arm driver.
 #[derive(Debug, Clone)]
@@ -597,5 +593,18 @@ impl CameraDriver for SimCamera {
             camera_pose,
             timestamp_unix_ns,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_simulated_camera_is_the_ned2_camera_the_real_drivers_assume() {
+        assert_eq!(
+            CameraIntrinsics::from(Intrinsics::ned2()),
+            robotd_driver::hardware::ned2_camera_intrinsics()
+        );
     }
 }

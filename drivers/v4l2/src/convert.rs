@@ -35,7 +35,7 @@ impl Decoder {
     pub fn decode(self, data: &[u8], width: u32, height: u32) -> Result<Vec<u8>, String> {
         match self {
             Self::Jpeg => {
-                let (rgb, w, h) = robotd_render::decode_jpeg(data)
+                let (rgb, w, h) = robotd_jpeg::decode_jpeg(data)
                     .map_err(|e| format!("a JPEG frame did not decode: {e}"))?;
                 if (w, h) != (width, height) {
                     return Err(format!(

@@ -1,5 +1,4 @@
-//! The real WidowX 250 s over DYNAMIXEL Protocol 2.0 (no ROS), and a fake servo bus that serves
-//! the simulator behind the same protocol on a pseudo-terminal.
+//! The real WidowX 250 s over DYNAMIXEL Protocol 2.0 (no ROS).
 //!
 //! `robot.driver = "widowx"` selects it; `[robot.widowx]` names the serial device of the U2D2
 //! adapter and the camera stream. [`open`] starts the bus thread and returns the drivers at
@@ -12,16 +11,19 @@
 //!   hardware-error recovery, reconnection), on the `dynamixel2` crate;
 //! - [`packet`]: Protocol 2.0 framing (the bus's sync reads and the fake's instructions);
 //! - [`arm`], [`gripper`]: the driver traits on top of it;
-//! - the camera: an MJPEG-over-HTTP stream (`robotd-driver-mjpeg`), posed on the wrist;
-//! - [`fake`]: the simulator as nine servos on a pty (`robotd fake-widowx`), which the vendor's
-//!   dynamixel-sdk accepts.
+//! - the camera: an MJPEG-over-HTTP stream (`robotd-driver-mjpeg`) or a V4L2 device
+//!   (`robotd-driver-v4l2`), posed on the wrist.
+//!
+//! The crate depends on no simulator: the fake servo bus that serves the simulator as nine
+//! servos on a pty (`robotd fake-widowx`, which the vendor's dynamixel-sdk accepts, and the
+//! driver's tests against it) is its own crate, `robotd-fake-widowx` in `fakes/widowx/`, which
+//! uses [`packet`] and [`control_table`] from here.
 //!
 //! Wire-level facts the design follows: `docs/dynamixel.md`.
 
 pub mod arm;
 pub mod bus;
 pub mod control_table;
-pub mod fake;
 pub mod gripper;
 pub mod packet;
 pub mod startup;
@@ -67,10 +69,10 @@ pub fn bus_settings(config: &RobotConfig) -> BusSettings {
 }
 
 /// The camera's intrinsics: `[robot.widowx] camera_intrinsics`, else the simulated wrist
-/// camera's (640×480, undistorted).
+/// camera's (the Ned2's, 640×480, undistorted: what `robotd fake-widowx` serves).
 pub fn camera_intrinsics(widowx: &WidowxConfig) -> CameraIntrinsics {
     widowx.camera_intrinsics.clone().unwrap_or_else(|| {
-        let mut intrinsics = CameraIntrinsics::from(robotd_render::Intrinsics::ned2());
+        let mut intrinsics = robotd_driver::hardware::ned2_camera_intrinsics();
         intrinsics.distortion = [0.0; 5];
         intrinsics
     })
@@ -101,7 +103,7 @@ pub fn open(config: &RobotConfig) -> WidowxDrivers {
             pwm: widowx.gripper_pwm as i16,
             hold_pwm: widowx.gripper_hold_pwm as i16,
             holding_load: widowx.gripper_holding_load as i16,
-            max_width_m: robotd_driver_sim::gripper_max_width(RobotModel::WidowX250),
+            max_width_m: robotd_driver::hardware::gripper_max_width(RobotModel::WidowX250),
         },
     ));
     let intrinsics = camera_intrinsics(widowx);

@@ -1,18 +1,16 @@
 //! Protocol 2.0 packet framing, shared by the real bus and the fake servo bus: packets
 //! reassembled from a byte stream, status packets built.
 //!
-//! On the servo side (`crate::fake`) instruction packets come in and status packets go out. A
-//! controller's bytes arrive in arbitrary pieces; [`Deframer`] keeps what it has, skips
-//! what is not a header, and hands out each complete instruction packet once its CRC has
-//! been checked over the stuffed bytes and the stuffing removed. Anything malformed is
-//! reported as [`FrameError`] and skipped, never trusted. [`status_packet`] builds a reply
-//! with stuffing and CRC. The CRC is dynamixel2's (the same table the vendor SDK uses).
+//! On the servo side (the fake servo bus, `robotd-fake-widowx`) instruction packets come in
+//! and status packets go out. A controller's bytes arrive in arbitrary pieces; [`Deframer`]
+//! keeps what it has, skips what is not a header, and hands out each complete instruction
+//! packet once its CRC has been checked over the stuffed bytes and the stuffing removed.
+//! Anything malformed is reported as [`FrameError`] and skipped, never trusted.
+//! [`status_packet`] builds a reply with stuffing and CRC. The CRC is dynamixel2's (the same table the vendor SDK uses).
 //!
 //! Status packets are framed the same way, so the real bus reads the servos' sync-read replies
 //! with [`Deframer`] too (`crate::bus`): `instruction` is then 0x55 ([`STATUS`]) and `params`
 //! the error byte followed by the data.
-//!
-//! (It lived in `fake::packet` first; `crate::fake::packet` still names it.)
 
 use dynamixel2::checksum::calculate_checksum;
 

@@ -1,10 +1,11 @@
-//! Fuzzing the simulated servo bus's packet reader (what robotd's fake WidowX reads from the
-//! serial port): any byte stream, in any chunking, yields packets or framing errors, never a
-//! panic, and the reader's buffer stays bounded. Bounded cases; regressions in
+//! Fuzzing the Protocol 2.0 packet reader (`packet::Deframer`: what robotd's fake WidowX reads
+//! from the serial port, and how the real bus frames the servos' replies): any byte stream, in
+//! any chunking, yields packets or framing errors, never a panic, and the reader's buffer
+//! stays bounded. Bounded cases; regressions in
 //! `proptest-regressions/`.
 
 use proptest::prelude::*;
-use robotd_driver_widowx::fake::packet::Deframer;
+use robotd_driver_widowx::packet::Deframer;
 
 /// Bytes that often look like the start of a Protocol 2.0 packet.
 fn stream() -> impl Strategy<Value = Vec<u8>> {

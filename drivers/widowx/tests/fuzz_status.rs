@@ -16,7 +16,7 @@ use dynamixel2::checksum::calculate_checksum;
 use proptest::prelude::*;
 use robotd_driver_widowx::bus::read_present_positions;
 use robotd_driver_widowx::control_table::ALL_IDS;
-use robotd_driver_widowx::fake::packet::{status_packet, stuff, Deframer, HEADER, STATUS};
+use robotd_driver_widowx::packet::{status_packet, stuff, Deframer, HEADER, STATUS};
 use robotd_driver_widowx::DxlBus;
 use robotd_fuzzing::{cases, fuzz, runner_config};
 use std::cell::RefCell;

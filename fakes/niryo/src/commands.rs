@@ -1,9 +1,9 @@
 //! The fake Ned2's commands: parameters checked as the robot checks them, then run on the
 //! simulator. Replies and error texts follow `docs/niryo-tcp.md`.
 
-use super::{lock, FakeNiryo};
-use crate::wire;
+use crate::{lock, FakeNiryo};
 use robotd_driver::{ArmDriver, CameraDriver, DriverError, GripperDriver, Motion};
+use robotd_driver_niryo::wire;
 use robotd_kinematics::{isometry_to_pose, pose_to_isometry};
 use robotd_protocol::geometry::Pose;
 use serde_json::{json, Value};
@@ -79,7 +79,7 @@ fn execution_error(error: &DriverError) -> String {
 
 impl FakeNiryo {
     /// Runs `command` (upper-cased) with `params`.
-    pub(super) async fn run(&self, command: &str, params: &[Value]) -> Answer {
+    pub(crate) async fn run(&self, command: &str, params: &[Value]) -> Answer {
         match command {
             "HANDSHAKE" => {
                 arity(params, &[1], "handshake")?;
@@ -206,7 +206,7 @@ impl FakeNiryo {
                 self.camera
                     .capture_into(&mut rgb)
                     .map_err(|e| execution_error(&e))?;
-                let jpeg = robotd_render::encode_jpeg(&rgb, width, height, 90)
+                let jpeg = robotd_jpeg::encode_jpeg(&rgb, width, height, 90)
                     .map_err(|e| format!("{EXECUTION_ERROR}{e}"))?;
                 Ok((vec![], jpeg))
             }

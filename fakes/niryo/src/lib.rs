@@ -1,7 +1,15 @@
-//! A fake Ned2: the simulator served behind the robot's real TCP protocol.
+//! # robotd-fake-niryo: a Ned2 without the robot
 //!
-//! `robotd fake-niryo` runs it; the niryo driver's tests and `robotd bench niryo` start it in
-//! process. It behaves like the robot where a client can tell (see `docs/niryo-tcp.md`):
+//! The simulator (`robotd-driver-sim`) served behind the Niryo Ned2's real TCP protocol, so
+//! that the real driver (`robotd-driver-niryo`), pyniryo, and anything else that speaks to a
+//! Ned2 on port 40001 can be tested without hardware. `robotd fake-niryo` runs it; the niryo
+//! driver's tests (`tests/driver_against_fake.rs` here), `robotd doctor`'s tests and `robotd
+//! bench niryo` start it in process.
+//!
+//! It is a crate of its own so that the real driver depends on no simulator: the fake depends
+//! on the driver (for the wire format, `robotd_driver_niryo::wire`), never the reverse.
+//!
+//! It behaves like the robot where a client can tell (see `docs/niryo-tcp.md`):
 //!
 //! - one client at a time: a second connection is accepted by the kernel but gets no answers
 //!   until the first one leaves;
@@ -18,8 +26,8 @@
 
 mod commands;
 
-use crate::wire;
 use robotd_driver::MotionControl;
+use robotd_driver_niryo::wire;
 use robotd_driver_sim::{SimArm, SimCamera, SimGripper, SimRobot};
 use serde_json::{Map, Value};
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -2,8 +2,8 @@
 //! gripper, camera, collisions, and every fault a real robot's connection can produce.
 
 use robotd_driver::{DriverError, Motion, MotionControl, RobotConfig};
-use robotd_driver_niryo::fake::{FakeFaults, FakeNiryo};
 use robotd_driver_niryo::{NiryoArm, NiryoDrivers};
+use robotd_fake_niryo::{FakeFaults, FakeNiryo};
 use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::geometry::{Pose, RobotModel};
 use std::net::SocketAddr;

@@ -1,4 +1,15 @@
-//! A fake WidowX servo bus: the simulator behind DYNAMIXEL Protocol 2.0 on a pseudo-terminal.
+//! # robotd-fake-widowx: a WidowX servo bus without the robot
+//!
+//! The simulator (`robotd-driver-sim`) behind DYNAMIXEL Protocol 2.0 on a pseudo-terminal, so
+//! that the real WidowX driver (`robotd-driver-widowx`), ROBOTIS's dynamixel-sdk, and anything
+//! else that drives a U2D2 adapter can be tested without hardware. `robotd fake-widowx` runs
+//! it (with the simulated wrist camera as an MJPEG stream); the widowx driver's tests
+//! (`tests/driver_against_fake.rs` here) and `robotd bench widowx` start it in process.
+//!
+//! It is a crate of its own so that the real driver depends on no simulator: the fake depends
+//! on the driver for what both sides of the wire share (the packet framing,
+//! `robotd_driver_widowx::packet`, and the servo IDs, models and control-table addresses,
+//! `robotd_driver_widowx::control_table`), never the reverse.
 //!
 //! [`FakeServoBus::start`] opens a pty, puts a stable symlink to its terminal end where the
 //! caller asks (so `robot.widowx.device` can name it like a real `/dev/ttyDXL`), and answers
@@ -12,14 +23,12 @@
 //! hardware error on one servo, packets dropped, replies with a broken CRC, a bus that stops
 //! answering, and the adapter unplugged and plugged back in.
 
-/// The packet framing, shared with the real bus (it lives in [`crate::packet`]).
-pub use crate::packet;
 pub mod servo;
 pub mod world;
 
-use crate::control_table::accepted_models;
-use crate::packet::{status_packet, Deframer, Instruction};
 use robotd_driver_sim::SimRobot;
+use robotd_driver_widowx::control_table::accepted_models;
+use robotd_driver_widowx::packet::{status_packet, Deframer, Instruction};
 use rustix::fd::OwnedFd;
 use servo::{error, Servo};
 use std::io::{Read, Write};
@@ -404,7 +413,7 @@ impl Server {
                     let result = servo.write(at, &p[2..]);
                     if result.is_ok()
                         && primary
-                        && at == crate::control_table::address::GOAL_POSITION
+                        && at == robotd_driver_widowx::control_table::address::GOAL_POSITION
                     {
                         self.counters.goal_writes.fetch_add(1, Ordering::Relaxed);
                     }
@@ -452,7 +461,7 @@ impl Server {
                         }
                     }
                 }
-                if at == crate::control_table::address::GOAL_POSITION {
+                if at == robotd_driver_widowx::control_table::address::GOAL_POSITION {
                     self.counters.goal_writes.fetch_add(1, Ordering::Relaxed);
                 }
                 Vec::new()

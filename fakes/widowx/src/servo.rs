@@ -8,7 +8,7 @@
 //! A latched hardware error sets the Alert bit of every reply, turns torque off and ignores
 //! torque-on until the servo is rebooted.
 
-use crate::control_table::address;
+use robotd_driver_widowx::control_table::address;
 use std::time::{Duration, Instant};
 
 /// Error numbers of a status packet.

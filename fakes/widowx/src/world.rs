@@ -8,9 +8,11 @@
 //! its fingers in the direction of its Goal PWM until they meet an object or their end, where
 //! its Present Load rises.
 
-use super::servo::Servo;
-use crate::control_table::{rad_to_ticks, ticks_to_rad, GRIPPER_ID, JOINT_IDS, SHADOWS};
+use crate::servo::Servo;
 use robotd_driver_sim::SimRobot;
+use robotd_driver_widowx::control_table::{
+    rad_to_ticks, ticks_to_rad, GRIPPER_ID, JOINT_IDS, SHADOWS,
+};
 use robotd_sim::GraspOutcome;
 use std::time::Instant;
 

@@ -3,8 +3,8 @@
 
 use robotd_driver::{DriverError, Motion, MotionControl, RobotConfig};
 use robotd_driver_widowx::control_table::{address, GRIPPER_ID};
-use robotd_driver_widowx::fake::FakeServoBus;
 use robotd_driver_widowx::WidowxDrivers;
+use robotd_fake_widowx::FakeServoBus;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
