@@ -191,12 +191,12 @@ fn a_pencil_grid_on_taped_paper_is_not_an_object() {
 }
 
 #[test]
-fn an_object_printed_in_two_colours_is_one_object() {
-    // A bar in a wrapper: a red half and a yellow half, flush, and a blue label on the red.
+fn a_wrapper_printed_in_several_colours_is_one_object() {
+    // A bar in a red wrapper with a gold band across it and a blue label on one end.
     let mut scene = sheet_scene(SheetDesign::Classic);
-    let part = |x: f64, len: f64, color: [u8; 3], z: f64| Solid {
+    let part = |x: f64, len: f64, width: f64, color: [u8; 3], z: f64| Solid {
         shape: Shape::Box {
-            size_m: Vector3::new(len, 0.024, z),
+            size_m: Vector3::new(len, width, z),
         },
         pose: Isometry3::from_parts(
             Translation3::new(x, 0.01, z / 2.0),
@@ -204,15 +204,24 @@ fn an_object_printed_in_two_colours_is_one_object() {
         ),
         color,
     };
-    scene.solids.push(part(0.235, 0.035, [200, 30, 30], 0.012));
-    scene.solids.push(part(0.27, 0.035, [225, 200, 40], 0.012));
-    scene.solids.push(part(0.235, 0.01, [30, 60, 200], 0.0125));
+    scene
+        .solids
+        .push(part(0.2275, 0.025, 0.024, [200, 30, 30], 0.012));
+    scene
+        .solids
+        .push(part(0.2525, 0.025, 0.024, [225, 180, 50], 0.012));
+    scene
+        .solids
+        .push(part(0.2775, 0.025, 0.024, [200, 30, 30], 0.012));
+    scene
+        .solids
+        .push(part(0.2275, 0.01, 0.012, [30, 60, 200], 0.0125));
     let (objects, status) = look(&scene, ned2_camera(), 0.28, false);
     assert_eq!(status, SheetStatus::Found);
     assert_eq!(objects.len(), 1, "{objects:#?}");
     let bar = &objects[0];
     let long = bar.dimensions.width_m.max(bar.dimensions.height_m);
-    assert!((0.06..0.08).contains(&long), "{bar:#?}");
+    assert!((0.065..0.085).contains(&long), "{bar:#?}");
     let c = bar.position.center_of_mass;
     assert!(
         (c.x_m - 0.2525).abs() < 0.006 && (c.y_m - 0.01).abs() < 0.006,

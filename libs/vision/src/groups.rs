@@ -163,7 +163,7 @@ pub fn group_fragments(
         let r = root(&mut parent, i);
         members[r].push(i);
     }
-    join_parts_of_one_object(components, &mut members, unknown, width, (gap, absorb_gap));
+    join_parts_of_one_object(components, &mut members, width, (gap, absorb_gap));
     members
         .into_iter()
         .filter(|m| !m.is_empty())
@@ -174,91 +174,94 @@ pub fn group_fragments(
 /// A group whose box lies this much (share of its box) inside a larger group's box, within
 /// the absorbing distance of it, is part of it (printing on a wrapper, a label on a box).
 const INSIDE_SHARE: f64 = 0.6;
-/// Two touching groups that are each convex and make a convex whole (solidity at least this)
-/// are one object of two colours (a two-coloured bar, a wrapper printed in bands).
-const CONVEX_SOLIDITY: f64 = 0.85;
-
-/// Joins touching groups that are parts of one object: a smaller one lying mostly inside the
-/// other's box (printing, a label), or two convex parts whose colours meet directly (not
-/// across a shadow) and make a convex whole (an object printed in two colours). Two objects of different colours pushed flush side by side, their
-/// sides aligned, look exactly like the second case and are joined too: the price of seeing
-/// a two-coloured object as one.
+/// Joins groups that are parts of one object: a smaller one (under half the area) lying mostly
+/// inside a larger one's box and within the absorbing distance of it (a label printed on a
+/// wrapper, letters on a box), and a piece touching two groups of one other colour (a band
+/// printed across a wrapper, which cuts its colour in two). Two colours that only meet side by side stay two
+/// objects: a square pushed flush against a cube looks exactly like a bar printed in two
+/// halves, and the robot must not take two objects for one.
 fn join_parts_of_one_object(
     components: &Components,
     members: &mut [Vec<usize>],
-    unknown: u8,
     width: usize,
     (gap, absorb_gap): (u32, u32),
 ) {
     let blobs = components.blobs();
-    let boxes: Vec<[u32; 4]> = members
-        .iter()
-        .map(|m| {
-            m.iter().fold([u32::MAX, u32::MAX, 0, 0], |b, &i| {
-                [
-                    b[0].min(blobs[i].u_min),
-                    b[1].min(blobs[i].v_min),
-                    b[2].max(blobs[i].u_max),
-                    b[3].max(blobs[i].v_max),
-                ]
+    loop {
+        let boxes: Vec<[u32; 4]> = members
+            .iter()
+            .map(|m| {
+                m.iter().fold([u32::MAX, u32::MAX, 0, 0], |b, &i| {
+                    [
+                        b[0].min(blobs[i].u_min),
+                        b[1].min(blobs[i].v_min),
+                        b[2].max(blobs[i].u_max),
+                        b[3].max(blobs[i].v_max),
+                    ]
+                })
             })
-        })
-        .collect();
-    let area = |m: &[usize]| m.iter().map(|&i| blobs[i].area).sum::<u32>();
-    let pixels = |m: &[usize]| -> Vec<[f64; 2]> {
-        m.iter()
-            .flat_map(|&i| components.pixels(&blobs[i]).iter())
-            .map(|&p| [f64::from(p % width as u32), f64::from(p / width as u32)])
-            .collect()
-    };
-    let n = members.len();
-    for a in 0..n {
-        for b in 0..n {
-            if a == b || members[a].is_empty() || members[b].is_empty() {
-                continue;
-            }
+            .collect();
+        let area = |m: &[usize]| m.iter().map(|&i| blobs[i].area).sum::<u32>();
+        let part_of = |a: usize, b: usize| {
             let (ba, bb) = (boxes[a], boxes[b]);
-            let near = ba[0] <= bb[2] + absorb_gap
-                && bb[0] <= ba[2] + absorb_gap
-                && ba[1] <= bb[3] + absorb_gap
-                && bb[1] <= ba[3] + absorb_gap;
-            if !near || area(&members[a]) > area(&members[b]) {
-                continue; // each pair once: a is the smaller
-            }
-            let touch = |coloured_only: bool, within: u32| {
-                members[a].iter().any(|&i| {
+            a != b
+                && !members[a].is_empty()
+                && 2 * area(&members[a]) < area(&members[b])
+                && overlap(ba, bb) as f64 / box_area(ba) as f64 >= INSIDE_SHARE
+                && members[a].iter().any(|&i| {
                     members[b].iter().any(|&j| {
-                        (!coloured_only || (blobs[i].class != unknown && blobs[j].class != unknown))
-                            && pixels_within(components, &blobs[i], &blobs[j], width, within)
+                        pixels_within(components, &blobs[i], &blobs[j], width, absorb_gap)
                     })
                 })
-            };
-            // A piece mostly inside a larger group's box, within the absorbing distance of it.
-            let inside = overlap(ba, bb) as f64 / box_area(ba) as f64 >= INSIDE_SHARE
-                && 2 * area(&members[a]) < area(&members[b])
-                && touch(false, absorb_gap);
-            if !inside && !touch(true, gap) {
-                continue;
+        };
+        let n = members.len();
+        if let Some((a, b)) = (0..n)
+            .flat_map(|a| (0..n).map(move |b| (a, b)))
+            .find(|&(a, b)| part_of(a, b))
+        {
+            let moved = std::mem::take(&mut members[a]);
+            members[b].extend(moved);
+            continue;
+        }
+        // A band across a wrapper cuts its colour in two: a piece touching two groups of one
+        // other colour joins all three.
+        let class = |m: &[usize]| {
+            let mut by_class = std::collections::BTreeMap::<u8, u32>::new();
+            for &i in m {
+                *by_class.entry(blobs[i].class).or_default() += blobs[i].area;
             }
-            // Colours that meet directly (not across a shadow) in one convex whole.
-            let one_convex_whole = !inside && {
-                let (pa, pb) = (pixels(&members[a]), pixels(&members[b]));
-                let whole: Vec<[f64; 2]> = pa.iter().chain(&pb).copied().collect();
-                solidity(&pa) >= CONVEX_SOLIDITY
-                    && solidity(&pb) >= CONVEX_SOLIDITY
-                    && solidity(&whole) >= CONVEX_SOLIDITY
-            };
-            if inside || one_convex_whole {
-                let moved = std::mem::take(&mut members[a]);
-                members[b].extend(moved);
-                return join_parts_of_one_object(
-                    components,
-                    members,
-                    unknown,
-                    width,
-                    (gap, absorb_gap),
-                );
+            by_class.into_iter().max_by_key(|(_, a)| *a).map(|(c, _)| c)
+        };
+        let touches = |a: usize, b: usize| {
+            members[a].iter().any(|&i| {
+                members[b]
+                    .iter()
+                    .any(|&j| pixels_within(components, &blobs[i], &blobs[j], width, gap))
+            })
+        };
+        let bridge = (0..n).find_map(|a| {
+            if members[a].is_empty() {
+                return None;
             }
+            let own = class(&members[a]);
+            let sides: Vec<usize> = (0..n)
+                .filter(|&b| {
+                    b != a && !members[b].is_empty() && class(&members[b]) != own && touches(a, b)
+                })
+                .collect();
+            sides.iter().enumerate().find_map(|(k, &b)| {
+                sides[k + 1..]
+                    .iter()
+                    .find(|&&c| class(&members[b]) == class(&members[c]))
+                    .map(|&c| (a, b, c))
+            })
+        });
+        let Some((a, b, c)) = bridge else {
+            return;
+        };
+        for moved in [a, c] {
+            let taken = std::mem::take(&mut members[moved]);
+            members[b].extend(taken);
         }
     }
 }
@@ -272,23 +275,6 @@ fn overlap(a: [u32; 4], b: [u32; 4]) -> u64 {
     let w = (a[2].min(b[2]) + 1).saturating_sub(a[0].max(b[0]));
     let h = (a[3].min(b[3]) + 1).saturating_sub(a[1].max(b[1]));
     u64::from(w) * u64::from(h)
-}
-
-/// Pixel count over the area of the convex hull of the pixel centres (grown by half a pixel
-/// all round): 1 for a convex shape, less for an L, a ring or two blobs apart.
-fn solidity(pixels: &[[f64; 2]]) -> f64 {
-    let hull = crate::rect::convex_hull(pixels);
-    if hull.len() < 3 {
-        return 1.0;
-    }
-    let (mut area, mut perimeter) = (0.0, 0.0);
-    for k in 0..hull.len() {
-        let (p, q) = (hull[k], hull[(k + 1) % hull.len()]);
-        area += p[0] * q[1] - q[0] * p[1];
-        perimeter += (q[0] - p[0]).hypot(q[1] - p[1]);
-    }
-    let grown = 0.5 * area.abs() + 0.5 * perimeter + 1.0;
-    (pixels.len() as f64 / grown).min(1.0)
 }
 
 /// Whether some pixel of `a` lies within `gap` pixels (in both directions) of a pixel of `b`.
@@ -404,7 +390,8 @@ mod tests {
         assert_eq!((first.u_max, first.v_max), (8 - 1, 7));
         let blue = groups.iter().find(|g| g.class == 2).unwrap();
         assert_eq!(blue.pixels.len(), 4, "two colours touching are two objects");
-        // A bar printed in two colours, red and blue halves flush: one object, measured on both.
+        // Red and blue halves flush (a square pushed against a cube, or a bar printed in two
+        // halves: they look the same): two objects.
         let mut bar = vec![0u8; w * h];
         for v in 2..8 {
             for u in 2..22 {
@@ -413,8 +400,18 @@ mod tests {
         }
         c.label(&bar, w, h, 1);
         let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
+        assert_eq!(groups.len(), 2, "{groups:?}");
+        // A band of another colour across a wrapper: one object, measured on both colours.
+        let mut banded = vec![0u8; w * h];
+        for v in 2..8 {
+            for u in 2..26 {
+                banded[v * w + u] = if (12..16).contains(&u) { 2 } else { 1 };
+            }
+        }
+        c.label(&banded, w, h, 1);
+        let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
         assert_eq!(groups.len(), 1, "{groups:?}");
-        assert_eq!(groups[0].pixels.len(), 120);
+        assert_eq!((groups[0].class, groups[0].pixels.len()), (1, 144));
         // Printing inside a wrapper: a small blue mark inside a large dark object joins it.
         let mut wrapper = vec![0u8; w * h];
         for v in 1..11 {

@@ -48,11 +48,12 @@ const MAX_TABLE_SIZE_RATIO: f64 = 1.6;
 const MARKER_SIZE_FRACTION: std::ops::Range<f64> = 0.015..0.2;
 /// The grid of points sampled in the sheet's centre, per side.
 const GRID: usize = 9;
-/// The grid covers this middle part of the rectangle between the markers (clear of the
-/// markers and of the classic sheet's striped border).
-const GRID_SPAN: (f64, f64) = (0.22, 0.78);
-/// At least this share of the grid points in view must look like the sheet's paper.
-const MIN_PAPER_SHARE: f64 = 0.35;
+/// The grid covers this part of the rectangle between the markers (clear of the markers and
+/// of the printed borders, which reach about 8 % in).
+const GRID_SPAN: (f64, f64) = (0.12, 0.88);
+/// At least this share of the grid points in view must look like the sheet's paper (a large
+/// box standing in the middle hides half of it).
+const MIN_PAPER_SHARE: f64 = 0.25;
 
 /// Checks that `four` markers (upper-left, upper-right, lower-left, lower-right), giving
 /// `plane`, are the sheet whose marker centres are at `world` on the table. `Err` names the

@@ -11,8 +11,8 @@
 //! - **the light and the camera** ([`robotd_render::photo`]): exposure, a light gradient in
 //!   any direction, colour temperature and white balance, vignetting, glare, blur, sensor
 //!   noise, JPEG quality 40–95;
-//! - **the objects**: random objects of the label table, and multi-coloured objects (a bar
-//!   printed in two colours), all of 15 mm and more;
+//! - **the objects**: random objects of the label table, and multi-coloured objects (a bar in
+//!   a wrapper of one colour with a band of another across it), all of 15 mm and more;
 //! - **distractors**: pencil lines drawn on the sheet, a taped paper, a cable, a hand at the
 //!   border, objects beside the sheet, a second sheet beside the first, a marker half covered
 //!   or the markers' centres painted red (then the sheet may rightly be missed), cube-sized
@@ -529,26 +529,16 @@ fn make_case(
             if a == b {
                 b = [215, 175, 60]; // gold foil
             }
+            // The wrapper's colour at both ends, a band of the other across the middle third.
             let (s, c) = yaw.sin_cos();
-            let half = length / 4.0;
+            let third = length / 3.0;
             let pieces = vec![
-                box_solid(
-                    x + c * half,
-                    y + s * half,
-                    [length / 2.0, width, height],
-                    yaw,
-                    a,
-                ),
-                box_solid(
-                    x - c * half,
-                    y - s * half,
-                    [length / 2.0, width, height],
-                    yaw,
-                    b,
-                ),
+                box_solid(x + c * third, y + s * third, [third, width, height], yaw, a),
+                box_solid(x, y, [third, width, height], yaw, b),
+                box_solid(x - c * third, y - s * third, [third, width, height], yaw, a),
             ];
             let spec = ObjectSpec::new(
-                "two-coloured bar",
+                "banded bar",
                 ObjectShape::Box {
                     length_x_m: length,
                     width_y_m: width,
