@@ -368,6 +368,10 @@ struct BenchPerceptionArgs {
     /// With --randomized: write the frames that went wrong to this folder as PNG files.
     #[arg(long, value_name = "DIR")]
     dump: Option<std::path::PathBuf>,
+    /// With --randomized: run only this frame (a seed the report or a dumped file names);
+    /// may be given several times.
+    #[arg(long = "frame-seed", value_name = "SEED")]
+    frame_seeds: Vec<u64>,
 }
 
 #[derive(Debug, Args)]
@@ -713,6 +717,7 @@ fn run() -> Result<std::process::ExitCode> {
                 let report = bench::perception_randomized::run(
                     frames.max(1),
                     args.seed,
+                    &args.frame_seeds,
                     args.dump.as_deref(),
                 )?;
                 return print_figures(args.json, &report, report.table());

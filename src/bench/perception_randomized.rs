@@ -123,12 +123,23 @@ impl RandomizedReport {
 
 /// Runs `frames` randomized frames from `seed`, pinned to one CPU; with `dump`, the frames
 /// that went wrong are written there as PNG files.
-pub fn run(frames: usize, seed: u64, dump: Option<&std::path::Path>) -> Result<RandomizedReport> {
+/// With `frame_seeds`, only those frames (to look at one again).
+pub fn run(
+    frames: usize,
+    seed: u64,
+    frame_seeds: &[u64],
+    dump: Option<&std::path::Path>,
+) -> Result<RandomizedReport> {
     if let Some(dir) = dump {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let previous = pin_current_thread(0).ok();
-    let figures = randomized::run(frames, seed, dump).context("randomized perception frames");
+    let figures = if frame_seeds.is_empty() {
+        randomized::run(frames, seed, dump)
+    } else {
+        randomized::run_frames(frame_seeds, dump)
+    }
+    .context("randomized perception frames");
     if let Some(set) = previous {
         // SAFETY: restores the CPU set read by sched_getaffinity.
         unsafe {

@@ -51,6 +51,10 @@ pub struct MarkerObservation {
     pub ring_changes: u8,
     /// Grey level of the paper around it (the brightest of its surroundings), 0..=255.
     pub paper_grey: u8,
+    /// Where its outer ring's inner edge lies, as a fraction of its radius: the design's
+    /// signature (the simulator's 0.7, Niryo's printed markers 0.85), the same for the four
+    /// markers of one sheet.
+    pub ring_fraction: f64,
 }
 
 /// Reusable buffers of the marker search.
@@ -146,6 +150,7 @@ impl MarkerFinder {
                 rings: profile.dark_runs,
                 ring_changes: profile.changes,
                 paper_grey: paper,
+                ring_fraction: profile.ring_inner_fraction,
             });
         }
         markers
@@ -305,6 +310,8 @@ pub enum SheetCheck {
     /// No marker of the four stands out as the reference (upper-left) marker: the sheet's
     /// orientation is unknown.
     Reference,
+    /// They are not drawn alike: markers of different sheets.
+    Design,
     /// Their sizes in the image differ too much for markers of one sheet.
     MarkerSizes,
     /// They do not make a convex quadrilateral with plausible sides and angles.
@@ -316,6 +323,9 @@ pub enum SheetCheck {
     TableSizes,
     /// Through the homography, the sheet's white centre is not there.
     Appearance,
+    /// The sheet would put the camera far from where the arm holds it: it is another sheet
+    /// than the configured workspace.
+    NotThisWorkspace,
 }
 
 impl std::fmt::Display for SheetCheck {
@@ -325,6 +335,7 @@ impl std::fmt::Display for SheetCheck {
                 "none of them is the reference marker (the upper-left one, drawn differently \
                  from the other three), so the sheet's orientation is unknown"
             }
+            Self::Design => "they are not drawn alike (markers of different sheets)",
             Self::MarkerSizes => "their sizes differ too much for the markers of one sheet",
             Self::Shape => {
                 "they do not make a convex quadrilateral with plausible sides and angles"
@@ -335,6 +346,10 @@ impl std::fmt::Display for SheetCheck {
             }
             Self::TableSizes => "seen through the sheet's geometry, their sizes disagree",
             Self::Appearance => "the sheet's white centre is not between them",
+            Self::NotThisWorkspace => {
+                "they make a sheet, but not the configured workspace: seen through it, the \
+                 camera would be far from where the arm holds it (another sheet in view?)"
+            }
         })
     }
 }
@@ -344,6 +359,9 @@ impl std::fmt::Display for SheetCheck {
 const MIN_CORNER_ANGLE_DEG: f64 = 25.0;
 /// Opposite sides of the quadrilateral differ by at most this factor.
 const MAX_OPPOSITE_SIDE_RATIO: f64 = 3.0;
+/// The outer ring's width (as a fraction of the radius) of the four markers of one sheet
+/// differs by at most this much (the simulator's and Niryo's designs differ by 0.15).
+const MAX_DESIGN_SPREAD: f64 = 0.1;
 /// Markers of one sheet differ in image radius by at most this factor.
 const MAX_RADIUS_RATIO: f64 = 2.5;
 /// At most this many candidates (the most rings, the largest) are combined four at a time.
@@ -392,6 +410,12 @@ pub fn sheet_candidates(markers: &[MarkerObservation]) -> Result<Vec<CornerOrder
 /// Four markers as a sheet, with a score, or the check they fail.
 fn order_as_sheet(four: &[MarkerObservation; 4]) -> Result<(f64, CornerOrders), SheetCheck> {
     let origin_index = odd_one_out(four).ok_or(SheetCheck::Reference)?;
+    let (f_min, f_max) = four.iter().fold((f64::MAX, f64::MIN), |(lo, hi), m| {
+        (lo.min(m.ring_fraction), hi.max(m.ring_fraction))
+    });
+    if f_max - f_min > MAX_DESIGN_SPREAD {
+        return Err(SheetCheck::Design);
+    }
     let (r_min, r_max) = four.iter().fold((f64::MAX, 0f64), |(lo, hi), m| {
         (lo.min(m.radius_px), hi.max(m.radius_px))
     });

@@ -90,7 +90,16 @@ pub struct Pipeline {
     sheets_in_view: usize,
     /// Whether the camera's intrinsics are calibrated or a guess.
     intrinsics_known: SheetIntrinsics,
+    /// Where the camera is known to be (the tool's position when the frame was taken), if
+    /// known: a sheet that puts the camera farther than [`MAX_CAMERA_FROM_TOOL_M`] from it is
+    /// another sheet than the configured workspace.
+    expected_camera: Option<[f64; 3]>,
 }
+
+/// The wrist camera is this close to the tool centre, metres (Ned2: a few centimetres; the
+/// WidowX's assumed mount: 7 cm), with room for a tool pose a little behind the frame. Two
+/// sheets side by side are at least a sheet's width (about 21 cm) apart.
+pub const MAX_CAMERA_FROM_TOOL_M: f64 = 0.13;
 
 impl std::fmt::Debug for Pipeline {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -134,6 +143,7 @@ impl Pipeline {
             last_sheet: None,
             sheets_in_view: 0,
             intrinsics_known: SheetIntrinsics::Known,
+            expected_camera: None,
         })
     }
 
@@ -251,14 +261,16 @@ impl Pipeline {
                 else {
                     continue;
                 };
-                match verify_sheet(
+                let checked = verify_sheet(
                     &self.camera,
                     self.intrinsics_known,
                     frame,
                     &plane,
                     &order,
                     &world,
-                ) {
+                )
+                .and_then(|()| self.where_the_arm_is(&plane));
+                match checked {
                     Ok(()) => {
                         verified.push((plane, order));
                         break;
@@ -288,6 +300,24 @@ impl Pipeline {
                 Some(failed) => SheetStatus::NotASheet { seen, failed },
                 None => SheetStatus::Degenerate,
             })
+    }
+
+    /// Whether `plane` puts the camera where the arm holds it (when that is known): a sheet
+    /// that is not the configured workspace (another sheet beside it, its own reference
+    /// marker covered) puts it a sheet's width away.
+    fn where_the_arm_is(&self, plane: &TablePlane) -> Result<(), SheetCheck> {
+        let Some(expected) = self.expected_camera else {
+            return Ok(());
+        };
+        let c = plane.camera_centre();
+        let gap = ((c[0] - expected[0]).powi(2)
+            + (c[1] - expected[1]).powi(2)
+            + (c[2] - expected[2]).powi(2))
+        .sqrt();
+        if gap > MAX_CAMERA_FROM_TOOL_M {
+            return Err(SheetCheck::NotThisWorkspace);
+        }
+        Ok(())
     }
 
     /// The table plane of a frame that is already the workspace square, warped so that the
@@ -348,6 +378,7 @@ impl Pipeline {
         }
         let workspace = self.workspace_for(tool_pose).clone();
         self.last_sheet = None;
+        self.expected_camera = tool_pose.map(|p| [p.x_m, p.y_m, p.z_m]);
         let plane = match self.locate_sheet(frame, &workspace) {
             Ok(plane) => plane,
             Err(status) => return Ok((detections, status)),

@@ -145,6 +145,18 @@ pub fn run(
     seed: u64,
     dump: Option<&std::path::Path>,
 ) -> Result<RandomizedFigures, LabError> {
+    let seeds: Vec<u64> = (0..frames as u64)
+        .map(|i| seed.wrapping_mul(1_000_003).wrapping_add(i))
+        .collect();
+    run_frames(&seeds, dump)
+}
+
+/// Runs the frames of the given frame seeds (as [`run`] names them in
+/// [`RandomizedFigures::wrong_seeds`] and in dumped file names), to look at one again.
+pub fn run_frames(
+    frame_seeds: &[u64],
+    dump: Option<&std::path::Path>,
+) -> Result<RandomizedFigures, LabError> {
     let scene = Scene::default_ned2();
     let workspace = scene
         .workspace_infos()
@@ -153,6 +165,7 @@ pub fn run(
         .ok_or_else(|| LabError("the default scene has no workspace".into()))?;
     let table = LabelTable::builtin();
     let ned2 = Intrinsics::ned2();
+    let seed = frame_seeds.first().copied().unwrap_or(0);
     let lenses_k = [
         Intrinsics {
             distortion: [0.0; 5],
@@ -201,8 +214,7 @@ pub fn run(
     };
     let (w, h) = (ned2.width as usize, ned2.height as usize);
     let mut rgb = vec![0u8; w * h * 3];
-    for i in 0..frames {
-        let frame_seed = seed.wrapping_mul(1_000_003).wrapping_add(i as u64);
+    for (i, &frame_seed) in frame_seeds.iter().enumerate() {
         let mut rng = SmallRng::seed_from_u64(frame_seed);
         let lens = &mut lenses[rng.random_range(0..3)];
         let case = make_case(&mut rng, &workspace, &table, &lens.intrinsics);
@@ -224,7 +236,7 @@ pub fn run(
         let started = Instant::now();
         let (detections, status) = lens
             .pipeline
-            .process(&view, Some(&workspace.observation_pose), true)
+            .process(&view, Some(&case.tool_pose), true)
             .map_err(|e| LabError(e.to_string()))?;
         figures.pipeline_time += started.elapsed();
         figures.frames += 1;
@@ -375,6 +387,8 @@ fn status_word(status: &crate::pipeline::SheetStatus) -> String {
 struct Case {
     scene: RenderScene,
     camera: Isometry3<f64>,
+    /// Where the arm holds the tool: a few centimetres from the camera, as on the wrist.
+    tool_pose: robotd_protocol::geometry::Pose,
     photo: PhotoEffects,
     jpeg_quality: u8,
     truth: Vec<SimObject>,
@@ -803,9 +817,20 @@ fn make_case(
         }),
         blur_px: [0, 0, 0, 1, 1, 2][rng.random_range(0..6)],
     };
+    // The tool a few centimetres from the camera, as a wrist camera is mounted.
+    let eye = camera.translation.vector;
+    let tool_pose = robotd_protocol::geometry::Pose::new(
+        eye.x + rng.random_range(-0.04..0.04),
+        eye.y + rng.random_range(-0.04..0.04),
+        eye.z + rng.random_range(-0.05..0.0),
+        0.0,
+        0.0,
+        0.0,
+    );
     Case {
         scene,
         camera,
+        tool_pose,
         photo,
         jpeg_quality: rng.random_range(40..=95),
         truth,
