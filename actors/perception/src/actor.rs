@@ -309,6 +309,14 @@ fn run(
                     .tool_pose
                     .as_ref()
                     .is_none_or(|tool| pipeline.at_observation_pose(tool));
+            // Where the driver's kinematics put the camera (all zeros: a driver that does not
+            // know): a sheet elsewhere is not the configured workspace.
+            let camera_at = [
+                header.camera_pose[0],
+                header.camera_pose[1],
+                header.camera_pose[2],
+            ];
+            pipeline.expect_camera_at((camera_at != [0.0; 3]).then_some(camera_at));
             let started = Instant::now();
             let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                 pipeline.process(&frame, arm.tool_pose.as_ref(), steady)

@@ -323,8 +323,8 @@ pub enum SheetCheck {
     TableSizes,
     /// Through the homography, the sheet's white centre is not there.
     Appearance,
-    /// The sheet would put the camera far from where the arm holds it: it is another sheet
-    /// than the configured workspace.
+    /// The sheet would put the camera far from where the arm's kinematics say it is: it is
+    /// another sheet than the configured workspace.
     NotThisWorkspace,
 }
 

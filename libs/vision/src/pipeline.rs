@@ -90,16 +90,16 @@ pub struct Pipeline {
     sheets_in_view: usize,
     /// Whether the camera's intrinsics are calibrated or a guess.
     intrinsics_known: SheetIntrinsics,
-    /// Where the camera is known to be (the tool's position when the frame was taken), if
-    /// known: a sheet that puts the camera farther than [`MAX_CAMERA_FROM_TOOL_M`] from it is
+    /// Where the camera is known to be (from the arm's kinematics when the frame was taken),
+    /// if known: a sheet that puts the camera farther than [`MAX_CAMERA_GAP_M`] from it is
     /// another sheet than the configured workspace.
     expected_camera: Option<[f64; 3]>,
 }
 
-/// The wrist camera is this close to the tool centre, metres (Ned2: a few centimetres; the
-/// WidowX's assumed mount: 7 cm), with room for a tool pose a little behind the frame. Two
-/// sheets side by side are at least a sheet's width (about 21 cm) apart.
-pub const MAX_CAMERA_FROM_TOOL_M: f64 = 0.13;
+/// A sheet may put the camera this far from where the arm's kinematics say it is, metres
+/// (mount and calibration errors, a pose a little behind the frame). Two sheets side by side
+/// are at least a sheet's width (about 21 cm) apart.
+pub const MAX_CAMERA_GAP_M: f64 = 0.08;
 
 impl std::fmt::Debug for Pipeline {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -302,6 +302,14 @@ impl Pipeline {
             })
     }
 
+    /// Says where the camera is for the next frames (`None`: not known), from the arm's
+    /// kinematics: a frame header's `camera_pose`. A sheet found must then put the camera
+    /// within [`MAX_CAMERA_GAP_M`] of it, so that another sheet in view is never taken for the
+    /// configured workspace.
+    pub fn expect_camera_at(&mut self, position: Option<[f64; 3]>) {
+        self.expected_camera = position.filter(|p| p.iter().all(|v| v.is_finite()));
+    }
+
     /// Whether `plane` puts the camera where the arm holds it (when that is known): a sheet
     /// that is not the configured workspace (another sheet beside it, its own reference
     /// marker covered) puts it a sheet's width away.
@@ -314,7 +322,7 @@ impl Pipeline {
             + (c[1] - expected[1]).powi(2)
             + (c[2] - expected[2]).powi(2))
         .sqrt();
-        if gap > MAX_CAMERA_FROM_TOOL_M {
+        if gap > MAX_CAMERA_GAP_M {
             return Err(SheetCheck::NotThisWorkspace);
         }
         Ok(())
@@ -378,7 +386,6 @@ impl Pipeline {
         }
         let workspace = self.workspace_for(tool_pose).clone();
         self.last_sheet = None;
-        self.expected_camera = tool_pose.map(|p| [p.x_m, p.y_m, p.z_m]);
         let plane = match self.locate_sheet(frame, &workspace) {
             Ok(plane) => plane,
             Err(status) => return Ok((detections, status)),

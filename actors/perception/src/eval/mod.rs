@@ -40,6 +40,8 @@ pub struct Lab {
     workspace: WorkspaceInfo,
     frame: Vec<u8>,
     next_frame_id: u64,
+    /// Where the camera was for the last frame (the simulator's kinematics).
+    camera_at: Option<[f64; 3]>,
 }
 
 impl std::fmt::Debug for Lab {
@@ -99,6 +101,7 @@ impl Lab {
             workspace,
             frame: vec![0; w as usize * h as usize * 3],
             next_frame_id: 0,
+            camera_at: None,
         })
     }
 
@@ -140,6 +143,8 @@ impl Lab {
             .capture_into(&mut self.frame)
             .map_err(|e| LabError(format!("capture: {e}")))?;
         self.next_frame_id += 1;
+        let t = info.camera_pose.translation.vector;
+        self.camera_at = Some([t.x, t.y, t.z]);
         Ok((self.next_frame_id, info.timestamp_unix_ns))
     }
 
@@ -169,6 +174,7 @@ impl Lab {
             timestamp_unix_ns,
         };
         let pose: Pose = self.workspace.observation_pose;
+        self.pipeline.expect_camera_at(self.camera_at);
         self.pipeline
             .process(&view, Some(&pose), true)
             .map(|(d, _)| d)

@@ -233,6 +233,13 @@ pub fn run_frames(
             frame_id: i as u64,
             timestamp_unix_ns: 0,
         };
+        // The kinematics' idea of where the camera is: a little off, as a real mount is.
+        let eye = case.camera.translation.vector;
+        lens.pipeline.expect_camera_at(Some([
+            eye.x + case.camera_error[0],
+            eye.y + case.camera_error[1],
+            eye.z + case.camera_error[2],
+        ]));
         let started = Instant::now();
         let (detections, status) = lens
             .pipeline
@@ -389,6 +396,8 @@ struct Case {
     camera: Isometry3<f64>,
     /// Where the arm holds the tool: a few centimetres from the camera, as on the wrist.
     tool_pose: robotd_protocol::geometry::Pose,
+    /// How far the kinematics' camera position is off the truth (mount, calibration), metres.
+    camera_error: [f64; 3],
     photo: PhotoEffects,
     jpeg_quality: u8,
     truth: Vec<SimObject>,
@@ -827,10 +836,16 @@ fn make_case(
         0.0,
         0.0,
     );
+    let camera_error = [
+        rng.random_range(-0.02..0.02),
+        rng.random_range(-0.02..0.02),
+        rng.random_range(-0.02..0.02),
+    ];
     Case {
         scene,
         camera,
         tool_pose,
+        camera_error,
         photo,
         jpeg_quality: rng.random_range(40..=95),
         truth,
