@@ -10,8 +10,7 @@
 //! - [`encode_jpeg`]: RGB8 to a baseline JPEG, through `jpeg-encoder` (about 3× faster than
 //!   `image`'s encoder on a 640×480 frame, `robotd bench jpeg`).
 //!
-//! `robotd-render` has the same two functions for the simulator's frames and the edges; they
-//! are to become re-exports of these (one codec in robotd).
+//! `robotd-render`'s `encode_jpeg` and `decode_jpeg` call these (one codec in robotd).
 //!
 //! ```
 //! let rgb = vec![200u8; 16 * 8 * 3];

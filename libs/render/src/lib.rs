@@ -107,37 +107,15 @@ pub enum RenderError {
 }
 
 /// Encodes an RGB8 image (row-major, `width × height × 3` bytes) as a baseline JPEG.
-/// `quality` is 1..=100 (clamped); the Redis edge uses 85.
+/// `quality` is 1..=100 (clamped); the Redis edge uses 85. robotd's one encoder
+/// ([`robotd_jpeg::encode_jpeg`]), with the renderer's error type.
 pub fn encode_jpeg(
     rgb: &[u8],
     width: u32,
     height: u32,
     quality: u8,
 ) -> Result<Vec<u8>, RenderError> {
-    let expected = (width as usize)
-        .saturating_mul(height as usize)
-        .saturating_mul(3);
-    if rgb.len() != expected {
-        return Err(RenderError::BufferSize {
-            expected,
-            got: rgb.len(),
-        });
-    }
-    if width == 0 || height == 0 || width > 65_535 || height > 65_535 {
-        return Err(RenderError::Jpeg(format!(
-            "a JPEG image must be 1..=65535 pixels on a side, got {width}x{height}"
-        )));
-    }
-    let mut jpeg = Vec::with_capacity(expected / 8);
-    jpeg_encoder::Encoder::new(&mut jpeg, quality.clamp(1, 100))
-        .encode(
-            rgb,
-            width as u16,
-            height as u16,
-            jpeg_encoder::ColorType::Rgb,
-        )
-        .map_err(|e| RenderError::Jpeg(e.to_string()))?;
-    Ok(jpeg)
+    robotd_jpeg::encode_jpeg(rgb, width, height, quality).map_err(RenderError::from)
 }
 
 /// The same frame through the `image` crate's JPEG encoder, robotd's encoder before
@@ -156,26 +134,21 @@ pub fn encode_jpeg_with_image_crate(
 }
 
 /// Decodes a JPEG image into RGB8 (row-major, `width × height × 3` bytes) and its size:
-/// robotd's one decoder, for camera drivers that receive JPEG and for frames kept as JPEG.
-/// Bytes without the JPEG start marker, or that do not decode, are
-/// [`RenderError::NotJpeg`] naming their length and the decoder's reason.
+/// robotd's one decoder ([`robotd_jpeg::decode_jpeg`]), with the renderer's error type.
 pub fn decode_jpeg(jpeg: &[u8]) -> Result<(Vec<u8>, u32, u32), RenderError> {
-    if jpeg.len() < 4 || jpeg[..2] != [0xFF, 0xD8] {
-        return Err(RenderError::NotJpeg(format!(
-            "{} bytes that are not a JPEG image (no start-of-image marker)",
-            jpeg.len()
-        )));
+    robotd_jpeg::decode_jpeg(jpeg).map_err(RenderError::from)
+}
+
+impl From<robotd_jpeg::JpegError> for RenderError {
+    fn from(error: robotd_jpeg::JpegError) -> Self {
+        match error {
+            robotd_jpeg::JpegError::BufferSize { expected, got } => {
+                RenderError::BufferSize { expected, got }
+            }
+            robotd_jpeg::JpegError::Encode(reason) => RenderError::Jpeg(reason),
+            robotd_jpeg::JpegError::NotJpeg(reason) => RenderError::NotJpeg(reason),
+        }
     }
-    let image = image::load_from_memory_with_format(jpeg, image::ImageFormat::Jpeg)
-        .map_err(|e| {
-            RenderError::NotJpeg(format!(
-                "a JPEG of {} bytes does not decode: {e}",
-                jpeg.len()
-            ))
-        })?
-        .into_rgb8();
-    let (width, height) = image.dimensions();
-    Ok((image.into_raw(), width, height))
 }
 
 /// The pose of a camera's optical frame at `eye` looking at `target`, with the image's top
