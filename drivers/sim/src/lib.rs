@@ -25,7 +25,9 @@ pub mod robot;
 mod scene;
 
 pub use ground_truth::serve_ground_truth;
-pub use robot::{gripper_max_width, SimArm, SimCamera, SimGripper, SimRobot, SimSettings};
+pub use robot::{
+    gripper_max_width, solid_of, SimArm, SimCamera, SimGripper, SimRobot, SimSettings,
+};
 pub use scene::{load_scene, reachable_from_above, SceneError};
 
 use faults::FaultInjector;

@@ -523,30 +523,7 @@ impl SimCamera {
                 });
             }
         }
-        let solids = world
-            .objects()
-            .iter()
-            .map(|object| Solid {
-                shape: match object.spec.shape {
-                    ObjectShape::Box {
-                        length_x_m,
-                        width_y_m,
-                        height_z_m,
-                    } => Shape::Box {
-                        size_m: Vector3::new(length_x_m, width_y_m, height_z_m),
-                    },
-                    ObjectShape::Cylinder {
-                        diameter_m,
-                        height_m,
-                    } => Shape::Cylinder {
-                        radius_m: diameter_m / 2.0,
-                        height_m,
-                    },
-                },
-                pose: object.pose,
-                color: object.spec.color,
-            })
-            .collect();
+        let solids = world.objects().iter().map(solid_of).collect();
         RenderScene {
             background: [118, 96, 72],
             table_z_m: 0.0,
@@ -593,6 +570,30 @@ impl CameraDriver for SimCamera {
             camera_pose,
             timestamp_unix_ns,
         })
+    }
+}
+
+/// How the camera draws a simulated object: a box or an upright cylinder where it stands.
+pub fn solid_of(object: &robotd_sim::SimObject) -> Solid {
+    Solid {
+        shape: match object.spec.shape {
+            ObjectShape::Box {
+                length_x_m,
+                width_y_m,
+                height_z_m,
+            } => Shape::Box {
+                size_m: Vector3::new(length_x_m, width_y_m, height_z_m),
+            },
+            ObjectShape::Cylinder {
+                diameter_m,
+                height_m,
+            } => Shape::Cylinder {
+                radius_m: diameter_m / 2.0,
+                height_m,
+            },
+        },
+        pose: object.pose,
+        color: object.spec.color,
     }
 }
 

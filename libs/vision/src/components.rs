@@ -224,6 +224,16 @@ fn union(parent: &mut [u32], a: u32, b: u32) {
     }
 }
 
+/// The root of `i` in a union-find forest (`parent[root] == root`), halving the path on the
+/// way: joining fragments of one object or one marker.
+pub(crate) fn union_root(parent: &mut [usize], mut i: usize) -> usize {
+    while parent[i] != i {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    i
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,7 +15,7 @@
 //! against a pad) or a shadow joins them; neighbouring hues (the blue and cyan of one printed
 //! wrapper) and slivers of another hue along a shaded edge do join.
 
-use crate::components::{Blob, Components};
+use crate::components::{union_root, Blob, Components};
 
 /// One object's pixels.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,13 +72,6 @@ pub fn group_fragments(
     let blobs = components.blobs();
     let n = blobs.len();
     let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
     let near = |a: &Blob, b: &Blob| {
         a.u_min <= b.u_max + gap
             && b.u_min <= a.u_max + gap
@@ -95,7 +88,7 @@ pub fn group_fragments(
     let mut group_area: Vec<u32> = blobs.iter().map(|b| b.area).collect();
     for i in 0..n {
         for j in i + 1..n {
-            let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
+            let (ri, rj) = (union_root(&mut parent, i), union_root(&mut parent, j));
             if !near(&blobs[i], &blobs[j]) || ri == rj {
                 continue;
             }
@@ -127,7 +120,7 @@ pub fn group_fragments(
     let mut unknown_area = vec![0u32; n];
     let mut boxes = vec![[u32::MAX, u32::MAX, 0, 0]; n];
     for (i, blob) in blobs.iter().enumerate() {
-        let r = root(&mut parent, i);
+        let r = union_root(&mut parent, i);
         area[r] += blob.area;
         if blob.class == unknown {
             unknown_area[r] += blob.area;
@@ -155,12 +148,12 @@ pub fn group_fragments(
             })
             .max_by_key(|&big| area[big]);
         if let Some(big) = host {
-            parent[small] = root(&mut parent, big);
+            parent[small] = union_root(&mut parent, big);
         }
     }
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); n];
     for i in 0..n {
-        let r = root(&mut parent, i);
+        let r = union_root(&mut parent, i);
         members[r].push(i);
     }
     join_parts_of_one_object(components, &mut members, width, (gap, absorb_gap));

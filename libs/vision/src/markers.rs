@@ -20,7 +20,7 @@
 //! fewer rings) and orders them upper-left, upper-right, lower-left, lower-right. The pipeline
 //! then checks each four through the homography it gives ([`SheetCheck`]).
 
-use crate::components::{Blob, Components};
+use crate::components::{union_root, Blob, Components};
 use crate::rings::{ring_profile, RingProfile};
 use crate::shade::LocalMean;
 
@@ -224,13 +224,6 @@ struct Cluster {
 fn cluster_blobs(blobs: &[Blob], gap: u32, max_side: u32) -> Vec<Cluster> {
     let n = blobs.len();
     let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
     let mut by_u: Vec<usize> = (0..n).collect();
     by_u.sort_by_key(|&i| blobs[i].u_min);
     for (k, &i) in by_u.iter().enumerate() {
@@ -241,7 +234,7 @@ fn cluster_blobs(blobs: &[Blob], gap: u32, max_side: u32) -> Vec<Cluster> {
             let near =
                 blobs[j].v_min <= blobs[i].v_max + gap && blobs[i].v_min <= blobs[j].v_max + gap;
             if near {
-                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                let (a, b) = (union_root(&mut parent, i), union_root(&mut parent, j));
                 if a != b {
                     parent[a.max(b)] = a.min(b);
                 }
@@ -250,7 +243,7 @@ fn cluster_blobs(blobs: &[Blob], gap: u32, max_side: u32) -> Vec<Cluster> {
     }
     let mut clusters: Vec<Option<Cluster>> = vec![None; n];
     for (i, b) in blobs.iter().enumerate() {
-        let r = root(&mut parent, i);
+        let r = union_root(&mut parent, i);
         let area = f64::from(b.area);
         let c = clusters[r].get_or_insert(Cluster {
             u_min: b.u_min,

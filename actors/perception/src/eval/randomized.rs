@@ -28,6 +28,7 @@ use crate::pipeline::Pipeline;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
+use robotd_driver_sim::solid_of;
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_render::photo::PhotoEffects;
 use robotd_render::sheet_art::{sheet_art, thick_line, SheetDesign, SheetPlacement};
@@ -423,30 +424,6 @@ fn box_solid(x: f64, y: f64, size: [f64; 3], yaw: f64, color: [u8; 3]) -> Solid 
             UnitQuaternion::from_euler_angles(0.0, 0.0, yaw),
         ),
         color,
-    }
-}
-
-fn solid_of(object: &SimObject) -> Solid {
-    let shape = match object.spec.shape {
-        ObjectShape::Box {
-            length_x_m,
-            width_y_m,
-            height_z_m,
-        } => Shape::Box {
-            size_m: Vector3::new(length_x_m, width_y_m, height_z_m),
-        },
-        ObjectShape::Cylinder {
-            diameter_m,
-            height_m,
-        } => Shape::Cylinder {
-            radius_m: diameter_m / 2.0,
-            height_m,
-        },
-    };
-    Solid {
-        shape,
-        pose: object.pose,
-        color: object.spec.color,
     }
 }
 
