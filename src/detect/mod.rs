@@ -151,7 +151,12 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
     match located {
         Some(Ok((plane, four))) => {
             report.mode = "markers".into();
-            report.status = "the workspace sheet and its four markers are in view".into();
+            report.status = match pipeline.sheets_in_view() {
+                0 | 1 => "the workspace sheet and its four markers are in view".into(),
+                n => format!(
+                    "{n} workspace sheets are in view: the nearest (largest in the image) is used"
+                ),
+            };
             corners = Some(four);
             sheet = Some((pipeline, plane));
         }

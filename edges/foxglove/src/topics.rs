@@ -147,7 +147,7 @@ mod tests {
     /// Catalogue entries deliberately not under `/bus/…`, with the reason. Anything else in the
     /// catalogue must be in [`all`]: a topic added there fails this test until the bridge
     /// knows it (or it is listed here with a reason).
-    const NOT_BRIDGED: [(&str, &str); 9] = [
+    const NOT_BRIDGED: [(&str, &str); 10] = [
         (
             "camera/frames",
             "frames in shared memory: their own channels, /camera (JPEG) and /camera/meta",
@@ -178,6 +178,11 @@ mod tests {
             "service: the model's content is on workspace/objects",
         ),
         ("skills/run", "service: progress is on skills/progress"),
+        (
+            "safety/release",
+            "service: releasing the e-stop is a person's deliberate act, never replayed; the \
+             result is on safety/estop",
+        ),
     ];
 
     #[test]

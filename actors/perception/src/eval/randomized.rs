@@ -69,6 +69,8 @@ pub struct RandomizedFigures {
     pub position_errors_m: Vec<f64>,
     /// Time in the pipeline (markers, sheet, detector), summed.
     pub pipeline_time: Duration,
+    /// The floor beside it, measured on the same frames: reading each frame's bytes once.
+    pub read_floor_time: Duration,
     /// Frames per design: (design, expected, found).
     pub by_design: Vec<(String, usize, usize)>,
     /// False positives per distractor present in the frame: (distractor, frames, false
@@ -94,6 +96,10 @@ impl RandomizedFigures {
     /// Frames per second of the pipeline on this (one) thread.
     pub fn frames_per_second(&self) -> f64 {
         self.frames as f64 / self.pipeline_time.as_secs_f64().max(1e-9)
+    }
+    /// Mean time to read a frame's bytes once (the floor), milliseconds.
+    pub fn read_floor_ms(&self) -> f64 {
+        self.read_floor_time.as_secs_f64() * 1e3 / self.frames.max(1) as f64
     }
 }
 
@@ -241,6 +247,10 @@ pub fn run_frames(
             eye.y + case.camera_error[1],
             eye.z + case.camera_error[2],
         ]));
+        let started = Instant::now();
+        let sum: u64 = decoded.rgb.iter().map(|b| u64::from(*b)).sum();
+        std::hint::black_box(sum);
+        figures.read_floor_time += started.elapsed();
         let started = Instant::now();
         let (detections, status) = lens
             .pipeline
