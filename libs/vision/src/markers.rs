@@ -2,23 +2,24 @@
 //!
 //! Each corner of a workspace sheet carries a marker of concentric dark rings on white. One of
 //! the four, the sheet's origin (upper-left = far-left corner), is drawn differently from the
-//! other three: in the simulator its centre is white where the others' is black; on the real
-//! Niryo sheet it has a solid centre disc and one ring fewer than the others (whose centre is a
-//! small dot). In the image a marker is two or more dark blobs sharing one centre, which
-//! nothing else on a tabletop looks like. Its centre is the mean of its dark pixels (the rings
-//! are symmetric about it).
+//! other three: in the simulator its centre is white where the others' is black; on Niryo's
+//! printed sheets it has a solid centre disc where the others have rings round a small dot.
 //!
-//! "Dark" is decided against the neighbourhood, not against a fixed grey level: a pixel is dark
-//! when it is well below the mean of the square around it (an integral image makes that mean
-//! cost four look-ups). So a marker in the shade of the arm, under a lamp's glare or in a
-//! dim, vignetted corner is still found, while the sheet's grey stripes and logo, much lighter
-//! than the printed black, stay white.
+//! Candidates are dark blobs that cluster (the rings of one marker, even when blur and
+//! compression break a thin ring into arcs). "Dark" is decided against the neighbourhood, not
+//! against a fixed grey level: a pixel is dark when it is well below the mean of the square
+//! around it (an integral image makes that mean cost four look-ups), so a marker in the
+//! arm's shade, under a lamp's glare or in a vignetted corner is still seen, while the classic
+//! sheet's grey stripes and logo stay light. Each candidate is then judged on its own ink and
+//! paper levels by [`crate::rings`]: rings all round, one ring width, an ellipse; its centre
+//! comes from there.
 //!
-//! [`MarkerFinder::find_markers`] returns every marker it sees, each checked for its rings by
-//! [`crate::rings`]; [`sheet_candidates`] lists the fours that can make a sheet (convex, with
-//! plausible sides and angles), tells the origin marker as the odd one out (white centre, or
-//! fewer rings) and orders them upper-left, upper-right, lower-left, lower-right. The pipeline
-//! then checks each four through the homography it gives ([`SheetCheck`]).
+//! [`MarkerFinder::find_markers`] returns every marker that passes; [`sheet_candidates`]
+//! lists the fours that can make a sheet: the reference is the odd centre (the other three
+//! agree), the four are drawn alike (same outer-ring width: one design), of similar size, in a
+//! convex quadrilateral with plausible sides and angles, ordered upper-left, upper-right,
+//! lower-left, lower-right. The pipeline then checks each four through the homography it gives
+//! ([`crate::sheet`]); [`SheetCheck`] names the check a four failed.
 
 use crate::components::{union_root, Blob, Components};
 use crate::rings::{ring_profile, RingProfile};
