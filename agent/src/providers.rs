@@ -198,6 +198,15 @@ pub enum ProviderError {
         /// Why.
         reason: String,
     },
+    /// A line of `secrets.env` is not an assignment (its text is not repeated: it may hold a
+    /// key).
+    #[error("{path}:{line}: not a KEY=VALUE line (or a quote opened and never closed); fix or remove it")]
+    SecretsLine {
+        /// The file.
+        path: String,
+        /// The line, counted from 1.
+        line: usize,
+    },
 }
 
 /// Where variables come from: the environment first, then `secrets.env`.
@@ -260,85 +269,84 @@ impl Env {
     }
 }
 
-/// Reads a `secrets.env` file; a missing file is an empty one.
+/// Reads a `secrets.env` file; a missing file is an empty one. A line that is not an
+/// assignment is an error naming the file and the line (never the line's text: it may hold a
+/// key).
 pub fn load_secrets(path: &Path) -> Result<HashMap<String, String>, ProviderError> {
+    let secrets_error = |reason: String| ProviderError::Secrets {
+        path: path.display().to_string(),
+        reason,
+    };
     match std::fs::read_to_string(path) {
-        Ok(text) => Ok(parse_dotenv(&text)),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(HashMap::new()),
-        Err(e) => Err(ProviderError::Secrets {
+        Ok(text) => parse_dotenv(&text).map_err(|e| ProviderError::SecretsLine {
             path: path.display().to_string(),
-            reason: e.to_string(),
+            line: e.line,
         }),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(HashMap::new()),
+        Err(e) => Err(secrets_error(e.to_string())),
     }
 }
 
-/// Parses dotenv text — the one parser of `secrets.env` in robotd (the agent's keys and
-/// `robotd doctor` read the file through it, so both always see the same values).
+/// A line of dotenv text that is not an assignment.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("line {line} is not a KEY=VALUE assignment (or opens a quote it never closes)")]
+pub struct DotenvError {
+    /// The line, counted from 1.
+    pub line: usize,
+}
+
+/// Parses dotenv text with the [`dotenvy`] crate — the one parser of `secrets.env` in robotd
+/// (the agent's keys and `robotd doctor` read the file through it, so both always see the same
+/// values). Nothing is put into the process environment: the caller decides the precedence
+/// ([`Env`]: the environment first, then these values).
 ///
-/// Understood: `KEY=VALUE` lines; blank lines and `#` comments; an optional `export ` in front;
-/// values in single quotes (taken literally) or double quotes (`\n`, `\t`, `\"` and `\\`
-/// are escapes); ` # comment` (or a tab before the `#`) after an unquoted value. Keys are
-/// letters, digits, `_` and `.`, not starting with a digit. Lines that are not such an
-/// assignment are skipped, never an error, and `$VAR` is never expanded: a password with a `$`
-/// in it stays as written. A key given twice keeps its last value.
+/// The format is dotenvy's: `KEY=VALUE` lines; blank lines and `#` comments; an optional
+/// `export ` in front; values in single quotes (taken literally) or double quotes (escapes such
+/// as `\n` and `\"`, and may span lines); ` # comment` after an unquoted value. Keys are
+/// letters, digits, `_` and `.`, starting with a letter or `_`. `$VAR` and `${VAR}` in an
+/// unquoted or double-quoted value are replaced by the variable (from the process environment,
+/// else from an earlier line): put a value with a `$` in it in single quotes. A key given twice
+/// keeps its last value. Any other line is an error with its line number.
 ///
 /// ```
 /// use robotd_agent::providers::parse_dotenv;
 ///
-/// let vars = parse_dotenv("export GROQ_API_KEY=gsk_1 # lab key\nPW='p$ss'\nnot a line\n");
+/// let vars = parse_dotenv("export GROQ_API_KEY=gsk_1 # lab key\nPW='p$ss'\n").unwrap();
 /// assert_eq!(vars["GROQ_API_KEY"], "gsk_1");
 /// assert_eq!(vars["PW"], "p$ss");
-/// assert_eq!(vars.len(), 2);
+/// assert_eq!(parse_dotenv("A=1\n\nnot a line\n").unwrap_err().line, 3);
 /// ```
-pub fn parse_dotenv(text: &str) -> HashMap<String, String> {
+pub fn parse_dotenv(text: &str) -> Result<HashMap<String, String>, DotenvError> {
     let mut out = HashMap::new();
-    for line in text.lines() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let line = line
-            .strip_prefix("export ")
-            .map(str::trim_start)
-            .unwrap_or(line);
-        let Some((key, value)) = line.split_once('=') else {
-            continue;
-        };
-        let key = key.trim();
-        if key.is_empty()
-            || key.starts_with(|c: char| c.is_ascii_digit())
-            || !key
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
-        {
-            continue;
-        }
-        let value = value.trim();
-        let value = if let Some(rest) = value.strip_prefix('"') {
-            let mut s = String::new();
-            let mut chars = rest.chars();
-            while let Some(c) = chars.next() {
-                match c {
-                    '"' => break,
-                    '\\' => match chars.next() {
-                        Some('n') => s.push('\n'),
-                        Some('t') => s.push('\t'),
-                        Some(other) => s.push(other),
-                        None => s.push('\\'),
-                    },
-                    c => s.push(c),
-                }
+    let body = text.strip_prefix('\u{feff}').unwrap_or(text);
+    for item in dotenvy::from_read_iter(body.as_bytes()) {
+        match item {
+            Ok((key, value)) => {
+                out.insert(key, value);
             }
-            s
-        } else if let Some(rest) = value.strip_prefix('\'') {
-            rest.split('\'').next().unwrap_or("").to_owned()
-        } else {
-            let end = value.find(" #").or_else(|| value.find("\t#"));
-            value[..end.unwrap_or(value.len())].trim_end().to_owned()
-        };
-        out.insert(key.to_owned(), value);
+            // dotenvy gives the failing text (the whole line, or its value when the value is
+            // at fault), not its number: the number is that of the first assignment line that
+            // ends with that text's first line (an earlier line that also ended so would have
+            // failed first, unless it sat inside a multi-line quoted value).
+            Err(dotenvy::Error::LineParse(bad, _)) => {
+                let first = bad.lines().next().unwrap_or("").trim_end();
+                let line = body
+                    .lines()
+                    .enumerate()
+                    .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+                    .find(|(_, l)| l.trim_end().ends_with(first))
+                    .map_or_else(|| body.lines().count(), |(i, _)| i + 1);
+                return Err(DotenvError { line });
+            }
+            // Reading from a byte slice cannot fail; anything else is reported on the last line.
+            Err(_) => {
+                return Err(DotenvError {
+                    line: body.lines().count(),
+                })
+            }
+        }
     }
-    out
+    Ok(out)
 }
 
 /// A chosen provider with everything needed to call it.
@@ -601,11 +609,27 @@ mod tests {
     }
 
     #[test]
+    fn dotenv_errors_name_the_line_of_the_fault() {
+        let line = |text: &str| parse_dotenv(text).unwrap_err().line;
+        // A key that is not one, no `=`, a value with a space, an unclosed quote.
+        assert_eq!(line("A=1\n1BAD=x\n"), 2);
+        assert_eq!(line("# A=1 2\nA=1\n\nnot an assignment\n"), 4);
+        assert_eq!(line("A=1\nB=two words\nC=3\n"), 2);
+        assert_eq!(line("A=\"one\ntwo\"\nB='open\n"), 3);
+        // A quoted value may span lines; a UTF-8 byte order mark is not part of the first key.
+        let vars = parse_dotenv("\u{feff}A=\"one\ntwo\"\nB=${A}!\nC='$A'\n").unwrap();
+        assert_eq!(vars["A"], "one\ntwo");
+        assert_eq!(vars["B"], "one\ntwo!");
+        assert_eq!(vars["C"], "$A");
+    }
+
+    #[test]
     fn secrets_env_fills_in_what_the_environment_lacks() {
         let secrets = parse_dotenv(
             "# keys\nexport GROQ_API_KEY=\"gsk_from_file\"\nOPENAI_API_KEY='sk-file' \n\
-             GEMINI_API_KEY=AIza123 # trailing comment\nnot a line\n=novalue\nMULTI=\"a\\nb\"\n",
-        );
+             GEMINI_API_KEY=AIza123 # trailing comment\n\nMULTI=\"a\\nb\"\n",
+        )
+        .unwrap();
         assert_eq!(secrets["GROQ_API_KEY"], "gsk_from_file");
         assert_eq!(secrets["OPENAI_API_KEY"], "sk-file");
         assert_eq!(secrets["GEMINI_API_KEY"], "AIza123");
@@ -629,6 +653,11 @@ mod tests {
         assert!(load_secrets(&path).unwrap().is_empty());
         std::fs::write(&path, "LLM_API_KEY=k1\n").unwrap();
         assert_eq!(load_secrets(&path).unwrap()["LLM_API_KEY"], "k1");
+        // A bad line: the error names the file and the line, never the line's text.
+        std::fs::write(&path, "# keys\nLLM_API_KEY=k1\nGROQ_API_KEY gsk_secret\n").unwrap();
+        let err = load_secrets(&path).unwrap_err().to_string();
+        assert!(err.contains("secrets.env:3:"), "{err}");
+        assert!(!err.contains("gsk_secret"), "{err}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -173,6 +173,15 @@ pub(super) fn check_llm_keys(
             "make {secrets_name} readable by the user that runs robotd"
         ));
     }
+    if let Some(line) = secrets.bad_line {
+        status = status.max(Status::Warn);
+        notes.push(format!(
+            "line {line} of {secrets_name} is not a KEY=VALUE line: none of its keys are used"
+        ));
+        fixes.push(format!(
+            "fix line {line} of {secrets_name} (KEY=VALUE; quote a value with spaces)"
+        ));
+    }
     if secrets.world_readable && !secrets.vars.is_empty() {
         status = status.max(Status::Warn);
         notes.push(format!("{secrets_name} is readable by every user"));
@@ -218,6 +227,19 @@ mod tests {
     use crate::doctor::test_support::{env_from, free_port, no_secrets, temp_dir};
     use std::net::TcpListener;
     use std::time::Instant;
+
+    #[test]
+    fn a_bad_secrets_line_warns_with_its_number() {
+        let secrets = Secrets {
+            bad_line: Some(4),
+            ..no_secrets()
+        };
+        let env = env_from(&[("OPENAI_API_KEY", "sk-env")]);
+        let check = check_llm_keys(&env, &secrets, &|_| false);
+        assert_eq!(check.status, Status::Warn, "{check:?}");
+        assert!(check.found.contains("line 4 of"), "{check:?}");
+        assert!(check.fix.unwrap_or_default().contains("fix line 4"));
+    }
 
     #[test]
     fn llm_keys_report_sources_never_values() {

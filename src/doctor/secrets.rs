@@ -27,6 +27,8 @@ pub(super) struct Secrets {
     pub(super) vars: HashMap<String, String>,
     /// The file exists but could not be read.
     pub(super) error: Option<String>,
+    /// The line (from 1) that is not a `KEY=VALUE` assignment; nothing of the file is used.
+    pub(super) bad_line: Option<usize>,
     /// The file can be read by other users.
     pub(super) world_readable: bool,
 }
@@ -39,6 +41,7 @@ impl std::fmt::Debug for Secrets {
             .field("path", &self.path)
             .field("names", &names)
             .field("error", &self.error)
+            .field("bad_line", &self.bad_line)
             .field("world_readable", &self.world_readable)
             .finish()
     }
@@ -63,6 +66,9 @@ impl Secrets {
             Err(robotd_agent::providers::ProviderError::Secrets { reason, .. }) => {
                 secrets.error = Some(reason)
             }
+            Err(robotd_agent::providers::ProviderError::SecretsLine { line, .. }) => {
+                secrets.bad_line = Some(line)
+            }
             Err(other) => secrets.error = Some(other.to_string()),
         }
         secrets
@@ -81,46 +87,42 @@ impl Secrets {
 mod tests {
     use super::*;
     use crate::doctor::test_support::temp_dir;
-    use robotd_agent::providers::parse_dotenv;
 
     #[test]
-    fn dotenv_parses_comments_quotes_and_export() {
+    fn load_reads_dotenv_text_and_names_a_bad_line() {
+        let dir = temp_dir("secrets-text");
+        let path = dir.join(SECRETS_FILE);
         let text = "\
 # a comment
 OPENAI_API_KEY=sk-abc
   GROQ_API_KEY = gsk_def   # trailing comment
 export GEMINI_API_KEY=\"AIza quoted # not a comment\"
-SINGLE='it''s'
+SINGLE='p$ss'
 ESCAPED=\"a\\\"b\\nc\"
 EMPTY=
-not an assignment
-1BAD=x
-BAD-KEY=x
 URL=http://host:1/x#frag
 ";
-        let vars = parse_dotenv(text);
+        std::fs::write(&path, text).expect("write");
+        let loaded = Secrets::load(&dir);
+        assert!(loaded.error.is_none(), "{loaded:?}");
+        assert_eq!(loaded.get("OPENAI_API_KEY"), Some("sk-abc"));
+        assert_eq!(loaded.get("GROQ_API_KEY"), Some("gsk_def"));
         assert_eq!(
-            vars.get("OPENAI_API_KEY").map(String::as_str),
-            Some("sk-abc")
-        );
-        assert_eq!(
-            vars.get("GROQ_API_KEY").map(String::as_str),
-            Some("gsk_def")
-        );
-        assert_eq!(
-            vars.get("GEMINI_API_KEY").map(String::as_str),
+            loaded.get("GEMINI_API_KEY"),
             Some("AIza quoted # not a comment")
         );
-        assert_eq!(vars.get("SINGLE").map(String::as_str), Some("it"));
-        assert_eq!(vars.get("ESCAPED").map(String::as_str), Some("a\"b\nc"));
-        assert_eq!(vars.get("EMPTY").map(String::as_str), Some(""));
-        assert_eq!(
-            vars.get("URL").map(String::as_str),
-            Some("http://host:1/x#frag")
-        );
-        assert!(!vars.contains_key("1BAD"));
-        assert!(!vars.contains_key("BAD-KEY"));
-        assert_eq!(vars.len(), 7);
+        assert_eq!(loaded.get("SINGLE"), Some("p$ss"));
+        assert_eq!(loaded.get("ESCAPED"), Some("a\"b\nc"));
+        assert_eq!(loaded.get("EMPTY"), None);
+        assert_eq!(loaded.get("URL"), Some("http://host:1/x#frag"));
+        assert_eq!(loaded.vars.len(), 7);
+
+        // A line that is not an assignment: the doctor hears the line, not the text.
+        std::fs::write(&path, format!("{text}BAD-KEY=sk-hidden\n")).expect("write");
+        let broken = Secrets::load(&dir);
+        assert_eq!(broken.bad_line, Some(9), "{broken:?}");
+        assert!(broken.vars.is_empty() && broken.error.is_none());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
