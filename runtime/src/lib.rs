@@ -13,6 +13,7 @@
 //! - [`telemetry`]: logs, daily log files, OpenTelemetry export, trace context for envelopes.
 //! - [`metrics`]: the Prometheus metrics behind `GET /metrics`.
 //! - [`heap`]: gives memory freed by a burst of work back to the system.
+//! - [`backoff`]: the waits between attempts of every reconnect and retry loop.
 //!
 //! A request across the bus, in one process (two processes work the same way):
 //!
@@ -40,6 +41,7 @@
 //! assert_eq!(pong.seq, 7);
 //! # Ok(()) }
 //! ```
+pub mod backoff;
 pub mod bus;
 pub mod catalog;
 pub mod config;
