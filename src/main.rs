@@ -161,9 +161,12 @@ struct EstopArgs {
 
 #[derive(Debug, Subcommand)]
 enum AuditCommand {
-    /// Check the hash chain of audit files (oldest first, e.g. audit.jsonl.1 audit.jsonl);
-    /// exit 1 names the first broken line, exit 2 when a file cannot be read.
+    /// Check the keyed chain of audit files (oldest first, e.g. audit.jsonl.1 audit.jsonl);
+    /// exit 1 names the first broken line, exit 2 when a file or the key cannot be read.
     Verify {
+        /// The key file of the chain (default: audit.key beside the last file).
+        #[arg(long)]
+        key: Option<PathBuf>,
         /// The files, oldest first.
         #[arg(required = true)]
         files: Vec<PathBuf>,
@@ -609,8 +612,8 @@ fn run() -> Result<std::process::ExitCode> {
             Ok(std::process::ExitCode::SUCCESS)
         }
         Command::Audit {
-            what: AuditCommand::Verify { files },
-        } => match audit::run(&files) {
+            what: AuditCommand::Verify { files, key },
+        } => match audit::run(&files, key.as_deref()) {
             Err(unreadable) => {
                 eprintln!("robotd: {unreadable:#}");
                 Ok(std::process::ExitCode::from(2))

@@ -533,6 +533,18 @@ pub async fn admit_and_run(
     if let Err(error) = command.validate() {
         return Ok(ArmError::from(error).into());
     }
+    if let ArmCommand::GoToObservationPose { workspace_id } = &command {
+        // An unknown name is refused here, before admission: it never reaches the audit log,
+        // and the reply carries it cut to a sane length.
+        let known = safety.workspace_ids();
+        if !known.contains(workspace_id) {
+            return Ok(ArmError::UnknownWorkspace {
+                workspace_id: robotd_safety::audit::cut(workspace_id).into_owned(),
+                known: known.to_vec(),
+            }
+            .into());
+        }
+    }
     if !command.moves_arm() {
         // Only ClearCollision reaches here: queries and Stop were answered at once.
         return actor.ask(ClearCollisionFlag).await.map_err(fault_from);

@@ -2,8 +2,19 @@
 //!
 //! Every motion request robotd handles (who asked, the arguments, the policy's decision and
 //! reason, the outcome) is appended to a file such as `log/audit.jsonl` as one JSON line. Each
-//! line carries the SHA-256 hash of the line before it, so the lines form a hash chain: a line
-//! that is edited, deleted or moved breaks the chain at a place [`verify`] names.
+//! line carries the HMAC-SHA256 (keyed with an [`AuditKey`]) of its own bytes and that of the
+//! line before it, so the lines form a keyed chain: a line that is edited, deleted or moved
+//! breaks the chain at a place [`verify`] names, and without the key nobody can re-compute the
+//! tail after an edit. Logs written before the key existed carry a plain SHA-256 `hash`
+//! instead of the `hmac`; they still verify, reported as unkeyed (older format).
+//!
+//! # Bounded lines
+//!
+//! [`AuditLog::record`] cuts every string longer than [`MAX_FIELD_CHARS`] characters (on a
+//! char boundary) and marks it `…(cut, N bytes)` with its original length; arrays and objects
+//! keep their first [`MAX_ITEMS`] entries, nesting stops at [`MAX_DEPTH`], and an event still
+//! longer than [`MAX_EVENT_BYTES`] has its big top-level fields replaced by the mark. One call
+//! cannot write a megabyte, nor rotate the history out.
 //!
 //! # Line format
 //!
@@ -11,10 +22,18 @@
 //! `{"seq":7,"time":"2026-11-25T13:40:00.123456Z","prev":"<64 hex>","event":{…}}`.
 //! `seq` counts from 1 and grows by exactly 1; `time` is UTC with microseconds; `prev` is the
 //! previous line's hash (64 zeros, "genesis", for the first entry ever); `event` is the caller's
-//! JSON. The hash is the lowercase hex SHA-256 of the body's *bytes*, and the line is the body
-//! with `,"hash":"<64 hex>"` inserted before its final `}`. To check a line, strip the trailing
-//! `,"hash":"…"}`, put back the `}` and hash: no JSON re-serialisation is involved. Control
-//! characters in events (CR, LF, ESC, NUL) are JSON-escaped, so an entry is always one line.
+//! JSON. The MAC is the lowercase hex HMAC-SHA256 (RFC 2104) of the body's *bytes* under the
+//! key, and the line is the body with `,"hmac":"<64 hex>"` inserted before its final `}` (an
+//! older, unkeyed line has `,"hash":"<64 hex>"`, the plain SHA-256). To check a line, strip the
+//! trailing `,"hmac":"…"}`, put back the `}` and compute: no JSON re-serialisation is involved.
+//! Control characters in events (CR, LF, ESC, NUL) are JSON-escaped, so an entry is always one
+//! line.
+//!
+//! # The key
+//!
+//! 32 random bytes from the OS, written as 64 hex digits to a file created with mode 0600
+//! (`audit.key` beside the audit file unless `[safety.audit] key_file` names another) on the
+//! first start, and read on every later one ([`AuditKey::load_or_create`]).
 //!
 //! # Never blocking, and refusing instead
 //!
@@ -37,7 +56,8 @@
 //! # Verifying
 //!
 //! `robotd audit verify log/audit.jsonl.2 log/audit.jsonl.1 log/audit.jsonl` (oldest first)
-//! calls [`verify`], which recomputes every hash and checks `seq` and `prev` across the files.
+//! calls [`verify`] with the key, which recomputes every MAC and checks `seq` and `prev` across
+//! the files. An unkeyed line after a keyed one is a break (a tail re-hashed without the key).
 //! If the first entry is not `seq` 1, the files are a suffix of the log (older files were
 //! rotated away) and the report says `starts_at_genesis: false`: what came before cannot be
 //! checked. Nor can a chain reveal lines cut off its *end*; to detect that, keep
@@ -58,10 +78,106 @@ use sha2::{Digest, Sha256};
 
 /// `prev` of the first entry ever.
 const GENESIS: &str = "0000000000000000000000000000000000000000000000000000000000000000";
-/// Inserted before the body's final `}`, followed by the hash and `"}`.
+/// Inserted before the body's final `}` of an unkeyed (older) line, followed by the hash and `"}`.
 const HASH_KEY: &str = ",\"hash\":\"";
-/// Length of `,"hash":"<64 hex>"}` at the end of every line.
+/// Inserted before the body's final `}` of a keyed line, followed by the HMAC and `"}`.
+const HMAC_KEY: &str = ",\"hmac\":\"";
+/// Length of `,"hash":"<64 hex>"}` (or `,"hmac":…`) at the end of every line.
 const TAIL_LEN: usize = HASH_KEY.len() + 64 + 2;
+
+/// Strings in an event longer than this many characters are cut and marked.
+pub const MAX_FIELD_CHARS: usize = 256;
+/// Arrays and objects in an event keep this many entries; the rest is counted in a mark.
+pub const MAX_ITEMS: usize = 64;
+/// Values nested deeper than this are replaced by a mark.
+pub const MAX_DEPTH: usize = 8;
+/// An event longer than this (serialised, after the cuts above) has each top-level field
+/// longer than [`MAX_TOP_FIELD_BYTES`] replaced by a mark.
+pub const MAX_EVENT_BYTES: usize = 16 * 1024;
+/// See [`MAX_EVENT_BYTES`].
+const MAX_TOP_FIELD_BYTES: usize = 512;
+
+/// The key of the audit log's HMAC chain: 32 bytes, kept in a file of 64 hex digits.
+#[derive(Clone, PartialEq, Eq)]
+pub struct AuditKey([u8; 32]);
+
+impl std::fmt::Debug for AuditKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("AuditKey(…)")
+    }
+}
+
+impl AuditKey {
+    /// A key of these bytes.
+    pub fn from_bytes(bytes: [u8; 32]) -> AuditKey {
+        AuditKey(bytes)
+    }
+
+    /// Reads the key file at `path` (64 hex digits, surrounding white space ignored).
+    pub fn load(path: &Path) -> Result<AuditKey, AuditError> {
+        let text = fs::read_to_string(path).map_err(io_err(path))?;
+        let bad = || AuditError::Key {
+            path: path.to_path_buf(),
+            reason: "is not 64 hex digits (an audit key)".into(),
+        };
+        let hex = text.trim();
+        if hex.len() != 64 || !hex.is_ascii() {
+            return Err(bad());
+        }
+        let mut key = [0u8; 32];
+        for (byte, pair) in key.iter_mut().zip(hex.as_bytes().chunks(2)) {
+            let pair = std::str::from_utf8(pair).map_err(|_| bad())?;
+            *byte = u8::from_str_radix(pair, 16).map_err(|_| bad())?;
+        }
+        Ok(AuditKey(key))
+    }
+
+    /// Reads the key file at `path`, or, when there is none, creates it (and its directory)
+    /// with mode 0600 holding 32 new random bytes from the OS.
+    pub fn load_or_create(path: &Path) -> Result<AuditKey, AuditError> {
+        match fs::metadata(path) {
+            Ok(_) => return AuditKey::load(path),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+            Err(e) => return Err(io_err(path)(e)),
+        }
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            fs::create_dir_all(dir).map_err(io_err(dir))?;
+        }
+        let mut key = [0u8; 32];
+        File::open("/dev/urandom")
+            .and_then(|mut random| io::Read::read_exact(&mut random, &mut key))
+            .map_err(|e| AuditError::Key {
+                path: path.to_path_buf(),
+                reason: format!("cannot read random bytes from /dev/urandom: {e}"),
+            })?;
+        let mut options = OpenOptions::new();
+        options.write(true).create_new(true);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+        let mut file = match options.open(path) {
+            // Another start created it first: use that one.
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => return AuditKey::load(path),
+            other => other.map_err(io_err(path))?,
+        };
+        let written = file.write_all(format!("{}\n", hex(&key)).as_bytes());
+        written
+            .and_then(|()| file.sync_all())
+            .map_err(io_err(path))?;
+        Ok(AuditKey(key))
+    }
+
+    /// Lowercase hex HMAC-SHA256 (RFC 2104) of `bytes` under this key.
+    fn mac_hex(&self, bytes: &[u8]) -> String {
+        let (mut inner, mut outer) = (Sha256::new(), Sha256::new());
+        let mut pad = [0u8; 64];
+        pad[..32].copy_from_slice(&self.0);
+        inner.update(pad.map(|b| b ^ 0x36));
+        inner.update(bytes);
+        outer.update(pad.map(|b| b ^ 0x5c));
+        outer.update(inner.finalize());
+        hex(&outer.finalize())
+    }
+}
 
 /// Where and how to write the audit log; built by the caller from its config.
 #[derive(Clone, Debug)]
@@ -74,6 +190,9 @@ pub struct AuditConfig {
     pub keep_files: u32,
     /// Length of the bounded queue between [`AuditLog::record`] and the writer (>= 1).
     pub queue: usize,
+    /// The key of the HMAC chain; `None` writes the older, unkeyed format (plain SHA-256),
+    /// which anyone can re-hash after an edit.
+    pub key: Option<AuditKey>,
 }
 
 /// Why the audit log could not start or take a record. When recording, any of these refuses
@@ -109,6 +228,9 @@ pub enum AuditError {
     /// The configuration cannot work.
     #[error("invalid audit log configuration: {reason}")]
     InvalidConfig { reason: String },
+    /// The key file cannot be used.
+    #[error("audit key {}: {reason}", path.display())]
+    Key { path: PathBuf, reason: String },
     /// [`AuditLog::flush`] gave up before everything was written.
     #[error("audit log flush timed out after {timeout:?} ({pending} records not yet written)")]
     FlushTimeout { timeout: Duration, pending: u64 },
@@ -187,10 +309,11 @@ impl AuditLog {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             fs::create_dir_all(dir).map_err(io_err(dir))?;
         }
-        let mut tail = read_tail(path)?;
+        let key = config.key.as_ref();
+        let mut tail = read_tail(path, key)?;
         if tail.is_none() {
             // Only `.1` has entries (stopped right after a rotation): continue from it.
-            tail = read_tail(&rotated_path(path, 1))?.map(|(entry, _)| (entry, true));
+            tail = read_tail(&rotated_path(path, 1), key)?.map(|(entry, _)| (entry, true));
         }
         let mut out = BufWriter::new(open_append(path).map_err(io_err(path))?);
         if let Some((_, false)) = tail {
@@ -240,6 +363,7 @@ impl AuditLog {
         let Some(inner) = &self.inner else {
             return Ok(());
         };
+        let event = bound_event(event);
         let mut state = inner.shared.lock();
         state.check()?;
         let capacity = inner.capacity;
@@ -339,9 +463,12 @@ impl Writer {
             event,
         };
         let body = serde_json::to_string(&body).map_err(|e| format!("cannot serialise: {e}"))?;
-        let hash = sha256_hex(body.as_bytes());
+        let (field, hash) = match &self.cfg.key {
+            Some(key) => (HMAC_KEY, key.mac_hex(body.as_bytes())),
+            None => (HASH_KEY, sha256_hex(body.as_bytes())),
+        };
         let open = body.strip_suffix('}').ok_or("serialised body lacks '}'")?;
-        let line = format!("{open}{HASH_KEY}{hash}\"}}\n");
+        let line = format!("{open}{field}{hash}\"}}\n");
         let written = self.out.write(line.as_bytes());
         written.map_err(|e| self.reason("write", e))?;
         (self.seq, self.prev) = (seq, hash);
@@ -366,13 +493,89 @@ fn now_utc() -> String {
     format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{us:06}Z")
 }
 
-/// Lowercase hex SHA-256, written by hand (the digest type need not implement `LowerHex`).
+/// `audit.key` in the directory of the audit file `path`: where the key is kept unless the
+/// configuration names another file.
+pub fn default_key_file(path: &Path) -> PathBuf {
+    path.with_file_name("audit.key")
+}
+
+/// Lowercase hex SHA-256.
 fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+/// Lowercase hex, written by hand (the digest type need not implement `LowerHex`).
+fn hex(bytes: &[u8]) -> String {
     const DIGITS: &[u8; 16] = b"0123456789abcdef";
-    let digest = Sha256::digest(bytes);
-    let hex = digest.iter().flat_map(|b| [b >> 4, b & 15]);
-    hex.map(|nibble| char::from(DIGITS[usize::from(nibble)]))
+    let nibbles = bytes.iter().flat_map(|b| [b >> 4, b & 15]);
+    nibbles
+        .map(|nibble| char::from(DIGITS[usize::from(nibble)]))
         .collect()
+}
+
+/// `text` if it has at most [`MAX_FIELD_CHARS`] characters; otherwise its first
+/// [`MAX_FIELD_CHARS`] characters and the mark `…(cut, N bytes)` with its length in bytes.
+pub fn cut(text: &str) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(MAX_FIELD_CHARS) {
+        None => text.into(),
+        Some((end, _)) => format!("{}…(cut, {} bytes)", &text[..end], text.len()).into(),
+    }
+}
+
+/// `event` with every long string cut and marked, long arrays and objects shortened, deep
+/// nesting replaced, and, if it is still longer than [`MAX_EVENT_BYTES`], its big top-level
+/// fields replaced by marks.
+fn bound_event(mut event: Value) -> Value {
+    bound(&mut event, 0);
+    let len = |v: &Value| serde_json::to_string(v).map_or(usize::MAX, |s| s.len());
+    if len(&event) > MAX_EVENT_BYTES {
+        let fields: Vec<&mut Value> = match &mut event {
+            Value::Object(map) => map.values_mut().collect(),
+            Value::Array(items) => items.iter_mut().collect(),
+            _ => Vec::new(),
+        };
+        for field in fields {
+            let n = len(field);
+            if n > MAX_TOP_FIELD_BYTES {
+                *field = format!("…(cut, {n} bytes)").into();
+            }
+        }
+    }
+    event
+}
+
+fn bound(value: &mut Value, depth: usize) {
+    if depth >= MAX_DEPTH && (value.is_array() || value.is_object()) {
+        *value = format!("…(cut, nested deeper than {MAX_DEPTH})").into();
+        return;
+    }
+    match value {
+        Value::String(text) => {
+            if let std::borrow::Cow::Owned(short) = cut(text) {
+                *text = short;
+            }
+        }
+        Value::Array(items) => {
+            let more = items.len().saturating_sub(MAX_ITEMS);
+            items.truncate(MAX_ITEMS);
+            items.iter_mut().for_each(|item| bound(item, depth + 1));
+            if more > 0 {
+                items.push(format!("…(cut, {more} more items)").into());
+            }
+        }
+        Value::Object(map) => {
+            let more = map.len().saturating_sub(MAX_ITEMS);
+            let kept = std::mem::take(map).into_iter().take(MAX_ITEMS);
+            for (name, mut item) in kept {
+                bound(&mut item, depth + 1);
+                map.insert(cut(&name).into_owned(), item);
+            }
+            if more > 0 {
+                map.insert("…cut".into(), format!("{more} more fields").into());
+            }
+        }
+        _ => {}
+    }
 }
 
 fn is_hash(s: &str) -> bool {
@@ -384,6 +587,8 @@ struct Entry {
     seq: u64,
     prev: String,
     hash: String,
+    /// Whether the line carries an HMAC (else the older, unkeyed SHA-256).
+    keyed: bool,
 }
 
 #[derive(Deserialize)]
@@ -396,29 +601,44 @@ struct ParsedBody {
     event: Value,
 }
 
-/// Parses one line (without its `\n`) and checks it against its own hash.
-fn parse_line(bytes: &[u8]) -> Result<Entry, Break> {
+/// Parses one line (without its `\n`) and checks it against its own MAC (with `key`) or, for
+/// an older unkeyed line, its hash.
+fn parse_line(bytes: &[u8], key: Option<&AuditKey>) -> Result<Entry, Break> {
     let bad = |s: &str| Break::NotEntry(s.to_string());
     let line = std::str::from_utf8(bytes).map_err(|_| bad("not UTF-8"))?;
     let cut = line.len().saturating_sub(TAIL_LEN);
-    let hash = (line.get(cut..))
-        .and_then(|t| t.strip_prefix(HASH_KEY)?.strip_suffix("\"}"))
-        .filter(|h| is_hash(h))
-        .ok_or_else(|| bad("does not end in ,\"hash\":\"<64 lowercase hex>\"}"))?;
+    let tail = line.get(cut..).unwrap_or_default();
+    let keyed = tail.starts_with(HMAC_KEY);
+    let hash = (tail
+        .strip_prefix(HMAC_KEY)
+        .or_else(|| tail.strip_prefix(HASH_KEY)))
+    .and_then(|t| t.strip_suffix("\"}"))
+    .filter(|h| is_hash(h))
+    .ok_or_else(|| bad("does not end in ,\"hmac\":\"<64 lowercase hex>\"}"))?;
     let body = format!("{}}}", line.get(..cut).unwrap_or_default());
     let parsed: ParsedBody = serde_json::from_str(&body).map_err(|e| bad(&e.to_string()))?;
     let (seq, prev, hash) = (parsed.seq, parsed.prev, hash.to_string());
     if !is_hash(&prev) {
         return Err(bad("prev is not 64 lowercase hex digits"));
     }
-    if sha256_hex(body.as_bytes()) != hash {
+    if keyed {
+        let key = key.ok_or(Break::NoKey)?;
+        if key.mac_hex(body.as_bytes()) != hash {
+            return Err(Break::MacMismatch);
+        }
+    } else if sha256_hex(body.as_bytes()) != hash {
         return Err(Break::Edited);
     }
-    Ok(Entry { seq, prev, hash })
+    Ok(Entry {
+        seq,
+        prev,
+        hash,
+        keyed,
+    })
 }
 
 /// The last line of `path` and whether it ends in `\n`; `None` if the file is missing or empty.
-fn read_tail(path: &Path) -> Result<Option<(Entry, bool)>, AuditError> {
+fn read_tail(path: &Path, key: Option<&AuditKey>) -> Result<Option<(Entry, bool)>, AuditError> {
     let file = match File::open(path) {
         Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
         other => other.map_err(io_err(path))?,
@@ -433,7 +653,7 @@ fn read_tail(path: &Path) -> Result<Option<(Entry, bool)>, AuditError> {
     }
     let complete = last.ends_with(b"\n");
     let path = path.to_path_buf();
-    match parse_line(last.strip_suffix(b"\n").unwrap_or(&last)) {
+    match parse_line(last.strip_suffix(b"\n").unwrap_or(&last), key) {
         Ok(entry) => Ok(Some((entry, complete))),
         Err(reason) => Err(AuditError::CorruptTail { path, line, reason }),
     }
@@ -455,6 +675,11 @@ pub struct VerifyReport {
     pub starts_at_genesis: bool,
     /// Hash of the last entry (genesis if none); keep it elsewhere to detect truncation later.
     pub last_hash: String,
+    /// Entries with an HMAC, checked with the key.
+    pub keyed: u64,
+    /// Entries of the older, unkeyed format (plain SHA-256, all before the first keyed one):
+    /// they show a deletion or a careless edit, but anyone can rewrite them with their tail.
+    pub unkeyed: u64,
 }
 
 /// Why [`verify`] rejects the files.
@@ -484,6 +709,18 @@ pub enum Break {
     /// The line's bytes do not hash to its `hash`.
     #[error("hash does not match its content (the line was edited)")]
     Edited,
+    /// The line's bytes do not give its `hmac` under the key.
+    #[error("hmac does not match its content (the line was edited, or written with another key)")]
+    MacMismatch,
+    /// A keyed line, but no key to check it with.
+    #[error("the line is keyed (hmac) but no audit key was given to check it")]
+    NoKey,
+    /// An unkeyed line after a keyed one.
+    #[error(
+        "an unkeyed line (hash) after keyed ones (hmac): the log was rewritten from here without \
+         the key"
+    )]
+    Unkeyed,
     /// `seq` skips entries.
     #[error("seq {seq} follows seq {prev_seq} ({} missing)", entries(seq - prev_seq - 1))]
     Missing { seq: u64, prev_seq: u64 },
@@ -502,10 +739,12 @@ fn entries(n: u64) -> String {
     format!("{n} {}", if n == 1 { "entry" } else { "entries" })
 }
 
-/// Checks the hash chain across `paths`, given oldest first (e.g. `audit.jsonl.2
-/// audit.jsonl.1 audit.jsonl`): each line's hash, `seq` growing by exactly 1, and `prev`
-/// linking to the entry before it, also across files.
-pub fn verify(paths: &[PathBuf]) -> Result<VerifyReport, VerifyError> {
+/// Checks the chain across `paths`, given oldest first (e.g. `audit.jsonl.2 audit.jsonl.1
+/// audit.jsonl`): each line's HMAC under `key` (or the hash of an older unkeyed line), `seq`
+/// growing by exactly 1, and `prev` linking to the entry before it, also across files. Unkeyed
+/// lines may only come before the first keyed one. A keyed line without `key` is
+/// [`Break::NoKey`].
+pub fn verify(paths: &[PathBuf], key: Option<&AuditKey>) -> Result<VerifyReport, VerifyError> {
     if paths.is_empty() {
         return Err(VerifyError::NoFiles);
     }
@@ -516,6 +755,8 @@ pub fn verify(paths: &[PathBuf]) -> Result<VerifyReport, VerifyError> {
         last_seq: 0,
         starts_at_genesis: true,
         last_hash: GENESIS.into(),
+        keyed: 0,
+        unkeyed: 0,
     };
     for path in paths {
         let io = |source| VerifyError::Io {
@@ -529,9 +770,11 @@ pub fn verify(paths: &[PathBuf]) -> Result<VerifyReport, VerifyError> {
                 line,
                 problem,
             };
-            let entry = parse_line(&bytes.map_err(io)?).map_err(broken)?;
+            let entry = parse_line(&bytes.map_err(io)?, key).map_err(broken)?;
             let (seq, prev_seq) = (entry.seq, report.last_seq);
-            let problem = if report.entries == 0 {
+            let problem = if !entry.keyed && report.keyed > 0 {
+                Some(Break::Unkeyed)
+            } else if report.entries == 0 {
                 (report.first_seq, report.starts_at_genesis) = (seq, seq == 1);
                 let bad = seq == 0 || (seq == 1 && entry.prev != GENESIS);
                 bad.then_some(Break::BadGenesis { seq })
@@ -546,6 +789,11 @@ pub fn verify(paths: &[PathBuf]) -> Result<VerifyReport, VerifyError> {
                 return Err(broken(problem));
             }
             (report.entries, report.last_seq) = (report.entries + 1, seq);
+            if entry.keyed {
+                report.keyed += 1;
+            } else {
+                report.unkeyed += 1;
+            }
             report.last_hash = entry.hash;
         }
     }
@@ -560,6 +808,15 @@ mod tests {
     type Res = Result<(), Box<dyn std::error::Error>>;
     const WAIT: Duration = Duration::from_secs(10);
 
+    fn key() -> AuditKey {
+        AuditKey::from_bytes([7; 32])
+    }
+
+    /// `verify` with the tests' key.
+    fn verify(paths: &[PathBuf]) -> Result<VerifyReport, VerifyError> {
+        super::verify(paths, Some(&key()))
+    }
+
     fn config(dir: &tempfile::TempDir, max_file_bytes: u64, queue: usize) -> AuditConfig {
         let (path, keep_files) = (dir.path().join("log/audit.jsonl"), 3);
         AuditConfig {
@@ -567,6 +824,7 @@ mod tests {
             max_file_bytes,
             keep_files,
             queue,
+            key: Some(key()),
         }
     }
 
@@ -622,7 +880,7 @@ mod tests {
         let deleted = tamper(&|l| drop(l.remove(4)))?;
         assert_eq!(deleted, Some((5, Break::Missing { seq, prev_seq })));
         let edited = tamper(&|l| l[6] = l[6].replacen("move_to", "move_tO", 1))?;
-        assert_eq!(edited, Some((7, Break::Edited)));
+        assert_eq!(edited, Some((7, Break::MacMismatch)));
         let (seq, prev_seq) = (4, 2);
         let swapped = tamper(&|l| l.swap(2, 3))?;
         assert_eq!(swapped, Some((3, Break::Missing { seq, prev_seq })));
@@ -631,8 +889,8 @@ mod tests {
         // Line 2 replaced by one with a correct seq and its own valid hash, but a wrong prev.
         let prev = "a".repeat(64);
         let body = format!(r#"{{"seq":2,"time":"t","prev":"{prev}","event":1}}"#);
-        let hash = sha256_hex(body.as_bytes());
-        let forged = format!("{}{HASH_KEY}{hash}\"}}", &body[..body.len() - 1]);
+        let hash = key().mac_hex(body.as_bytes());
+        let forged = format!("{}{HMAC_KEY}{hash}\"}}", &body[..body.len() - 1]);
         let relinked = tamper(&|l| l[1] = forged.clone())?;
         assert_eq!(relinked, Some((2, Break::PrevMismatch)));
         let err = verify(one).err().map(|e| e.to_string()).unwrap_or_default();
@@ -751,6 +1009,150 @@ mod tests {
         let first: Value = serde_json::from_str(text.lines().next().unwrap_or_default())?;
         assert_eq!(first["event"]["reason"], nasty);
         assert_eq!(verify(std::slice::from_ref(&cfg.path))?.entries, 2);
+        Ok(())
+    }
+
+    /// Issue 39, door 9: one call with a huge field must not write a huge line.
+    #[test]
+    fn long_fields_are_cut_and_marked() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1 << 20, 8);
+        let log = AuditLog::start(&cfg)?;
+        let huge = "é".repeat(256_000); // 512000 bytes, two per char
+        let event = json!({"event": "admission", "arguments": {"workspace_id": huge},
+            "reason": "x".repeat(300), "list": (0..10_000).collect::<Vec<u32>>()});
+        log.record(event)?;
+        log.flush(WAIT)?;
+        let text = fs::read_to_string(&cfg.path)?;
+        assert!(text.len() < 8 * 1024, "one line of {} bytes", text.len());
+        let line: Value = serde_json::from_str(text.lines().next().unwrap_or_default())?;
+        let id = line["event"]["arguments"]["workspace_id"]
+            .as_str()
+            .unwrap_or_default();
+        assert!(id.starts_with(&"é".repeat(256)), "{id}");
+        assert!(id.ends_with("…(cut, 512000 bytes)"), "{id}");
+        let reason = line["event"]["reason"].as_str().unwrap_or_default();
+        assert!(reason.ends_with("…(cut, 300 bytes)"), "{reason}");
+        assert_eq!(line["event"]["event"], "admission");
+        assert!(line["event"]["list"]
+            .as_array()
+            .is_some_and(|l| l.len() <= 65));
+        Ok(())
+    }
+
+    /// Rewrites `lines` from index `from` on as an unkeyed chain would be rewritten by someone
+    /// without the key: each line's `prev` set to the line before's new hash, and re-hashed.
+    fn rehash_from(lines: &mut [String], from: usize, key: Option<&AuditKey>) {
+        for i in from..lines.len() {
+            let mut value: Value = serde_json::from_str(&lines[i]).unwrap_or_default();
+            let object = value
+                .as_object_mut()
+                .map(std::mem::take)
+                .unwrap_or_default();
+            let prev = (i > 0).then(|| {
+                let before: Value = serde_json::from_str(&lines[i - 1]).unwrap_or_default();
+                let mac = before.get("hmac").or(before.get("hash")).cloned();
+                mac.unwrap_or_default()
+            });
+            let body = json!({"seq": object["seq"], "time": object["time"],
+                "prev": prev.unwrap_or_else(|| object["prev"].clone()), "event": object["event"]});
+            let body = serde_json::to_string(&body).unwrap_or_default();
+            let (field, hash) = match key {
+                Some(key) => (HMAC_KEY, key.mac_hex(body.as_bytes())),
+                None => (HASH_KEY, sha256_hex(body.as_bytes())),
+            };
+            lines[i] = format!("{}{field}{hash}\"}}", &body[..body.len() - 1]);
+        }
+    }
+
+    /// Issue 39, door 9: an edited line whose tail was re-hashed without the key is caught.
+    #[test]
+    fn a_rehashed_tail_does_not_verify() -> Res {
+        let dir = tempfile::tempdir()?;
+        let cfg = config(&dir, 1 << 20, 8);
+        write_log(&cfg, 6)?;
+        let original = fs::read_to_string(&cfg.path)?;
+        let one = std::slice::from_ref(&cfg.path);
+        let rewrite = |key: Option<&AuditKey>| {
+            let mut lines: Vec<String> = original.lines().map(String::from).collect();
+            lines[3] = lines[3].replacen("move_to", "move_tO", 1);
+            rehash_from(&mut lines, 3, key);
+            let text: String = lines.iter().map(|l| format!("{l}\n")).collect();
+            fs::write(&cfg.path, text).map(|()| broken(one))
+        };
+        // Re-hashed as the older unkeyed format: an unkeyed line after keyed ones.
+        assert_eq!(rewrite(None)?, Some((4, Break::Unkeyed)));
+        // Re-keyed with a guessed key.
+        let guess = AuditKey::from_bytes([8; 32]);
+        assert_eq!(rewrite(Some(&guess))?, Some((4, Break::MacMismatch)));
+        // With the key, the same rewrite verifies: the key is what protects the chain.
+        assert!(rewrite(Some(&key()))?.is_none());
+        // Without a key, a keyed log cannot be checked at all.
+        let no_key = super::verify(one, None);
+        assert!(matches!(
+            no_key,
+            Err(VerifyError::Broken {
+                line: 1,
+                problem: Break::NoKey,
+                ..
+            })
+        ));
+        Ok(())
+    }
+
+    /// Logs written before the key verify as unkeyed; a keyed log may continue them.
+    #[test]
+    fn older_unkeyed_logs_still_verify_and_continue_keyed() -> Res {
+        let dir = tempfile::tempdir()?;
+        let keyed = config(&dir, 1 << 20, 8);
+        let unkeyed = AuditConfig {
+            key: None,
+            ..keyed.clone()
+        };
+        write_log(&unkeyed, 3)?;
+        let one = std::slice::from_ref(&keyed.path);
+        let r = super::verify(one, None)?;
+        assert_eq!((r.entries, r.keyed, r.unkeyed), (3, 0, 3));
+        write_log(&keyed, 2)?; // a robotd with a key continues the old chain
+        let r = verify(one)?;
+        assert_eq!((r.entries, r.keyed, r.unkeyed, r.last_seq), (5, 2, 3, 5));
+        assert!(r.starts_at_genesis);
+        // A start with another key refuses to continue the chain.
+        let other = AuditConfig {
+            key: Some(AuditKey::from_bytes([9; 32])),
+            ..keyed.clone()
+        };
+        let err = AuditLog::start(&other).err().ok_or("started")?;
+        assert!(err.to_string().contains("another key"), "{err}");
+        Ok(())
+    }
+
+    /// The HMAC against an independent implementation (Python's `hmac`):
+    /// `hmac.new(b"\x07"*32, b"robotd", "sha256").hexdigest()`.
+    #[test]
+    fn hmac_matches_an_independent_implementation() {
+        assert_eq!(
+            key().mac_hex(b"robotd"),
+            "150271e027ab4583201167bb71083a2f84e6b9e4e54aad10faefc58af0271bc3"
+        );
+    }
+
+    #[test]
+    fn key_file_is_created_once_with_mode_0600() -> Res {
+        let dir = tempfile::tempdir()?;
+        let path = dir.path().join("state/audit.key");
+        let made = AuditKey::load_or_create(&path)?;
+        assert_eq!(AuditKey::load_or_create(&path)?, made);
+        let text = fs::read_to_string(&path)?;
+        assert_eq!(text.trim().len(), 64);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            assert_eq!(fs::metadata(&path)?.permissions().mode() & 0o777, 0o600);
+        }
+        fs::write(&path, "not a key")?;
+        let err = AuditKey::load(&path).err().ok_or("loaded")?;
+        assert!(err.to_string().contains("not 64 hex digits"), "{err}");
         Ok(())
     }
 

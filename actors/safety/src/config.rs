@@ -105,6 +105,10 @@ pub struct AuditSection {
     /// Records waiting to be written; when full, motions are refused (16 … 1000000).
     #[serde(default = "AuditSection::queue")]
     pub queue: usize,
+    /// The key file of the log's HMAC chain (64 hex digits), created with mode 0600 on the
+    /// first start when missing. Empty: `audit.key` beside the audit file.
+    #[serde(default = "AuditSection::path")]
+    pub key_file: String,
 }
 
 impl Default for AuditSection {
@@ -115,6 +119,7 @@ impl Default for AuditSection {
             max_file_bytes: Self::max_file_bytes(),
             keep_files: Self::keep_files(),
             queue: Self::queue(),
+            key_file: Self::path(),
         }
     }
 }

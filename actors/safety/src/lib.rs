@@ -36,7 +36,7 @@ pub mod path;
 pub mod rate;
 
 pub use approval::{ApprovalRequest, Approvals, NotApproved};
-pub use audit::{AuditConfig, AuditError, AuditLog};
+pub use audit::{AuditConfig, AuditError, AuditKey, AuditLog};
 pub use config::{SafetyConfig, SafetyMode};
 pub use fence::{Fence, Violation};
 pub use path::{Caps, MotionCheck};
@@ -91,6 +91,7 @@ struct Inner {
     approvals: Approvals,
     audit: AuditLog,
     next_motion: AtomicU64,
+    workspace_ids: Vec<String>,
 }
 
 impl std::fmt::Debug for Safety {
@@ -133,12 +134,14 @@ impl Safety {
                 approvals: Approvals::default(),
                 audit,
                 next_motion: AtomicU64::new(1),
+                workspace_ids: workspaces.iter().map(|w| w.id.clone()).collect(),
             }),
         }
     }
 
     /// Opens the audit log `config.audit` names (or none when disabled); an empty path means
-    /// `audit.jsonl` in `log_dir` (robotd's log directory).
+    /// `audit.jsonl` in `log_dir` (robotd's log directory). Its HMAC key is read from
+    /// `key_file` (empty: `audit.key` beside the audit file), created there on the first start.
     pub fn open_audit(
         config: &SafetyConfig,
         log_dir: &std::path::Path,
@@ -150,11 +153,16 @@ impl Safety {
             "" => log_dir.join("audit.jsonl"),
             path => path.into(),
         };
+        let key_file = match config.audit.key_file.trim() {
+            "" => audit::default_key_file(&path),
+            file => file.into(),
+        };
         AuditLog::start(&AuditConfig {
             path,
             max_file_bytes: config.audit.max_file_bytes,
             keep_files: config.audit.keep_files,
             queue: config.audit.queue,
+            key: Some(AuditKey::load_or_create(&key_file)?),
         })
     }
 
@@ -171,6 +179,12 @@ impl Safety {
     /// The approval queue.
     pub fn approvals(&self) -> &Approvals {
         &self.inner.approvals
+    }
+
+    /// The ids of the configured workspaces: a command naming another is refused before
+    /// admission, so an unknown name never reaches the audit log.
+    pub fn workspace_ids(&self) -> &[String] {
+        &self.inner.workspace_ids
     }
 
     /// The audit log.
