@@ -24,6 +24,7 @@ use crate::writer;
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::objects::{DetectedObject, Detections};
 use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
+use robotd_runtime::backoff::Backoff;
 use robotd_runtime::bus::{Bus, BusError, Client, Publisher};
 use robotd_runtime::catalog::{PERCEPTION_DETECTIONS, WORKSPACE_QUERY};
 use robotd_vision::detector::{DetectError, Detector, FrameView, SheetView};
@@ -151,7 +152,7 @@ impl Consumer {
         let start_id = format!("{}-0", (now_s() * 1000.0) as u64);
         let mut ids = [start_id.clone(), start_id];
         let mut connection = None;
-        let mut backoff = Duration::from_millis(100);
+        let mut backoff = Backoff::up_to(writer::BACKOFF_MAX);
         loop {
             if stop.is_cancelled() {
                 return;
@@ -164,14 +165,13 @@ impl Consumer {
                 match attempt {
                     Ok(c) => {
                         connection = Some(c);
-                        backoff = Duration::from_millis(100);
+                        backoff.reset();
                     }
                     Err(_) => {
                         tokio::select! {
                             _ = stop.cancelled() => return,
-                            _ = tokio::time::sleep(backoff) => {}
+                            _ = tokio::time::sleep(backoff.next_delay()) => {}
                         }
-                        backoff = (backoff * 2).min(Duration::from_secs(1));
                     }
                 }
                 continue;

@@ -11,6 +11,7 @@
 use crate::status::EdgeStatus;
 use crate::wire::{maxlen, Entry};
 use redis::aio::{ConnectionManager, ConnectionManagerConfig};
+use robotd_runtime::backoff::Backoff;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::mpsc;
@@ -20,10 +21,10 @@ use tokio_util::sync::CancellationToken;
 pub const QUEUE_CAPACITY: usize = 32;
 /// Entries appended per pipeline, at most.
 const BATCH: usize = 16;
-/// First reconnect delay.
-const BACKOFF_MIN: Duration = Duration::from_millis(100);
-/// Longest reconnect delay.
-const BACKOFF_MAX: Duration = Duration::from_secs(1);
+/// First reconnect delay (also the connection manager's).
+const BACKOFF_MIN: Duration = robotd_runtime::backoff::FIRST_DELAY;
+/// Longest reconnect delay (the writer's and the consumer's).
+pub(crate) const BACKOFF_MAX: Duration = Duration::from_secs(1);
 /// A command that takes longer than this fails (Redis is taken to be unresponsive).
 pub const RESPONSE_TIMEOUT: Duration = Duration::from_secs(2);
 /// A connection attempt that takes longer than this fails.
@@ -90,7 +91,7 @@ async fn run(
     stop: CancellationToken,
 ) {
     let mut connection: Option<ConnectionManager> = None;
-    let mut backoff = BACKOFF_MIN;
+    let mut backoff = Backoff::new(BACKOFF_MIN, BACKOFF_MAX);
     loop {
         if connection.is_none() {
             let attempt = tokio::select! {
@@ -100,13 +101,13 @@ async fn run(
             match attempt {
                 Ok(c) => {
                     connection = Some(c);
-                    backoff = BACKOFF_MIN;
+                    backoff.reset();
                     status.connected();
                 }
                 Err(error) => {
                     status.down(&error.to_string());
                     // Drop what waits while the backoff runs: stale frames help no one.
-                    let sleep = tokio::time::sleep(backoff);
+                    let sleep = tokio::time::sleep(backoff.next_delay());
                     tokio::pin!(sleep);
                     loop {
                         tokio::select! {
@@ -118,7 +119,6 @@ async fn run(
                             },
                         }
                     }
-                    backoff = (backoff * 2).min(BACKOFF_MAX);
                     continue;
                 }
             }
