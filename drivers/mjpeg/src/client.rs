@@ -4,6 +4,7 @@ use bytes::Bytes;
 use futures::StreamExt;
 use robotd_driver::camera_feed::{CameraFeed, FedCamera, PoseSource};
 use robotd_protocol::camera::CameraIntrinsics;
+use robotd_runtime::backoff::Backoff;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -59,17 +60,16 @@ impl MjpegCamera {
                 return;
             }
         };
-        let mut backoff = Duration::from_millis(100);
+        let mut backoff = Backoff::up_to(Duration::from_secs(2));
         loop {
             let problem = self.receive(&client, &mut backoff).await;
             self.set_problem(problem);
-            tokio::time::sleep(backoff).await;
-            backoff = (backoff * 2).min(Duration::from_secs(2));
+            tokio::time::sleep(backoff.next_delay()).await;
         }
     }
 
     /// One connection: frames until it fails; returns why it ended.
-    async fn receive(&self, client: &reqwest::Client, backoff: &mut Duration) -> String {
+    async fn receive(&self, client: &reqwest::Client, backoff: &mut Backoff) -> String {
         let url = &self.url;
         let response = match client.get(url).send().await {
             Ok(r) => r,
@@ -108,7 +108,7 @@ impl MjpegCamera {
             };
             match self.decode(&part.body) {
                 Ok(rgb) => {
-                    *backoff = Duration::from_millis(100);
+                    backoff.reset();
                     self.publish(rgb);
                 }
                 Err(reason) => {
