@@ -15,6 +15,7 @@
 //! command is ever accepted while the arm's position is unknown.
 
 use crate::wire::{self, Param, Reply, WireError};
+use robotd_runtime::backoff::Backoff;
 use serde_json::Value;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
@@ -264,14 +265,14 @@ impl Link {
     /// the module docs), and after a drop tries again, waiting 100 ms, then twice as long
     /// each time up to `reconnect_max`.
     pub async fn run_reconnector(self: Arc<Self>) {
-        let mut wait = Duration::from_millis(100);
+        let mut backoff = Backoff::up_to(self.settings.reconnect_max);
         loop {
             if self.status().is_ok() {
                 self.dropped.notified().await;
                 if self.status().is_ok() {
                     continue;
                 }
-                wait = Duration::from_millis(100);
+                backoff.reset();
             }
             match self.connect().await {
                 Ok(()) => {
@@ -285,8 +286,7 @@ impl Link {
                     tracing::debug!(%reason, "connecting to the robot");
                     *lock(&self.status) = Err(reason);
                     self.connected.notify_waiters();
-                    tokio::time::sleep(wait).await;
-                    wait = (wait * 2).min(self.settings.reconnect_max);
+                    tokio::time::sleep(backoff.next_delay()).await;
                 }
             }
         }
