@@ -24,6 +24,7 @@ use crate::packet::{Deframer, Instruction, STATUS};
 use crate::startup::{self, StartupSettings};
 use crate::DxlBus;
 use robotd_driver::DriverError;
+use robotd_runtime::backoff::Backoff;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -289,7 +290,7 @@ impl ServoBus {
 
     /// The bus thread: open, bring up, tick; reopen after a failure.
     fn run(self: Arc<Self>, jobs: mpsc::Receiver<Job>) {
-        let mut backoff = Duration::from_millis(100);
+        let mut backoff = Backoff::up_to(self.settings.reconnect_max);
         while !self.stop.load(Ordering::SeqCst) {
             let mut bus = match self.open_and_bring_up() {
                 Ok(bus) => bus,
@@ -297,12 +298,11 @@ impl ServoBus {
                     self.set_connection(Err(reason));
                     drain(&jobs);
                     self.ticks.send_modify(|t| *t += 1);
-                    std::thread::sleep(backoff);
-                    backoff = (backoff * 2).min(self.settings.reconnect_max);
+                    std::thread::sleep(backoff.next_delay());
                     continue;
                 }
             };
-            backoff = Duration::from_millis(100);
+            backoff.reset();
             self.stats.connections.fetch_add(1, Ordering::Relaxed);
             self.set_connection(Ok(()));
             let lost = self.control_loop(&mut bus, &jobs);
