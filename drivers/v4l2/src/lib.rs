@@ -22,6 +22,7 @@ pub use convert::{yuyv_to_rgb, Decoder};
 
 use robotd_driver::camera_feed::{CameraFeed, FedCamera, PoseSource};
 use robotd_protocol::camera::CameraIntrinsics;
+use robotd_runtime::backoff::Backoff;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Weak};
 use std::time::Duration;
@@ -74,7 +75,7 @@ impl V4l2Camera {
 
 /// Capture sessions, reopened with backoff, until the camera is dropped.
 fn capture_thread(camera: Weak<V4l2Camera>) {
-    let mut backoff = Duration::from_millis(100);
+    let mut backoff = Backoff::up_to(Duration::from_secs(2));
     loop {
         let Some(strong) = camera.upgrade() else {
             return;
@@ -99,14 +100,13 @@ fn capture_thread(camera: Weak<V4l2Camera>) {
             format!("the capture of camera {} failed: {what}", device.display())
         });
         if sink.frames.load(std::sync::atomic::Ordering::Relaxed) > 0 {
-            backoff = Duration::from_millis(100);
+            backoff.reset();
         }
         match camera.upgrade() {
             Some(strong) => strong.feed.set_problem(reason),
             None => return,
         }
-        std::thread::sleep(backoff);
-        backoff = (backoff * 2).min(Duration::from_secs(2));
+        std::thread::sleep(backoff.next_delay());
     }
 }
 
