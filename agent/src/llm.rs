@@ -22,6 +22,7 @@
 //! ```
 
 use crate::providers::{ProviderSettings, Wire};
+use robotd_runtime::backoff::Backoff;
 use serde_json::{json, Map, Value};
 use std::time::Duration;
 
@@ -343,7 +344,7 @@ impl LlmClient {
         let url = self.endpoint();
         let body = self.request_body(messages, tools);
         let provider = self.settings.provider.name().to_owned();
-        let mut backoff = self.retry.initial_backoff;
+        let mut backoff = Backoff::new(self.retry.initial_backoff, self.retry.max_backoff);
         let mut attempt = 0u32;
         loop {
             attempt += 1;
@@ -430,7 +431,9 @@ impl LlmClient {
                     body: shorten(&error_message(&text), 300),
                 });
             }
-            let wait = wait_hint.unwrap_or(backoff).min(self.retry.max_backoff);
+            // The doubling goes on under a Retry-After, which replaces only this wait.
+            let next = backoff.next_delay();
+            let wait = wait_hint.unwrap_or(next).min(self.retry.max_backoff);
             tracing::warn!(
                 status,
                 attempt,
@@ -438,7 +441,6 @@ impl LlmClient {
                 "LLM busy or failing; retrying"
             );
             tokio::time::sleep(wait).await;
-            backoff = (backoff * 2).min(self.retry.max_backoff);
         }
     }
 }
