@@ -144,12 +144,12 @@ impl AuditKey {
             fs::create_dir_all(dir).map_err(io_err(dir))?;
         }
         let mut key = [0u8; 32];
-        File::open("/dev/urandom")
-            .and_then(|mut random| io::Read::read_exact(&mut random, &mut key))
-            .map_err(|e| AuditError::Key {
+        ring::rand::SecureRandom::fill(&ring::rand::SystemRandom::new(), &mut key).map_err(
+            |_| AuditError::Key {
                 path: path.to_path_buf(),
-                reason: format!("cannot read random bytes from /dev/urandom: {e}"),
-            })?;
+                reason: "the operating system gave no random bytes".into(),
+            },
+        )?;
         let mut options = OpenOptions::new();
         options.write(true).create_new(true);
         #[cfg(unix)]
@@ -166,16 +166,10 @@ impl AuditKey {
         Ok(AuditKey(key))
     }
 
-    /// Lowercase hex HMAC-SHA256 (RFC 2104) of `bytes` under this key.
+    /// Lowercase hex HMAC-SHA256 (RFC 2104) of `bytes` under this key (`ring::hmac`).
     fn mac_hex(&self, bytes: &[u8]) -> String {
-        let (mut inner, mut outer) = (Sha256::new(), Sha256::new());
-        let mut pad = [0u8; 64];
-        pad[..32].copy_from_slice(&self.0);
-        inner.update(pad.map(|b| b ^ 0x36));
-        inner.update(bytes);
-        outer.update(pad.map(|b| b ^ 0x5c));
-        outer.update(inner.finalize());
-        hex(&outer.finalize())
+        let key = ring::hmac::Key::new(ring::hmac::HMAC_SHA256, &self.0);
+        hex(ring::hmac::sign(&key, bytes).as_ref())
     }
 }
 
