@@ -168,7 +168,7 @@ pub fn group_fragments(
 /// the absorbing distance of it, is part of it (printing on a wrapper, a label on a box).
 const INSIDE_SHARE: f64 = 0.6;
 /// Joins groups that are parts of one object: a smaller one (under half the area) lying mostly
-/// inside a larger one's box and within the absorbing distance of it (a label printed on a
+/// inside a larger one's outline and within the absorbing distance of it (a label printed on a
 /// wrapper, letters on a box), and a piece touching two groups of one other colour (a band
 /// printed across a wrapper, which cuts its colour in two). Two colours that only meet side by side stay two
 /// objects: a square pushed flush against a cube looks exactly like a bar printed in two
@@ -201,6 +201,7 @@ fn join_parts_of_one_object(
                 && !members[a].is_empty()
                 && 2 * area(&members[a]) < area(&members[b])
                 && overlap(ba, bb) as f64 / box_area(ba) as f64 >= INSIDE_SHARE
+                && inside_outline(components, &members[a], &members[b], width)
                 && members[a].iter().any(|&i| {
                     members[b].iter().any(|&j| {
                         pixels_within(components, &blobs[i], &blobs[j], width, absorb_gap)
@@ -257,6 +258,34 @@ fn join_parts_of_one_object(
             members[b].extend(taken);
         }
     }
+}
+
+/// Whether most of the pixels of the group `inner` lie inside the convex outline of the group
+/// `outer`: a label on a wrapper does, an object beside a turned square (inside its box, not
+/// its outline) does not.
+fn inside_outline(components: &Components, inner: &[usize], outer: &[usize], width: usize) -> bool {
+    let blobs = components.blobs();
+    let points = |m: &[usize]| -> Vec<[f64; 2]> {
+        m.iter()
+            .flat_map(|&i| components.pixels(&blobs[i]).iter())
+            .map(|&p| [f64::from(p % width as u32), f64::from(p / width as u32)])
+            .collect()
+    };
+    let hull = crate::rect::convex_hull(&points(outer));
+    if hull.len() < 3 {
+        return false;
+    }
+    // Counter-clockwise hull: inside is left of every edge (a pixel's width of slack).
+    let inside = |p: &[f64; 2]| {
+        (0..hull.len()).all(|k| {
+            let (a, b) = (hull[k], hull[(k + 1) % hull.len()]);
+            let cross = (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+            cross >= -(b[0] - a[0]).hypot(b[1] - a[1])
+        })
+    };
+    let pixels = points(inner);
+    let within = pixels.iter().filter(|p| inside(p)).count();
+    within * 5 >= pixels.len() * 4
 }
 
 fn box_area(b: [u32; 4]) -> u64 {
@@ -420,6 +449,27 @@ mod tests {
         let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
         assert_eq!(groups.len(), 1, "{groups:?}");
         assert_eq!(groups[0].class, 9, "mostly dark: an unknown object");
+        // A red cube beside a blue square turned by 45°: inside the square's box, outside its
+        // outline — two objects.
+        let (w2, h2) = (40, 40);
+        let mut turned = vec![0u8; w2 * h2];
+        for v in 0..h2 {
+            for u in 0..w2 {
+                let (du, dv) = ((u as i32 - 20).abs(), (v as i32 - 20).abs());
+                if du + dv <= 16 {
+                    turned[v * w2 + u] = 2;
+                } else if (30..36).contains(&u) && (30..36).contains(&v) {
+                    turned[v * w2 + u] = 1;
+                }
+            }
+        }
+        c.label(&turned, w2, h2, 1);
+        let wide = Gaps {
+            absorb_px: 8,
+            ..GAPS
+        };
+        let groups = group_fragments(&c, 9, w2, wide, |_, _| false);
+        assert_eq!(groups.len(), 2, "{groups:?}");
         // A dark strip (a shadow) touching a red and a blue square joins neither to the other.
         let mut bridged = vec![0u8; w * h];
         for v in 2..8 {
