@@ -8,9 +8,9 @@
 //! moved, or away from the observation pose of the workspace in view, is published with
 //! `steady = false`, so the workspace model ignores it. While the
 //! gripper holds something (`gripper/state`), the held object hangs in the wrist camera's view
-//! and would look like an object on the table under the tool: detections whose footprint
-//! covers the tool's position are dropped then (a real object right under the tool is missed
-//! while holding).
+//! and would look like an object on the table: a detection under the tool that comes in over
+//! the sheet's edge is dropped then ([`crate::held_object`]; a real object right there is
+//! missed while holding).
 //!
 //! A detector that fails or panics on a frame costs that frame only: the failure is logged and
 //! counted, and the next frame is processed as usual.
@@ -176,23 +176,6 @@ impl std::ops::DerefMut for ArmView {
     }
 }
 
-/// How far around the tool a held object's image may reach on the table plane, metres.
-const HELD_OBJECT_MARGIN_M: f64 = 0.01;
-
-impl ArmView {
-    /// Whether `object` is what the gripper holds, seen from the wrist camera: while holding,
-    /// a detection whose footprint (grown by a centimetre) covers the tool's position is the
-    /// held object, not something on the table.
-    fn is_held_object(&self, object: &robotd_protocol::objects::DetectedObject) -> bool {
-        let (true, Some(tool)) = (self.holding, self.tool_pose.as_ref()) else {
-            return false;
-        };
-        let c = object.xy();
-        (tool.x_m - c.x_m).abs() <= object.dimensions.height_m / 2.0 + HELD_OBJECT_MARGIN_M
-            && (tool.y_m - c.y_m).abs() <= object.dimensions.width_m / 2.0 + HELD_OBJECT_MARGIN_M
-    }
-}
-
 fn run(
     bus: Bus,
     mut pipeline: Pipeline,
@@ -338,7 +321,12 @@ fn run(
                 .store(elapsed.as_micros() as u64, Ordering::Relaxed);
             let detections: Detections = match outcome {
                 Ok(Ok((mut detections, status))) => {
-                    detections.objects.retain(|o| !arm.is_held_object(o));
+                    if let (true, Some(tool)) = (arm.holding, arm.tool_pose.as_ref()) {
+                        let workspace = pipeline.workspace_for(Some(tool));
+                        detections.objects.retain(|o| {
+                            !crate::held_object::is_held_object(o, tool, workspace)
+                        });
+                    }
                     // Only a view from a known arm pose says whether the workspace can be
                     // seen (frames before the first arm state come from anywhere).
                     if steady && arm.heard {

@@ -15,6 +15,7 @@ pub mod actor;
 #[cfg(feature = "eval")]
 pub mod eval;
 pub mod external_detections;
+pub mod held_object;
 
 pub use robotd_vision::{
     camera, components, detector, external, footprint, labels, markers, pipeline, plane, rect,

@@ -253,7 +253,13 @@ fn join_parts_of_one_object(
         let Some((a, b, c)) = bridge else {
             return;
         };
-        for moved in [a, c] {
+        // A printed band lies inside the wrapper's outline; an object lying across another (a
+        // cube on a pencil) sticks out of it. Then the two sides are one object seen on both
+        // sides of what covers its middle, and what covers it stays an object of its own.
+        let sides: Vec<usize> = members[b].iter().chain(&members[c]).copied().collect();
+        let printed_band = inside_outline(components, &members[a], &sides, width);
+        let moved_in: &[usize] = if printed_band { &[a, c] } else { &[c] };
+        for &moved in moved_in {
             let taken = std::mem::take(&mut members[moved]);
             members[b].extend(taken);
         }
@@ -434,6 +440,24 @@ mod tests {
         let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
         assert_eq!(groups.len(), 1, "{groups:?}");
         assert_eq!((groups[0].class, groups[0].pixels.len()), (1, 144));
+        // A blue cube lying across a red pencil sticks out of the pencil's outline: the cube is
+        // one object, the pencil's two visible ends another.
+        let mut across = vec![0u8; w * h];
+        for v in 0..h {
+            for u in 2..34 {
+                if (14..22).contains(&u) {
+                    across[v * w + u] = 2;
+                } else if (5..7).contains(&v) {
+                    across[v * w + u] = 1;
+                }
+            }
+        }
+        c.label(&across, w, h, 1);
+        let groups = group_fragments(&c, 9, w, GAPS, |_, _| false);
+        let mut found: Vec<(u8, usize)> =
+            groups.iter().map(|g| (g.class, g.pixels.len())).collect();
+        found.sort();
+        assert_eq!(found, vec![(1, 2 * 2 * 12), (2, 8 * 12)], "{groups:?}");
         // Printing inside a wrapper: a small blue mark inside a large dark object joins it.
         let mut wrapper = vec![0u8; w * h];
         for v in 1..11 {
