@@ -270,7 +270,7 @@ mod tests {
     use super::*;
     use crate::doctor::report::{DoctorReport, Status};
     use crate::doctor::test_support::{
-        env_from, free_port, have_program, no_secrets, temp_dir, RedisServer,
+        env_from, free_port, require_program, no_secrets, temp_dir, RedisServer,
     };
     use std::net::TcpListener;
     use std::path::Path;
@@ -414,9 +414,7 @@ mod tests {
 
     #[test]
     fn redis_real_server_pongs() {
-        let Some(server) = RedisServer::start(&[]) else {
-            return;
-        };
+        let server = RedisServer::start(&[]);
         let url = format!("redis://127.0.0.1:{}", server.port);
         let check = check_redis(Some(&url), &env_from(&[]), &no_secrets());
         assert_eq!(check.status, Status::Ok, "{check:?}");
@@ -445,9 +443,7 @@ mod tests {
 
     #[test]
     fn redis_with_password_noauth_wrongpass_and_ok() {
-        let Some(server) = RedisServer::start(&["--requirepass", "hunter2-secret"]) else {
-            return;
-        };
+        let server = RedisServer::start(&["--requirepass", "hunter2-secret"]);
         let port = server.port;
         let none = check_redis(
             Some(&format!("redis://127.0.0.1:{port}")),
@@ -501,9 +497,7 @@ mod tests {
     #[test]
     fn doctor_and_serve_agree_on_every_redis_setting() {
         const PASSWORD: &str = "only-in-secrets-pw";
-        let Some(server) = RedisServer::start(&["--requirepass", PASSWORD]) else {
-            return;
-        };
+        let server = RedisServer::start(&["--requirepass", PASSWORD]);
         let port = server.port.to_string();
         let dir = temp_dir("agree");
         std::fs::write(
@@ -587,12 +581,11 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
-    /// Makes a CA and a server certificate for 127.0.0.1/localhost with `openssl`; `None` when
-    /// it is not installed. Returns (ca.pem, server.pem, server.key).
-    fn make_certificates(dir: &Path) -> Option<[String; 3]> {
-        if !have_program("openssl") {
-            return None;
-        }
+    /// Makes a CA and a server certificate for 127.0.0.1/localhost with `openssl` (the test
+    /// fails, naming the package, when it is not installed). Returns (ca.pem, server.pem,
+    /// server.key).
+    fn make_certificates(dir: &Path) -> [String; 3] {
+        require_program("openssl", "openssl");
         let path = |name: &str| dir.join(name).display().to_string();
         let (ca_key, ca, key, csr, cert, ext) = (
             path("ca.key"),
@@ -663,7 +656,7 @@ mod tests {
                 .expect("run openssl");
             assert!(status.success(), "openssl {args:?}: {status}");
         }
-        Some([ca, cert, key])
+        [ca, cert, key]
     }
 
     const TLS_ENV: &str = "ROBOTD_DOCTOR_TEST_TLS_URL";
@@ -686,11 +679,9 @@ mod tests {
     #[test]
     fn rediss_is_pinged_over_tls() {
         let dir = temp_dir("tls");
-        let Some([ca, cert, key]) = make_certificates(&dir) else {
-            return;
-        };
+        let [ca, cert, key] = make_certificates(&dir);
         let port = free_port();
-        let Some(_server) = RedisServer::start_on(
+        let _server = RedisServer::start_on(
             port,
             true,
             &[
@@ -703,9 +694,7 @@ mod tests {
                 "--tls-auth-clients",
                 "no",
             ],
-        ) else {
-            return;
-        };
+        );
         let url = format!("rediss://127.0.0.1:{port}");
 
         let untrusted = check_redis(Some(&url), &env_from(&[]), &no_secrets());

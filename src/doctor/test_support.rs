@@ -48,34 +48,33 @@ pub(super) fn temp_dir(tag: &str) -> PathBuf {
     dir
 }
 
-/// Whether `program` is on `PATH`; says so on stderr when it is not (the test then skips).
-pub(super) fn have_program(program: &str) -> bool {
+/// Fails the test, naming what to install, when `program` (of the Debian package `package`)
+/// is not on `PATH`: a test never passes without running.
+pub(super) fn require_program(program: &str, package: &str) {
     let path = std::env::var("PATH").ok();
-    if find_on_path(program, path.as_deref()).is_none() {
-        eprintln!("SKIPPED: {program} is not installed (scripts/test.sh installs it)");
-        return false;
-    }
-    true
+    assert!(
+        find_on_path(program, path.as_deref()).is_some(),
+        "{program} is not installed: `apt-get install {package}` (./scripts/test.sh installs \
+         what the tests need)"
+    );
 }
 
-/// A redis-server on a free port with `extra` arguments, killed on drop. `None` when
-/// redis-server is not installed.
+/// A redis-server on a free port with `extra` arguments, killed on drop. The test fails,
+/// naming the package, when redis-server is not installed.
 pub(super) struct RedisServer {
     child: Child,
     pub(super) port: u16,
 }
 
 impl RedisServer {
-    pub(super) fn start(extra: &[&str]) -> Option<Self> {
+    pub(super) fn start(extra: &[&str]) -> Self {
         Self::start_on(free_port(), false, extra)
     }
 
     /// Starts it listening on `port`: plain Redis, or with `tls` TLS only (`--tls-port`, the
     /// plain port off; `extra` then names the certificate files).
-    pub(super) fn start_on(port: u16, tls: bool, extra: &[&str]) -> Option<Self> {
-        if !have_program("redis-server") {
-            return None;
-        }
+    pub(super) fn start_on(port: u16, tls: bool, extra: &[&str]) -> Self {
+        require_program("redis-server", "redis-server");
         let port_text = port.to_string();
         let mut args = vec![
             if tls { "--tls-port" } else { "--port" },
@@ -107,7 +106,7 @@ impl RedisServer {
             );
             std::thread::sleep(Duration::from_millis(20));
         }
-        Some(server)
+        server
     }
 }
 
