@@ -270,7 +270,7 @@ mod tests {
     use super::*;
     use crate::doctor::report::{DoctorReport, Status};
     use crate::doctor::test_support::{
-        env_from, free_port, require_program, no_secrets, temp_dir, RedisServer,
+        env_from, free_port, no_secrets, require_program, temp_dir, RedisServer,
     };
     use std::net::TcpListener;
     use std::path::Path;
