@@ -237,13 +237,17 @@ async fn a_request_that_timed_out_is_never_executed_later() {
     let mut server = bus.server(&ECHO).unwrap();
     let executions = Arc::new(AtomicU32::new(0));
     let counter = executions.clone();
+    let started = Arc::new(tokio::sync::Notify::new());
+    let started_tx = started.clone();
     tokio::spawn(async move {
         server
             .serve(move |p| {
                 let counter = counter.clone();
+                let started = started_tx.clone();
                 async move {
                     counter.fetch_add(1, Ordering::SeqCst);
                     if p.seq == 1 {
+                        started.notify_one();
                         tokio::time::sleep(Duration::from_millis(400)).await;
                     }
                     Ok(pong(p))
@@ -254,7 +258,10 @@ async fn a_request_that_timed_out_is_never_executed_later() {
     let slow = bus.client(&ECHO).unwrap();
     let impatient = bus.client(&ECHO).unwrap();
     let busy = tokio::spawn(async move { slow.request(&ping(1), SECOND).await });
-    tokio::time::sleep(Duration::from_millis(50)).await; // the server is now busy with 1
+    // The server is now busy with request 1.
+    tokio::time::timeout(SECOND, started.notified())
+        .await
+        .expect("the server took request 1");
     let error = impatient
         .request(&ping(2), Duration::from_millis(100))
         .await

@@ -83,8 +83,8 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
         estop_engaged: false,
         still_since_unix_ns: 0,
     };
+    // The state is in the actor's queue before the frame: it reads states on each frame.
     arm.publish(&state).unwrap();
-    tokio::time::sleep(Duration::from_millis(20)).await;
     publish(&frames, lab.frame(), 2);
     assert!(!detections_of(&mut detections, 2).await.steady);
 
@@ -92,7 +92,6 @@ async fn frames_become_detections_with_their_frame_id_and_steadiness() {
     state.moving = false;
     state.still_since_unix_ns = robotd_protocol::envelope::unix_now_ns();
     arm.publish(&state).unwrap();
-    tokio::time::sleep(Duration::from_millis(20)).await;
     publish(&frames, lab.frame(), 3);
     assert!(detections_of(&mut detections, 3).await.steady);
 
