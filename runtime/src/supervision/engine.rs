@@ -21,6 +21,7 @@ use super::error::{SupervisedError, SupervisionError};
 use super::event::{SupervisionEvent, SupervisionObserver};
 use super::hooks::{CleanupContext, CleanupFn, ErasedSafeState, CLEANUP_TIMEOUT};
 use super::policy::{RestartBudget, SupervisionPolicy};
+use super::watchdog;
 
 /// One kind of child: an actor type or a command line.
 pub(crate) trait Worker: Send + 'static {
@@ -312,16 +313,21 @@ async fn run<W: Worker>(
     let name = config.name.as_str();
     let mut budget = RestartBudget::new(&config.policy);
     let mut generation: u64 = 0;
+    // This loop's beat of the liveness watchdog, when one is installed (watchdog.rs).
+    let mut ticker = watchdog::ticker(name);
     loop {
-        let mut exit = tokio::select! {
-            biased;
-            () = shutdown_requested(&mut shutdown) => {
-                status.send_modify(|s| s.phase = Phase::Stopping);
-                worker.stop(config.stop_timeout).await;
-                config.run_cleanup(worker.last_pid(), "shut down on request").await;
-                return finish(&config, &status, "shut down on request".to_owned(), Ok(())).await;
+        let mut exit = loop {
+            tokio::select! {
+                biased;
+                () = shutdown_requested(&mut shutdown) => {
+                    status.send_modify(|s| s.phase = Phase::Stopping);
+                    worker.stop(config.stop_timeout).await;
+                    config.run_cleanup(worker.last_pid(), "shut down on request").await;
+                    return finish(&config, &status, "shut down on request".to_owned(), Ok(())).await;
+                }
+                exit = worker.wait_exit() => break exit,
+                () = watchdog::next_beat(&mut ticker) => watchdog::beat(&ticker).await,
             }
-            exit = worker.wait_exit() => exit,
         };
         // The incarnation is gone. Handle its death; repeat if the restart itself fails.
         loop {
@@ -373,13 +379,18 @@ async fn run<W: Worker>(
             };
             let backoff = config.policy.backoff_for(attempt);
             if !backoff.is_zero() {
-                tokio::select! {
-                    biased;
-                    () = shutdown_requested(&mut shutdown) => {
-                        let why = "shut down on request while waiting to restart".to_owned();
-                        return finish(&config, &status, why, Ok(())).await;
+                let wake = tokio::time::sleep(backoff);
+                tokio::pin!(wake);
+                loop {
+                    tokio::select! {
+                        biased;
+                        () = shutdown_requested(&mut shutdown) => {
+                            let why = "shut down on request while waiting to restart".to_owned();
+                            return finish(&config, &status, why, Ok(())).await;
+                        }
+                        () = &mut wake => break,
+                        () = watchdog::next_beat(&mut ticker) => watchdog::beat(&ticker).await,
                     }
-                    () = tokio::time::sleep(backoff) => {}
                 }
             }
 

@@ -43,6 +43,10 @@
 //! `actor_restart`, `budget_exhausted`). One crash and restart reads:
 //! `Failed` → `SafeState` → `Cleanup` (if a cleanup hook is set) → `Restarted` → `Started`.
 //!
+//! **Proof of life.** With a [`watchdog`] installed (robotd does when systemd asks for one),
+//! every supervision loop beats while it waits, and a ping goes out only when all of them
+//! have: a hung loop silences the pings, so the service manager restarts the service.
+//!
 //! # Restarts in kameo terms
 //!
 //! kameo's own supervision restarts a child in place, immediately, with no hook in between;
@@ -128,6 +132,7 @@ mod hooks;
 mod latency;
 mod policy;
 mod process;
+pub mod watchdog;
 
 use std::fmt;
 use std::future::Future;
