@@ -479,3 +479,7 @@ pub(crate) fn place_target(
         PLACE_GAP_M * 1000.0
     )))
 }
+
+#[cfg(test)]
+#[path = "plan/tests.rs"]
+mod tests;
