@@ -16,7 +16,7 @@ use robotd_perception::labels::LabelTable;
 use robotd_perception::{Perception, Pipeline};
 use robotd_protocol::diagnostics::Pong;
 use robotd_protocol::geometry::RobotModel;
-use robotd_protocol::health::{ActorHealth, ActorState, RestartEvent};
+use robotd_protocol::health::RestartEvent;
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_robot::Hardware;
 use robotd_runtime::bus::stale::{
@@ -24,139 +24,18 @@ use robotd_runtime::bus::stale::{
 };
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
 use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
-use robotd_runtime::supervision::{
-    observer_fn, SupervisedProcess, SupervisionEvent, SupervisionObserver, Supervisor,
-};
+use robotd_runtime::supervision::{SupervisedProcess, SupervisionObserver, Supervisor};
 use robotd_skills::{Skills, SkillsSettings};
 use robotd_speech::{Speech, SpeechSettings};
 use robotd_tools::{Registry, ToolSettings};
 use robotd_workspace_model::{MemorySettings, WorkspaceModel, WorkspaceModelSettings};
-use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tokio_util::sync::CancellationToken;
 
+use crate::health_board::{supervision_observer, HealthBoard, RobotInfo};
 use crate::health_parts::{external_detections_report, safety_report, workspace_view_report};
-
-/// What /health says about the robot.
-struct RobotInfo {
-    model: String,
-    scene: String,
-}
-
-/// Health of every supervised actor, kept current by the supervisors' events.
-#[derive(Default)]
-struct HealthBoard {
-    actors: Mutex<BTreeMap<String, ActorHealth>>,
-}
-
-impl HealthBoard {
-    fn apply(&self, event: &SupervisionEvent) {
-        let Ok(mut actors) = self.actors.lock() else {
-            return;
-        };
-        let entry = actors
-            .entry(event.actor().to_owned())
-            .or_insert_with(|| ActorHealth::new(event.actor(), ActorState::Starting));
-        match event {
-            SupervisionEvent::Started { .. } => entry.state = ActorState::Running,
-            SupervisionEvent::Failed { reason, .. } => {
-                entry.state = ActorState::SafeState;
-                entry.last_error = Some(reason.clone());
-            }
-            SupervisionEvent::SafeState { .. } | SupervisionEvent::Cleanup { .. } => {
-                entry.state = ActorState::Restarting
-            }
-            SupervisionEvent::Restarted { .. } => entry.restarts += 1,
-            SupervisionEvent::BudgetExhausted { .. } => entry.state = ActorState::Failed,
-            SupervisionEvent::Stopped { .. } => entry.state = ActorState::Stopped,
-        }
-    }
-
-    fn report(&self, config: &Config, robot: &RobotInfo, started: Instant) -> serde_json::Value {
-        let actors: Vec<ActorHealth> = self
-            .actors
-            .lock()
-            .map(|a| a.values().cloned().collect())
-            .unwrap_or_default();
-        let all_up = actors.iter().all(|a| a.state == ActorState::Running);
-        // The robot can be used when its arm, gripper and camera actors all run.
-        let robot_available = ["arm", "gripper", "camera"].iter().all(|name| {
-            actors
-                .iter()
-                .any(|a| a.actor == *name && a.state == ActorState::Running)
-        });
-        serde_json::json!({
-            "status": if all_up { "ok" } else { "degraded" },
-            "service": config.service.name,
-            "version": env!("CARGO_PKG_VERSION"),
-            "pid": std::process::id(),
-            "uptime_ms": started.elapsed().as_millis() as u64,
-            "bus_namespace": config.bus.namespace,
-            "robot": {
-                "driver": config.robot.driver,
-                "available": robot_available,
-                "model": robot.model,
-                "scene": robot.scene,
-            },
-            "actors": actors,
-        })
-    }
-}
-
-/// Turns a supervision event into the bus's restart event, when it is one. `safe_state_ok` is
-/// the outcome of the safe-state hook that ran before this restart.
-fn restart_event(event: &SupervisionEvent, safe_state_ok: bool) -> Option<RestartEvent> {
-    match event {
-        SupervisionEvent::Restarted {
-            actor,
-            attempt,
-            backoff,
-        } => Some(RestartEvent {
-            actor: actor.clone(),
-            attempt: *attempt,
-            reason: "restarted after a failure".into(),
-            backoff_ms: backoff.as_millis() as u64,
-            safe_state_ok,
-            budget_exhausted: false,
-        }),
-        SupervisionEvent::BudgetExhausted {
-            actor, restarts, ..
-        } => Some(RestartEvent {
-            actor: actor.clone(),
-            attempt: *restarts,
-            reason: event.to_string(),
-            backoff_ms: 0,
-            safe_state_ok,
-            budget_exhausted: true,
-        }),
-        _ => None,
-    }
-}
-
-/// The observer of one supervised actor: keeps the health board current, and publishes every
-/// restart (with the outcome of the safe-state hook before it) on `health/restarts`.
-fn supervision_observer(
-    board: Arc<HealthBoard>,
-    publisher: Arc<Mutex<Publisher<RestartEvent>>>,
-) -> impl SupervisionObserver {
-    let last_safe_state_ok = std::sync::atomic::AtomicBool::new(true);
-    observer_fn(move |event: &SupervisionEvent| {
-        board.apply(event);
-        if let SupervisionEvent::SafeState { ok, .. } = event {
-            last_safe_state_ok.store(*ok, std::sync::atomic::Ordering::Relaxed);
-        }
-        let safe_state_ok = last_safe_state_ok.load(std::sync::atomic::Ordering::Relaxed);
-        if let Some(restart) = restart_event(event, safe_state_ok) {
-            if let Ok(publisher) = publisher.lock() {
-                if let Err(error) = publisher.publish(&restart) {
-                    tracing::warn!(%error, "publishing a restart event");
-                }
-            }
-        }
-    })
-}
 
 /// Runs the service until a shutdown signal.
 /// Everything `robotd serve` runs, started; [`Runtime::shutdown`] stops it in order.
@@ -440,6 +319,8 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
         Ok(_) => {}
         Err(error) => tracing::warn!(%error, "the open-files limit could not be raised"),
     }
+    // Before the first supervisor starts: each one joins the watchdog as it starts.
+    crate::notify::install_watchdog();
     let runtime = Runtime::start(&config).await?;
     let agent = start_agent(&config, config_file, &runtime)?;
     let edge = HttpEdge::bind(config.http.bind, runtime.health_source.clone()).await?;
@@ -486,12 +367,24 @@ pub async fn run(config: Config, config_file: Option<&std::path::Path>) -> Resul
         },
         config.bus.namespace
     );
+    // The edge is bound and the hardware actors have said whether the robot is there.
+    let status = crate::notify::status_line(&(runtime.health_source)(), &address.to_string());
+    crate::notify::ready(&status);
+    let status_updates = crate::notify::spawn_status_updates(
+        runtime.health_source.clone(),
+        address.to_string(),
+        status,
+    );
     let sessions = stop_sessions.clone();
     edge.serve(async move {
         shutdown_signal().await;
+        crate::notify::stopping();
         sessions.cancel();
     })
     .await?;
+    if let Some(updates) = status_updates {
+        updates.abort();
+    }
     tracing::info!("shutting down");
     if let Some(live) = dashboard {
         live.stop();
@@ -605,6 +498,10 @@ async fn start_process_actors(
                 child
                     .args(&command[1..])
                     .env("ROBOTD_BUS__NAMESPACE", &namespace);
+                // systemd's notification socket is robotd's, not its children's.
+                for var in crate::notify::NOTIFY_VARS {
+                    child.env_remove(var);
+                }
                 #[cfg(target_os = "linux")]
                 // SAFETY: prctl is async-signal-safe; the closure only calls it.
                 unsafe {
@@ -747,46 +644,4 @@ async fn start_speech(
         observer,
     )
     .await?)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn started(actor: &str) -> SupervisionEvent {
-        SupervisionEvent::Started {
-            actor: actor.into(),
-            attempt: 0,
-        }
-    }
-
-    #[test]
-    fn the_robot_is_available_only_while_arm_gripper_and_camera_run() {
-        let board = HealthBoard::default();
-        let robot = RobotInfo {
-            model: "Niryo Ned2".into(),
-            scene: "default".into(),
-        };
-        let config = Config::default();
-        let available = |board: &HealthBoard| {
-            board.report(&config, &robot, Instant::now())["robot"]["available"].clone()
-        };
-        board.apply(&started("arm"));
-        board.apply(&started("gripper"));
-        assert_eq!(available(&board), false, "the camera has not started yet");
-        board.apply(&started("camera"));
-        board.apply(&started("tts"));
-        assert_eq!(available(&board), true);
-        board.apply(&SupervisionEvent::Failed {
-            actor: "arm".into(),
-            reason: "driver crashed".into(),
-        });
-        assert_eq!(available(&board), false, "the arm is in its safe state");
-        board.apply(&started("arm"));
-        board.apply(&SupervisionEvent::Failed {
-            actor: "tts".into(),
-            reason: "espeak-ng died".into(),
-        });
-        assert_eq!(available(&board), true, "speech is not the robot");
-    }
 }
