@@ -38,6 +38,10 @@ command -v espeak-ng >/dev/null 2>&1 || missing+=(espeak-ng)
 # The dashboard's browser test drives Debian's chromium over WebDriver.
 command -v chromium >/dev/null 2>&1 || missing+=(chromium)
 command -v chromedriver >/dev/null 2>&1 || missing+=(chromium-driver)
+# The Debian package's test (tests/packaging_deb.rs): dpkg-shlibdeps finds the package's
+# dependencies, systemd-analyze verifies its unit.
+command -v dpkg-shlibdeps >/dev/null 2>&1 || missing+=(dpkg-dev)
+command -v systemd-analyze >/dev/null 2>&1 || missing+=(systemd)
 if ! command -v python3 >/dev/null 2>&1; then
     missing+=(python3 python3-venv)
 elif ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
@@ -67,6 +71,14 @@ for tool in cargo rustfmt cargo-clippy; do
         exit 1
     fi
 done
+
+# cargo-deb builds the Debian package in tests/packaging_deb.rs: compiled once per machine
+# (about 3 minutes on 2 cores), then kept in ~/.cargo/bin.
+if ! cargo deb --version >/dev/null 2>&1; then
+    echo "installing cargo-deb (cargo install --locked cargo-deb)"
+    cargo install --locked --quiet cargo-deb
+fi
+echo "cargo-deb:    $(cargo deb --version 2>&1 | head -n 1)"
 
 # ------------------------------------------------------------------------------------------
 section "Python venv (.venv) for the test clients"
