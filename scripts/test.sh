@@ -103,6 +103,18 @@ if [ -f "$REQUIREMENTS" ] && grep -qvE '^[[:space:]]*(#|$)' "$REQUIREMENTS"; the
 else
     echo "no Python requirements to install"
 fi
+# The fastmcp 4.x client, in a venv of its own (fastmcp 2.x of requirements.txt stays in .venv):
+# tests/mcp_camera_image.rs drives robotd with both.
+REQUIREMENTS_FASTMCP4="tests/python/requirements-fastmcp4.txt"
+if [ ! -x .venv-fastmcp4/bin/python ]; then
+    python3 -m venv .venv-fastmcp4
+fi
+wanted="$(sha256sum < "$REQUIREMENTS_FASTMCP4" | cut -d' ' -f1)"
+if [ "$wanted" != "$(cat .venv-fastmcp4/.requirements.sha256 2>/dev/null || true)" ]; then
+    .venv-fastmcp4/bin/python -m pip install --quiet --disable-pip-version-check \
+        -r "$REQUIREMENTS_FASTMCP4"
+    echo "$wanted" > .venv-fastmcp4/.requirements.sha256
+fi
 # robotd's own Python package (python/robotd: Python actors on the bus), editable, so the tests
 # run the checkout's code; its dependencies are pinned in requirements.txt.
 if ! .venv/bin/python -c "import robotd, sys; sys.exit(0 if robotd.__file__.startswith('$ROOT/python/robotd/') else 1)" 2>/dev/null; then

@@ -225,7 +225,7 @@ fn chat_over(path: &str) {
             requests[0].authorization.as_deref(),
             Some("Bearer sk-test-key")
         );
-        assert_eq!(requests[0].body["tools"].as_array().map(Vec::len), Some(22));
+        assert_eq!(requests[0].body["tools"].as_array().map(Vec::len), Some(24));
         assert!(last_tool_result(&requests[1].body).starts_with("✓ Found"));
         assert!(last_tool_result(&requests[2].body).starts_with("✓ Successfully picked 'pencil'"));
         // A session log named like the Python client's.

@@ -16,7 +16,7 @@ use serde_json::{json, Value};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-const TOOLS: [&str; 22] = [
+const TOOLS: [&str; 24] = [
     "pick_place_object",
     "pick_object",
     "place_object",
@@ -39,6 +39,8 @@ const TOOLS: [&str; 22] = [
     "set_user_task",
     "emergency_stop",
     "release_emergency_stop",
+    "get_camera_image",
+    "label_object",
 ];
 
 fn runtime() -> tokio::runtime::Runtime {

@@ -22,8 +22,8 @@ fn fastmcp_drives_robotd_over_sse_and_streamable_http() {
     ] {
         let report = run_client(&format!("http://127.0.0.1:{port}{path}"));
         assert_eq!(report["transport"], transport);
-        assert_eq!(report["tools"].as_array().unwrap().len(), 22, "{report}");
-        assert_eq!(report["output_schemas"], 22);
+        assert_eq!(report["tools"].as_array().unwrap().len(), 24, "{report}");
+        assert_eq!(report["output_schemas"], 24);
         assert_eq!(
             report["coordinate_text"],
             "✓ Coordinate of 'lower right corner' in workspace 'niryo_ws': [0.163, -0.087]"

@@ -1,5 +1,5 @@
 //! Where the agent's tools come from: one small trait, [`ToolBackend`], with two
-//! implementations — the in-process tool registry ([`RegistryTools`], robotd's own 22 tools
+//! implementations — the in-process tool registry ([`RegistryTools`], robotd's own 24 tools
 //! over the bus) and any MCP server (`robotd_mcp::agent_tools::McpTools`, SSE or streamable HTTP,
 //! in the MCP edge), so the same agent drives robotd in process, a robotd elsewhere, or
 //! another MCP robot server.

@@ -151,7 +151,7 @@ async fn plan_and_first_tool_call_come_from_one_llm_call() {
     assert_eq!(requests[0].authorization.as_deref(), Some("Bearer sk-test"));
     let body = &requests[0].body;
     assert_eq!(body["model"], "gpt-4o-mini");
-    assert_eq!(body["tools"].as_array().unwrap().len(), 22);
+    assert_eq!(body["tools"].as_array().unwrap().len(), 24);
     let first = messages(body);
     assert_eq!(first[0]["role"], "system");
     assert!(first[0]["content"]

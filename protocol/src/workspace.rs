@@ -323,6 +323,15 @@ pub enum WorkspaceRequest {
         /// Where it was put, base frame, metres.
         at: Point2,
     },
+    /// `label_object`: give the tracked object `object_id` the name `label`. The name stays
+    /// with the object while it is tracked (across views, picks and places) until it leaves
+    /// or is named again, and is added to the detectable labels. Replies `ObjectLabelled`.
+    LabelObject {
+        /// The object's id.
+        object_id: String,
+        /// The name (stored as labels are: trimmed, lower-case).
+        label: String,
+    },
 }
 
 impl Validate for WorkspaceRequest {
@@ -350,6 +359,10 @@ impl Validate for WorkspaceRequest {
             | Self::GetObservationPose { workspace_id } => non_empty("workspace_id", workspace_id),
             Self::AddLabel { label } => non_empty("label", label),
             Self::ObjectPicked { object_id } => non_empty("object_id", object_id),
+            Self::LabelObject { object_id, label } => {
+                non_empty("object_id", object_id)?;
+                non_empty("label", label)
+            }
             Self::ObjectPlaced { object_id, at } => {
                 non_empty("object_id", object_id)?;
                 at.validate().map_err(|e| e.within("at"))
@@ -454,6 +467,17 @@ pub enum WorkspaceReply {
         label: String,
         /// True when it was already in the list (nothing changed).
         already_known: bool,
+    },
+    /// Outcome of `LabelObject`.
+    ObjectLabelled {
+        /// The object, with its new label.
+        object: DetectedObject,
+        /// Its label before.
+        previous: String,
+        /// What the detector calls it (the label its views are matched by).
+        detected_as: String,
+        /// Whether the name was new to the detectable labels (and was added to them).
+        label_added: bool,
     },
     /// A workspace's observation pose.
     ObservationPose {
@@ -571,6 +595,20 @@ pub struct TrackedObjects {
     pub timestamp_unix_ns: u64,
     /// The objects on the table (held ones excluded).
     pub objects: Vec<DetectedObject>,
+    /// The objects of `objects` named by `label_object`, with what the detector calls them:
+    /// a view's detections are matched to these by that label. Empty (and left out of the
+    /// message) when nothing was named.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub renamed: Vec<RenamedObject>,
+}
+
+/// A tracked object named by `label_object`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+pub struct RenamedObject {
+    /// The object's id.
+    pub id: String,
+    /// What the detector calls it (its label in `perception/detections`).
+    pub detected_as: String,
 }
 
 impl Message for TrackedObjects {

@@ -21,7 +21,7 @@ use robotd_protocol::objects::{
 };
 use robotd_protocol::speech::{OverlayKind, SpeakRequest, SpeechEvent, TextOverlay};
 use robotd_protocol::workspace::{
-    DetectableLabels, TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceQuery,
+    DetectableLabels, RenamedObject, TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceQuery,
     WorkspaceReply, WorkspaceRequest,
 };
 use std::fmt::Debug;
@@ -406,6 +406,8 @@ fn workspace_request() -> impl Strategy<Value = WorkspaceRequest> {
         text().prop_map(|object_id| WorkspaceRequest::ObjectPicked { object_id }),
         (text(), point2())
             .prop_map(|(object_id, at)| WorkspaceRequest::ObjectPlaced { object_id, at }),
+        (text(), text())
+            .prop_map(|(object_id, label)| WorkspaceRequest::LabelObject { object_id, label }),
     ]
 }
 
@@ -425,12 +427,17 @@ fn workspace_query() -> impl Strategy<Value = WorkspaceQuery> {
 }
 
 fn tracked_objects() -> impl Strategy<Value = TrackedObjects> {
-    (text(), any::<u64>(), any::<u64>(), objects()).prop_map(
-        |(workspace_id, frame_id, timestamp_unix_ns, objects)| TrackedObjects {
+    let renamed = prop::collection::vec(
+        (text(), text()).prop_map(|(id, detected_as)| RenamedObject { id, detected_as }),
+        0..3,
+    );
+    (text(), any::<u64>(), any::<u64>(), objects(), renamed).prop_map(
+        |(workspace_id, frame_id, timestamp_unix_ns, objects, renamed)| TrackedObjects {
             workspace_id,
             frame_id,
             timestamp_unix_ns,
             objects,
+            renamed,
         },
     )
 }
@@ -457,6 +464,14 @@ fn workspace_reply() -> impl Strategy<Value = WorkspaceReply> {
             label,
             already_known
         }),
+        (detected_object(), text(), text(), any::<bool>()).prop_map(
+            |(object, previous, detected_as, label_added)| WorkspaceReply::ObjectLabelled {
+                object,
+                previous,
+                detected_as,
+                label_added
+            }
+        ),
         pose().prop_map(|pose| WorkspaceReply::ObservationPose { pose }),
         prop::collection::vec(workspace_info(), 0..3)
             .prop_map(|workspaces| WorkspaceReply::Workspaces { workspaces }),

@@ -346,6 +346,12 @@ const FINITE_NUMBER: &str = "Input should be a finite number";
 const BOOL_TYPE: &str = "Input should be a valid boolean";
 /// `bool_parsing`: robotd reads no booleans from strings or numbers.
 const BOOL_PARSING: &str = "Input should be a valid boolean, unable to interpret input";
+/// `int_type`.
+const INT_TYPE: &str = "Input should be a valid integer";
+/// `int_parsing`: robotd reads no numbers from strings.
+const INT_PARSING: &str = "Input should be a valid integer, unable to parse string as an integer";
+/// `int_from_float`.
+const INT_FRACTION: &str = "Input should be a valid integer, got a number with a fractional part";
 /// `extra_forbidden`.
 const EXTRA_FORBIDDEN: &str = "Extra inputs are not permitted";
 
@@ -691,6 +697,39 @@ pub fn number_in<'de, D: Deserializer<'de>>(
             )));
         }
         Ok(n)
+    })
+}
+
+/// A whole number in `[min, max]`, `default` when absent (for a reader of one field), with
+/// pydantic's integer messages.
+pub fn whole_in<'de, D: Deserializer<'de>>(
+    d: D,
+    default: u64,
+    min: u64,
+    max: u64,
+) -> Result<u64, D::Error> {
+    read(d, default, |v, _| {
+        let Some(v) = v else { return Ok(default) };
+        let n = match v {
+            Value::Number(n) => n.as_f64().filter(|x| x.is_finite()).ok_or(INT_TYPE),
+            Value::String(_) => Err(INT_PARSING),
+            _ => Err(INT_TYPE),
+        }
+        .map_err(Problem::new)?;
+        if n.fract() != 0.0 {
+            return Err(Problem::new(INT_FRACTION));
+        }
+        if n < min as f64 {
+            return Err(Problem::new(format!(
+                "Input should be greater than or equal to {min}"
+            )));
+        }
+        if n > max as f64 {
+            return Err(Problem::new(format!(
+                "Input should be less than or equal to {max}"
+            )));
+        }
+        Ok(n as u64)
     })
 }
 

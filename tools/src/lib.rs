@@ -35,7 +35,9 @@
 //! - `skill`, `view`: what the tools share to ask the skills actor and the workspace model.
 
 pub mod args;
+mod camera;
 pub mod definitions;
+pub mod picture;
 pub mod schema;
 mod skill;
 pub mod timings;
@@ -87,6 +89,9 @@ pub struct ToolSettings {
     pub query_timeout: Duration,
     /// Parallel bus clients of the workspace model (concurrent detection calls).
     pub query_clients: usize,
+    /// Largest JPEG `get_camera_image` returns, bytes: a bigger picture is re-encoded at a
+    /// lower quality, then made smaller, until it fits.
+    pub image_max_bytes: usize,
 }
 
 impl std::fmt::Debug for ToolSettings {
@@ -108,6 +113,7 @@ impl ToolSettings {
             skill_timeout: Duration::from_secs(180),
             query_timeout: Duration::from_secs(20),
             query_clients: 8,
+            image_max_bytes: picture::DEFAULT_MAX_BYTES,
         }
     }
 }
@@ -132,6 +138,33 @@ pub struct CallHooks {
     pub cancel: CancellationToken,
 }
 
+/// A picture a tool returns beside its text (MCP `ImageContent`): only `get_camera_image`
+/// returns one.
+#[derive(Clone, PartialEq, Eq)]
+pub struct ToolImage {
+    /// The file's media type, `image/jpeg`.
+    pub mime_type: &'static str,
+    /// The encoded file.
+    pub data: Vec<u8>,
+}
+
+impl std::fmt::Debug for ToolImage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ToolImage")
+            .field("mime_type", &self.mime_type)
+            .field("bytes", &self.data.len())
+            .finish()
+    }
+}
+
+impl ToolImage {
+    /// The file in standard base64, as MCP carries it.
+    pub fn base64(&self) -> String {
+        use base64::Engine;
+        base64::engine::general_purpose::STANDARD.encode(&self.data)
+    }
+}
+
 /// The result of one tool call.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ToolOutput {
@@ -141,14 +174,17 @@ pub struct ToolOutput {
     pub is_failure: bool,
     /// The typed payload (`structuredContent.data`), `null` on failure.
     pub data: serde_json::Value,
+    /// Pictures that go with the text (empty for every tool but `get_camera_image`).
+    pub images: Vec<ToolImage>,
 }
 
 impl ToolOutput {
-    fn ok(text: String, data: serde_json::Value) -> Self {
+    fn ok(text: String, data: serde_json::Value, images: Vec<ToolImage>) -> Self {
         Self {
             text,
             is_failure: false,
             data,
+            images,
         }
     }
 
@@ -157,6 +193,7 @@ impl ToolOutput {
             text,
             is_failure: true,
             data: serde_json::Value::Null,
+            images: Vec::new(),
         }
     }
 
@@ -212,6 +249,9 @@ struct Inner {
     arm_rest: watch::Receiver<Option<ArmRest>>,
     progress_routes: Arc<Mutex<HashMap<u64, mpsc::UnboundedSender<SkillProgress>>>>,
     next_run: AtomicU64,
+    /// The bus, for the camera thread opened by the first `get_camera_image`.
+    bus: Bus,
+    camera: Mutex<Option<camera::Grabber>>,
     background: Vec<tokio::task::JoinHandle<()>>,
 }
 
@@ -305,6 +345,8 @@ impl Registry {
                 arm_rest: rest_rx,
                 progress_routes: routes,
                 next_run: AtomicU64::new(run_base),
+                bus: bus.clone(),
+                camera: Mutex::new(None),
                 background: vec![watcher, router],
                 settings,
             }),
@@ -314,6 +356,12 @@ impl Registry {
     /// Every tool, in the contract's order.
     pub fn tools(&self) -> &[ToolInfo] {
         &self.inner.tools
+    }
+
+    /// The ids of the configured workspaces, the robot's current one first.
+    pub fn workspace_ids(&self) -> Vec<String> {
+        let workspaces = &self.inner.settings.workspaces;
+        workspaces.iter().map(|w| w.id.clone()).collect()
     }
 
     /// The tool called `name`, if there is one.
@@ -346,5 +394,20 @@ impl Registry {
 
     fn settings(&self) -> &ToolSettings {
         &self.inner.settings
+    }
+
+    /// The camera thread, started on first use (a registry that never shows a picture opens
+    /// no camera port).
+    fn camera(&self) -> Result<camera::Grabber, String> {
+        let mut slot = self.inner.camera.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(grabber) = slot.as_ref() {
+            if grabber.is_running() {
+                return Ok(grabber.clone());
+            }
+        }
+        let grabber = camera::Grabber::start(self.inner.bus.clone())
+            .map_err(|e| format!("the camera reader could not start: {e}"))?;
+        *slot = Some(grabber.clone());
+        Ok(grabber)
     }
 }

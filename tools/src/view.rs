@@ -12,7 +12,7 @@ use crate::{CallHooks, Registry};
 use nalgebra::UnitQuaternion;
 use robotd_protocol::objects::DetectedObject;
 use robotd_protocol::skills::Skill;
-use robotd_protocol::workspace::{WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
+use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
 use robotd_protocol::Pose;
 use schemars::JsonSchema;
 use serde::Serialize;
@@ -40,7 +40,15 @@ fn same_pose(a: &Pose, b: &Pose) -> bool {
 /// The time after which a camera view counts as fresh: when the arm came to rest at the
 /// observation pose, moving it there first if needed.
 async fn fresh_view(registry: &Registry, hooks: &CallHooks) -> Result<u64, String> {
-    let ws = &registry.settings().workspaces[0];
+    fresh_view_of(registry, &registry.settings().workspaces[0], hooks).await
+}
+
+/// [`fresh_view`] of workspace `ws`.
+pub(crate) async fn fresh_view_of(
+    registry: &Registry,
+    ws: &WorkspaceInfo,
+    hooks: &CallHooks,
+) -> Result<u64, String> {
     let rest = *registry.inner.arm_rest.borrow();
     if let Some(rest) = rest {
         if !rest.moving && same_pose(&rest.pose, &ws.observation_pose) {

@@ -14,6 +14,10 @@
 //! - follows what the skills do: [`WorkspaceRequest::ObjectPicked`] (the object is held, off
 //!   the table) and [`WorkspaceRequest::ObjectPlaced`] (back on the table where it was put,
 //!   until the camera confirms it or, not finding it, forgets it);
+//! - keeps the names `label_object` gives ([`WorkspaceRequest::LabelObject`]): the named
+//!   object answers to its name in every reply, in `workspace/objects` (which lists it among
+//!   the `renamed`, with what the detector calls it) and when the skills pick by name, until
+//!   it is forgotten or named again; the name joins the detectable labels;
 //! - publishes the remembered objects of the workspace in view on `workspace/objects`
 //!   ([`TrackedObjects`]) after every applied view, and the detectable labels on
 //!   `workspace/labels` ([`DetectableLabels`]) at start and whenever one is added.
@@ -330,12 +334,20 @@ fn serve(
     request: &WorkspaceRequest,
 ) -> WorkspaceReply {
     let reply = memory.answer(request);
-    if let WorkspaceReply::LabelAdded {
-        label,
-        already_known: false,
-    } = &reply
-    {
-        publish_labels(labels, memory.labels_message(Some(label.clone())));
+    let added = match &reply {
+        WorkspaceReply::LabelAdded {
+            label,
+            already_known: false,
+        } => Some(label.clone()),
+        WorkspaceReply::ObjectLabelled {
+            object,
+            label_added: true,
+            ..
+        } => Some(object.label.clone()),
+        _ => None,
+    };
+    if let Some(label) = added {
+        publish_labels(labels, memory.labels_message(Some(label)));
     }
     reply
 }

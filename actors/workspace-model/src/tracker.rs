@@ -20,6 +20,12 @@
 //! workspace, and frames older than the newest view already applied from the same detector
 //! change nothing.
 //!
+//! **Names.** `label_object` names a tracked object ([`Tracker::name`]): its `label` becomes
+//! the name, while its views keep being matched by what the detector calls it (`detected_as`,
+//! e.g. `unknown object`). The name survives new measurements, picks and places, and goes
+//! when the object is forgotten or named again; naming it what the detector calls it undoes
+//! the name.
+//!
 //! **Skills.** A picked object is *held*: it leaves the table (queries, free space), is not
 //! matched and never expires. A placed object is back on the table where the skill put it,
 //! *unconfirmed*: any steady view of its workspace may confirm it (match it near there) or miss
@@ -28,7 +34,7 @@
 use robotd_protocol::geometry::{Point2, Point3};
 use robotd_protocol::objects::{DetectedObject, Detections};
 use robotd_protocol::validate::{Validate, ValidationError};
-use robotd_protocol::workspace::TrackedObjects;
+use robotd_protocol::workspace::{RenamedObject, TrackedObjects};
 use std::collections::HashMap;
 
 /// A detection this close (centre of mass, table plane) to a remembered object of the same
@@ -118,6 +124,10 @@ struct Track {
     confirmed: bool,
     /// The detector that last confirmed it.
     source: String,
+    /// What the detector calls it: views are matched by this label.
+    detected_as: String,
+    /// Named by `label_object`: `object.label` is the name, not the detector's label.
+    named: bool,
 }
 
 /// The remembered objects of every workspace.
@@ -190,7 +200,7 @@ impl Tracker {
                 continue;
             }
             for (d, det) in detections.objects.iter().enumerate() {
-                if !track.object.label_is(&det.label) {
+                if !det.label_is(&track.detected_as) {
                     continue;
                 }
                 let distance = track.object.xy().distance_to(&det.xy());
@@ -210,8 +220,13 @@ impl Tracker {
             det_taken[d] = true;
             let track = &mut self.tracks[t];
             let id = std::mem::take(&mut track.object.id);
+            let name = std::mem::take(&mut track.object.label);
             track.object = detections.objects[d].clone();
             track.object.id = id;
+            track.detected_as.clone_from(&track.object.label);
+            if track.named {
+                track.object.label = name;
+            }
             track.object.workspace_id = ws.to_owned();
             track.missed = 0;
             track.confirmed = true;
@@ -248,11 +263,13 @@ impl Tracker {
             self.next_id += 1;
             object.workspace_id = ws.to_owned();
             self.tracks.push(Track {
+                detected_as: object.label.clone(),
                 object,
                 missed: 0,
                 held: false,
                 confirmed: true,
                 source: source.to_owned(),
+                named: false,
             });
         }
 
@@ -264,6 +281,15 @@ impl Tracker {
             frame_id,
             timestamp_unix_ns: now,
             objects: self.on_table(ws).cloned().collect(),
+            renamed: self
+                .tracks
+                .iter()
+                .filter(|t| t.named && !t.held && t.object.workspace_id == ws)
+                .map(|t| RenamedObject {
+                    id: t.object.id.clone(),
+                    detected_as: t.detected_as.clone(),
+                })
+                .collect(),
         })
     }
 
@@ -296,6 +322,31 @@ impl Tracker {
             .map(|t| &t.object)
     }
 
+    /// The objects named by `label_object`: `(id, what the detector calls it)`.
+    pub fn renamed(&self) -> impl Iterator<Item = (&str, &str)> + '_ {
+        self.tracks
+            .iter()
+            .filter(|t| t.named)
+            .map(|t| (t.object.id.as_str(), t.detected_as.as_str()))
+    }
+
+    /// Names the object `id` `label` (the caller normalises it): its label is `label` from now
+    /// on, while its views are still matched by what the detector calls it. Naming it that
+    /// undoes the name. Returns the object, its label before, and what the detector calls it.
+    pub fn name(
+        &mut self,
+        id: &str,
+        label: &str,
+    ) -> Result<(&DetectedObject, String, String), UnknownObject> {
+        let track = self.track_mut(id)?;
+        let previous = std::mem::replace(&mut track.object.label, label.to_owned());
+        track.named = !track.object.label_is(&track.detected_as);
+        if !track.named {
+            track.object.label.clone_from(&track.detected_as);
+        }
+        Ok((&track.object, previous, track.detected_as.clone()))
+    }
+
     /// Whether the object `id` has been seen by a camera where memory has it.
     pub fn is_confirmed(&self, id: &str) -> Option<bool> {
         self.tracks
@@ -308,22 +359,25 @@ impl Tracker {
         let id = id.trim();
         match self.tracks.iter().position(|t| t.object.id == id) {
             Some(i) => Ok(&mut self.tracks[i]),
-            None => {
-                let mut ids: Vec<&str> = self.tracks.iter().map(|t| t.object.id.as_str()).collect();
-                let more = ids.len() > 20;
-                ids.truncate(20);
-                let remembered = if ids.is_empty() {
-                    "none".to_owned()
-                } else if more {
-                    format!("{}, …", ids.join(", "))
-                } else {
-                    ids.join(", ")
-                };
-                Err(UnknownObject {
-                    id: id.to_owned(),
-                    remembered,
-                })
-            }
+            None => Err(self.unknown(id)),
+        }
+    }
+
+    /// The error for an id memory does not hold, naming the ids it does.
+    pub fn unknown(&self, id: &str) -> UnknownObject {
+        let mut ids: Vec<&str> = self.tracks.iter().map(|t| t.object.id.as_str()).collect();
+        let more = ids.len() > 20;
+        ids.truncate(20);
+        let remembered = if ids.is_empty() {
+            "none".to_owned()
+        } else if more {
+            format!("{}, …", ids.join(", "))
+        } else {
+            ids.join(", ")
+        };
+        UnknownObject {
+            id: id.trim().to_owned(),
+            remembered,
         }
     }
 
@@ -633,5 +687,64 @@ mod tests {
             Tracker::new(3).pick("obj-9").unwrap_err().to_string(),
             "unknown object id 'obj-9'; remembered: none"
         );
+    }
+
+    #[test]
+    fn a_name_stays_with_its_object_across_views_picks_and_places_until_it_leaves() {
+        let mut tracker = Tracker::new(2);
+        let unknown = |x, y| object("unknown object", x, y);
+        tracker
+            .apply(&view(1, vec![unknown(0.25, 0.0), unknown(0.30, 0.05)]))
+            .unwrap();
+        let (named, previous, detected_as) = tracker.name("obj-1", "screwdriver").unwrap();
+        assert_eq!(named.label, "screwdriver");
+        assert_eq!(
+            (previous.as_str(), detected_as.as_str()),
+            ("unknown object", "unknown object")
+        );
+        // New measurements are matched by the detector's label and keep the name.
+        let t = tracker
+            .apply(&view(2, vec![unknown(0.251, 0.0), unknown(0.30, 0.05)]))
+            .unwrap();
+        assert_eq!(
+            ids(&t),
+            [("obj-1", "screwdriver"), ("obj-2", "unknown object")]
+        );
+        assert_eq!(
+            tracker.renamed().collect::<Vec<_>>(),
+            [("obj-1", "unknown object")]
+        );
+        // Picked, placed elsewhere, seen there: still named.
+        tracker.pick("obj-1").unwrap();
+        tracker
+            .place("obj-1", Point2::new(0.20, -0.05), "niryo_ws")
+            .unwrap();
+        assert_eq!(tracker.get("obj-1").unwrap().label, "screwdriver");
+        let t = tracker
+            .apply(&view(3, vec![unknown(0.201, -0.05), unknown(0.30, 0.05)]))
+            .unwrap();
+        assert_eq!(
+            ids(&t),
+            [("obj-1", "screwdriver"), ("obj-2", "unknown object")]
+        );
+        // Named again, then back to what the detector calls it.
+        tracker.name("obj-1", "chisel").unwrap();
+        assert_eq!(tracker.get("obj-1").unwrap().label, "chisel");
+        tracker.name("obj-1", "Unknown Object").unwrap();
+        assert_eq!(tracker.get("obj-1").unwrap().label, "unknown object");
+        assert_eq!(tracker.renamed().count(), 0);
+        tracker.name("obj-1", "chisel").unwrap();
+        // Gone from two views: forgotten, and its name with it; a new object there is new.
+        tracker.apply(&view(4, vec![unknown(0.30, 0.05)])).unwrap();
+        tracker.apply(&view(5, vec![unknown(0.30, 0.05)])).unwrap();
+        assert!(tracker.get("obj-1").is_none());
+        let t = tracker
+            .apply(&view(6, vec![unknown(0.201, -0.05), unknown(0.30, 0.05)]))
+            .unwrap();
+        assert_eq!(
+            ids(&t),
+            [("obj-2", "unknown object"), ("obj-3", "unknown object")]
+        );
+        assert!(tracker.name("obj-1", "x").is_err());
     }
 }

@@ -33,6 +33,7 @@ pub mod client;
 pub mod gate;
 pub mod http;
 pub mod owner;
+pub mod resources;
 mod service;
 pub mod sessions;
 

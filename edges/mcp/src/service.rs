@@ -1,8 +1,11 @@
 //! The MCP server handler: the tool registry as MCP `tools/list` and `tools/call`.
 //!
 //! One [`McpService`] value serves every transport (each session gets a clone). A call
-//! becomes one [`Registry::call`]: its text is the single text content item, and
-//! `structuredContent` is `{"result": text, "data": …}` matching each tool's `outputSchema`.
+//! becomes one [`Registry::call`]: its text is the first text content item, and
+//! `structuredContent` is `{"result": text, "data": …}` matching each tool's `outputSchema`;
+//! a tool's pictures (`get_camera_image`) follow the text as `ImageContent` items. The camera
+//! is also a resource, `camera://{workspace_id}/latest` ([`crate::resources`]), read through
+//! the same call path.
 //! A client's progress token turns the skills' steps into `notifications/progress`; a
 //! `notifications/cancelled` (or a client that goes away) cancels the call, which stops the
 //! arm. Failures are ordinary results unless `strict_errors` sets `isError` on them.
@@ -11,7 +14,8 @@ use crate::call_log::{CallLog, CallRecord};
 use crate::sessions::CallScopes;
 use rmcp::model::{
     CallToolRequestParams, CallToolResponse, CallToolResult, ContentBlock, Implementation,
-    ListToolsResult, PaginatedRequestParams, ProgressNotificationParam, ProgressToken,
+    ListResourceTemplatesResult, ListResourcesResult, ListToolsResult, PaginatedRequestParams,
+    ProgressNotificationParam, ProgressToken, ReadResourceRequestParams, ReadResourceResponse,
     ServerCapabilities, ServerConfig, Tool,
 };
 use rmcp::service::RequestContext;
@@ -141,14 +145,20 @@ impl McpService {
 
 impl ServerHandler for McpService {
     fn get_info(&self) -> ServerConfig {
-        ServerConfig::new(ServerCapabilities::builder().enable_tools().build())
-            .with_server_info(Implementation::new("robotd", env!("CARGO_PKG_VERSION")))
-            .with_instructions(
-                "Tools of a tabletop robot arm with a wrist camera. Coordinates are [x, y] in \
+        ServerConfig::new(
+            ServerCapabilities::builder()
+                .enable_resources()
+                .enable_tools()
+                .build(),
+        )
+        .with_server_info(Implementation::new("robotd", env!("CARGO_PKG_VERSION")))
+        .with_instructions(
+            "Tools of a tabletop robot arm with a wrist camera. Coordinates are [x, y] in \
                  metres in the robot base frame: x forward (away from the robot), y left. Look \
                  at the scene with get_detected_objects before picking; push_object distances \
-                 are millimetres, move2by distances metres.",
-            )
+                 are millimetres, move2by distances metres. get_camera_image shows the table \
+                 with object ids; label_object names an object the detector cannot.",
+        )
     }
 
     async fn list_tools(
@@ -157,6 +167,47 @@ impl ServerHandler for McpService {
         _context: RequestContext<RoleServer>,
     ) -> Result<ListToolsResult, McpError> {
         Ok(ListToolsResult::with_all_items(self.tools.as_ref().clone()))
+    }
+
+    async fn list_resources(
+        &self,
+        _request: Option<PaginatedRequestParams>,
+        _context: RequestContext<RoleServer>,
+    ) -> Result<ListResourcesResult, McpError> {
+        let ids = self.registry.workspace_ids();
+        Ok(ListResourcesResult::with_all_items(crate::resources::list(
+            &ids,
+        )))
+    }
+
+    async fn list_resource_templates(
+        &self,
+        _request: Option<PaginatedRequestParams>,
+        _context: RequestContext<RoleServer>,
+    ) -> Result<ListResourceTemplatesResult, McpError> {
+        Ok(ListResourceTemplatesResult::with_all_items(
+            crate::resources::templates(),
+        ))
+    }
+
+    async fn read_resource(
+        &self,
+        request: ReadResourceRequestParams,
+        context: RequestContext<RoleServer>,
+    ) -> Result<ReadResourceResponse, McpError> {
+        let ids = self.registry.workspace_ids();
+        let workspace_id = crate::resources::workspace_of(&request.uri, &ids)?;
+        let mut arguments = serde_json::Map::new();
+        arguments.insert("workspace_id".into(), workspace_id.into());
+        let call = CallContext {
+            session: self.session_of(&context),
+            request_id: context.id.to_string(),
+            by_client: context.ct.clone(),
+            progress: None,
+        };
+        let params = CallToolRequestParams::new("get_camera_image").with_arguments(arguments);
+        let result = self.serve_call(params, call).await?;
+        crate::resources::contents_of(&request.uri, result).map(Into::into)
     }
 
     async fn call_tool(
@@ -278,8 +329,11 @@ impl McpService {
                     duration: elapsed,
                     trace_id: trace_id.as_deref(),
                 });
-                let mut result =
-                    CallToolResult::success(vec![ContentBlock::text(output.text.clone())]);
+                let mut content = vec![ContentBlock::text(output.text.clone())];
+                for image in &output.images {
+                    content.push(ContentBlock::image(image.base64(), image.mime_type));
+                }
+                let mut result = CallToolResult::success(content);
                 result.structured_content = Some(output.structured());
                 result.is_error = Some(self.strict_errors && output.is_failure);
                 Ok(result)

@@ -1,4 +1,5 @@
-//! The tools (the Python server's 20 and robotd's e-stop pair), one module each, and the table that dispatches calls to them.
+//! The tools (the Python server's 20, robotd's e-stop pair, and robotd's camera picture and
+//! object naming), one module each, and the table that dispatches calls to them.
 //!
 //! A tool is one unit: its module defines a type implementing [`Tool`] that ties together
 //! the tool's name, description, argument struct (whose derived schema is the `inputSchema`
@@ -23,6 +24,7 @@ mod add_object_name2object_labels;
 mod calibrate;
 mod clear_collision_detected;
 mod emergency_stop;
+mod get_camera_image;
 mod get_detected_object;
 mod get_detected_objects;
 mod get_detected_objects_sorted;
@@ -32,6 +34,7 @@ mod get_object_labels_as_string;
 mod get_smallest_detected_object;
 mod get_system_status;
 mod get_workspace_coordinate_from_point;
+mod label_object;
 mod move2by;
 mod move2observation_pose;
 mod pick_object;
@@ -42,7 +45,8 @@ mod release_emergency_stop;
 mod set_user_task;
 mod speak;
 
-/// Every tool, in the order of the contract (and of `tools/list`), robotd's own last.
+/// Every tool, in the order of the contract (and of `tools/list`), robotd's own last (the
+/// e-stop pair, then `get_camera_image` and `label_object`).
 pub(crate) static TOOLS: &[Entry] = &[
     Entry::of::<pick_place_object::PickPlaceObject>(),
     Entry::of::<pick_object::PickObject>(),
@@ -66,6 +70,8 @@ pub(crate) static TOOLS: &[Entry] = &[
     Entry::of::<set_user_task::SetUserTask>(),
     Entry::of::<emergency_stop::EmergencyStopTool>(),
     Entry::of::<release_emergency_stop::ReleaseEmergencyStop>(),
+    Entry::of::<get_camera_image::GetCameraImage>(),
+    Entry::of::<label_object::LabelObject>(),
 ];
 
 /// The tool called `name`, if there is one.
@@ -85,6 +91,7 @@ pub(crate) struct Done {}
 pub(crate) struct Reply<D> {
     text: String,
     data: Option<D>,
+    images: Vec<crate::ToolImage>,
 }
 
 impl<D> Reply<D> {
@@ -93,7 +100,14 @@ impl<D> Reply<D> {
         Self {
             text: text.into(),
             data: Some(data),
+            images: Vec::new(),
         }
+    }
+
+    /// The reply with `image` after its text.
+    pub(crate) fn with_image(mut self, image: crate::ToolImage) -> Self {
+        self.images.push(image);
+        self
     }
 
     /// A reply whose data is `null` (e.g. "no object found").
@@ -101,6 +115,7 @@ impl<D> Reply<D> {
         Self {
             text: text.into(),
             data: None,
+            images: Vec::new(),
         }
     }
 }
@@ -191,12 +206,17 @@ fn call<'a, T: Tool>(
             Err(errors) => return ToolOutput::failed(T::invalid(&errors)),
         };
         match T::run(registry, args, hooks).await {
-            Ok(Reply { text, data: None }) => ToolOutput::ok(text, Value::Null),
+            Ok(Reply {
+                text,
+                data: None,
+                images,
+            }) => ToolOutput::ok(text, Value::Null, images),
             Ok(Reply {
                 text,
                 data: Some(data),
+                images,
             }) => match serde_json::to_value(&data) {
-                Ok(data) => ToolOutput::ok(text, data),
+                Ok(data) => ToolOutput::ok(text, data, images),
                 Err(error) => ToolOutput::failed(format!(
                     "❌ Error in {}: the reply data could not be encoded: {error}",
                     T::NAME

@@ -15,11 +15,13 @@ fn props(entry: &Entry) -> Map<String, Value> {
 }
 
 #[test]
-fn the_python_servers_twenty_tools_then_the_estop_pair_with_unique_names() {
-    assert_eq!(TOOLS.len(), 22);
+fn the_python_servers_twenty_tools_then_robotds_four_with_unique_names() {
+    assert_eq!(TOOLS.len(), 24);
     assert_eq!(TOOLS[19].name, "set_user_task");
     assert_eq!(TOOLS[20].name, "emergency_stop");
     assert_eq!(TOOLS[21].name, "release_emergency_stop");
+    assert_eq!(TOOLS[22].name, "get_camera_image");
+    assert_eq!(TOOLS[23].name, "label_object");
     let names: HashSet<&str> = TOOLS.iter().map(|t| t.name).collect();
     assert_eq!(names.len(), TOOLS.len(), "a tool name is used twice");
     for t in TOOLS {
@@ -61,6 +63,11 @@ fn sample(name: &str, schema: &Value) -> (Value, Option<String>) {
         "number" => {
             let max = schema["maximum"].as_f64().unwrap_or(1.0);
             let v = max * 0.37;
+            (json!(v), Some(format!("{v}")))
+        }
+        "integer" => {
+            let (min, max) = (schema["minimum"].as_u64(), schema["maximum"].as_u64());
+            let v = (min.unwrap_or(0) + max.unwrap_or(10)) / 2 + 1;
             (json!(v), Some(format!("{v}")))
         }
         other => panic!("{name}: no sample for type {other:?}"),
@@ -185,7 +192,7 @@ fn names_descriptions_and_input_schemas_are_unchanged() {
     let old = fixture();
     let new = crate::definitions::all();
     assert_eq!(old.len(), 20);
-    assert_eq!(new.len(), 22);
+    assert_eq!(new.len(), 24);
     for (old, new) in old.iter().zip(&new) {
         assert_eq!(old["name"], new.name);
         assert_eq!(old["description"], new.description, "{}", new.name);

@@ -162,6 +162,30 @@ impl SceneMemory {
                     object: Some(object.clone()),
                 }
             }
+            WorkspaceRequest::LabelObject { object_id, label } => {
+                // The object first: an unknown id adds no label.
+                self.tracker
+                    .get(object_id)
+                    .ok_or_else(|| unknown_object(self.tracker.unknown(object_id)))?;
+                let added = self.labels.add(label).map_err(|e| match e {
+                    crate::labels::LabelError::Empty => WorkspaceError::InvalidRequest {
+                        reason: "label must be a non-empty string".into(),
+                    },
+                    other => WorkspaceError::InvalidRequest {
+                        reason: other.to_string().replace("object_name", "label"),
+                    },
+                })?;
+                let (object, previous, detected_as) = self
+                    .tracker
+                    .name(object_id, &added.label)
+                    .map_err(unknown_object)?;
+                WorkspaceReply::ObjectLabelled {
+                    object: object.clone(),
+                    previous,
+                    detected_as,
+                    label_added: !added.already_known,
+                }
+            }
             WorkspaceRequest::ObjectPlaced { object_id, at } => {
                 let own = self
                     .tracker

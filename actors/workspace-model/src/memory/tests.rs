@@ -520,3 +520,69 @@ fn a_placed_object_moves_to_the_workspace_it_was_put_in() {
         }
     ));
 }
+
+#[test]
+fn a_named_object_answers_to_its_name_and_the_name_follows_the_label_rules() {
+    let mut m = SceneMemory::new(
+        workspaces(),
+        &[],
+        &["red cube".into()],
+        MemorySettings {
+            label_limits: crate::labels::LabelLimits {
+                max_labels: 2,
+                max_chars: 12,
+            },
+            ..MemorySettings::default()
+        },
+    );
+    let unknown = object("unknown object", 0.25, 0.0, 0.03, 0.02);
+    m.apply(&view(1, vec![unknown.clone()])).unwrap();
+    let name = |id: &str, label: &str| WorkspaceRequest::LabelObject {
+        object_id: id.into(),
+        label: label.into(),
+    };
+    let error = |reply: WorkspaceReply| match reply {
+        WorkspaceReply::Error { error } => error.to_string(),
+        other => panic!("not an error: {other:?}"),
+    };
+    assert!(error(m.answer(&name("obj-9", "mug"))).contains("unknown object id 'obj-9'"));
+    assert!(error(m.answer(&name("obj-1", "a very long name"))).contains("at most 12"));
+    match m.answer(&name("obj-1", " Big  Mug ")) {
+        WorkspaceReply::ObjectLabelled {
+            object,
+            previous,
+            detected_as,
+            label_added,
+        } => {
+            assert_eq!(
+                (object.id.as_str(), object.label.as_str()),
+                ("obj-1", "big mug")
+            );
+            assert_eq!(
+                (previous.as_str(), detected_as.as_str()),
+                ("unknown object", "unknown object")
+            );
+            assert!(label_added);
+        }
+        other => panic!("{other:?}"),
+    }
+    // The list is full now (red cube, big mug): a third name is refused, a known one is not.
+    assert!(error(m.answer(&name("obj-1", "cup"))).contains("workspace.max_labels"));
+    assert!(matches!(
+        m.answer(&name("obj-1", "red cube")),
+        WorkspaceReply::ObjectLabelled {
+            label_added: false,
+            ..
+        }
+    ));
+    m.answer(&name("obj-1", "big mug"));
+    // Seen again as an unknown object: still the big mug, found by its name.
+    let tracked = m.apply(&view(2, vec![unknown])).unwrap();
+    assert_eq!(tracked.objects[0].label, "big mug");
+    assert_eq!(tracked.renamed[0].detected_as, "unknown object");
+    let near = m.answer(&WorkspaceRequest::GetObjectNear {
+        coordinate: Point2::new(0.25, 0.0),
+        label: Some("BIG MUG".into()),
+    });
+    assert!(matches!(near, WorkspaceReply::Object { object: Some(o) } if o.id == "obj-1"));
+}
