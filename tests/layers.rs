@@ -150,36 +150,6 @@ const EXCEPTIONS: &[(&str, &str, Kind, &str)] = &[
         "robot reads the composed configuration; each crate is to read its own section",
     ),
     (
-        "robotd-robot",
-        "robotd-safety",
-        Kind::Normal,
-        "safety is a library in actors/ that actors call; it is to move to libs/",
-    ),
-    (
-        "robotd-arm",
-        "robotd-safety",
-        Kind::Normal,
-        "safety is a library in actors/ that actors call; it is to move to libs/",
-    ),
-    (
-        "robotd-gripper",
-        "robotd-safety",
-        Kind::Normal,
-        "safety is a library in actors/ that actors call; it is to move to libs/",
-    ),
-    (
-        "robotd-skills",
-        "robotd-safety",
-        Kind::Normal,
-        "safety is a library in actors/ that actors call; it is to move to libs/",
-    ),
-    (
-        "robotd-http",
-        "robotd-safety",
-        Kind::Normal,
-        "the e-stop and approval API (edges/http/src/safety.rs) calls the motion policy",
-    ),
-    (
         "robotd-mcp",
         "robotd-agent",
         Kind::Normal,

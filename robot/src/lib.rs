@@ -119,10 +119,16 @@ impl Hardware {
                 Ok(hardware)
             }
             RobotDriver::Niryo => {
-                let niryo =
-                    robotd_driver_niryo::open(&config.robot, std::time::Duration::from_secs(3))
-                        .await;
-                let mut hardware = Self::start_with(bus, config, niryo.drivers, observer).await?;
+                // The policy first: the driver's automatic calibration on connecting asks it.
+                let safety = Self::policy(config, robotd_protocol::RobotModel::Ned2)?;
+                let niryo = robotd_driver_niryo::open(
+                    &config.robot,
+                    std::time::Duration::from_secs(3),
+                    safety.clone(),
+                )
+                .await;
+                let mut hardware =
+                    Self::start_on(bus, config, niryo.drivers, safety, observer).await?;
                 hardware.tasks.extend(niryo.tasks);
                 Ok(hardware)
             }
@@ -154,11 +160,42 @@ impl Hardware {
         }
     }
 
-    /// Starts the three actors on the given drivers (any driver, simulated or real).
+    /// The motion policy of a `model` robot under `config` (`[safety]`, the workspaces), on
+    /// fresh stop signals, with its audit log opened.
+    pub fn policy(
+        config: &Config,
+        model: robotd_protocol::RobotModel,
+    ) -> Result<Safety, StartError> {
+        let audit = Safety::open_audit(&config.safety, &config.telemetry.log_dir)
+            .map_err(StartError::Audit)?;
+        Ok(Safety::new(
+            config.safety.clone(),
+            robotd_kinematics::Kinematics::new(model),
+            MotionControl::default(),
+            &config.robot.workspaces(),
+            audit,
+        ))
+    }
+
+    /// Starts the three actors on the given drivers (any driver, simulated or real), under a
+    /// new motion policy ([`Hardware::policy`]).
     pub async fn start_with<O: SupervisionObserver>(
         bus: &Bus,
         config: &Config,
         drivers: RobotDrivers,
+        observer: impl Fn(&'static str) -> O,
+    ) -> Result<Hardware, StartError> {
+        let safety = Self::policy(config, drivers.model)?;
+        Self::start_on(bus, config, drivers, safety, observer).await
+    }
+
+    /// Starts the three actors on the given drivers under the motion policy `safety`, whose
+    /// stop signals become the arm's.
+    pub async fn start_on<O: SupervisionObserver>(
+        bus: &Bus,
+        config: &Config,
+        drivers: RobotDrivers,
+        safety: Safety,
         observer: impl Fn(&'static str) -> O,
     ) -> Result<Hardware, StartError> {
         let supervisor = |actor: &'static str| {
@@ -169,16 +206,7 @@ impl Hardware {
         let failed = |actor: &'static str| move |source| StartError::Actor { actor, source };
         let camera_intrinsics = drivers.camera.intrinsics();
         let kinematics = robotd_kinematics::Kinematics::new(drivers.model);
-        let control = MotionControl::default();
-        let audit = Safety::open_audit(&config.safety, &config.telemetry.log_dir)
-            .map_err(StartError::Audit)?;
-        let safety = Safety::new(
-            config.safety.clone(),
-            kinematics.clone(),
-            control.clone(),
-            &config.robot.workspaces(),
-            audit,
-        );
+        let control = safety.control().clone();
         let context = ArmContext {
             kinematics,
             driver: drivers.arm,

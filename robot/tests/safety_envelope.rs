@@ -8,7 +8,10 @@
 //! position must lie inside the envelope. Every refusal must say why.
 
 use robotd_arm::{admit_and_run, ArmActor, ArmContext, ObservationPose};
-use robotd_driver::{ArmDriver, ArmFlags, DriverError, DriverFuture, Motion, MotionControl};
+use robotd_driver::{
+    ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision, DriverError, DriverFuture, Motion,
+    MotionControl, Permit,
+};
 use robotd_kinematics::Kinematics;
 use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, PathKind};
 use robotd_protocol::geometry::{Pose, PoseDelta, RobotModel};
@@ -36,22 +39,22 @@ impl ArmDriver for Recording {
     }
     fn execute<'a>(
         &'a self,
-        motion: Motion,
-        speed_scale: f64,
+        permit: Permit<ArmMotion>,
         control: &'a MotionControl,
     ) -> DriverFuture<'a, ()> {
         let start = self.inner.joints().unwrap_or_default();
+        let act = permit.act();
         self.executed
             .lock()
             .unwrap()
-            .push((start, motion.clone(), speed_scale));
-        self.inner.execute(motion, speed_scale, control)
+            .push((start, act.motion.clone(), act.speed_scale));
+        self.inner.execute(permit, control)
     }
-    fn calibrate(&self) -> DriverFuture<'_, ()> {
-        self.inner.calibrate()
+    fn calibrate(&self, permit: Permit<Calibration>) -> DriverFuture<'_, ()> {
+        self.inner.calibrate(permit)
     }
-    fn clear_collision(&self) -> DriverFuture<'_, ()> {
-        self.inner.clear_collision()
+    fn clear_collision(&self, permit: Permit<ClearCollision>) -> DriverFuture<'_, ()> {
+        self.inner.clear_collision(permit)
     }
     fn halt(&self) -> Result<(), DriverError> {
         self.inner.halt()
@@ -293,7 +296,10 @@ async fn random_motions_from_every_origin_never_leave_the_envelope() {
                 ground_truth_outside += 1;
             }
             if recording.flags().collision_detected {
-                recording.clear_collision().await.unwrap();
+                let cleared = admit_and_run(&actor, &safety, ArmCommand::ClearCollision, &origin)
+                    .await
+                    .expect("the arm actor answers");
+                assert!(matches!(cleared, ArmReply::Ok { .. }), "{cleared:?}");
             }
         }
     }

@@ -155,15 +155,19 @@ async fn measure(round_trips: usize, images: usize) -> Result<NiryoFigures> {
     let port = listener.local_addr()?.port();
     let served = tokio::spawn(fake.serve(listener));
 
-    let link = robotd_driver_niryo::Link::new(robotd_driver_niryo::link::LinkSettings {
-        host: "127.0.0.1".into(),
-        port,
-        connect_timeout: Duration::from_secs(2),
-        query_timeout: Duration::from_secs(3),
-        reconnect_max: Duration::from_secs(2),
-        auto_calibrate: true,
-        calibrate_timeout: Duration::from_secs(60),
-    });
+    let link = robotd_driver_niryo::Link::new(
+        robotd_driver_niryo::link::LinkSettings {
+            host: "127.0.0.1".into(),
+            port,
+            connect_timeout: Duration::from_secs(2),
+            query_timeout: Duration::from_secs(3),
+            reconnect_max: Duration::from_secs(2),
+            // The fake starts calibrated; a link without a policy never calibrates by itself.
+            auto_calibrate: false,
+            calibrate_timeout: Duration::from_secs(60),
+        },
+        None,
+    );
     let reconnector = tokio::spawn(link.clone().run_reconnector());
     link.wait_connected(Duration::from_secs(5))
         .await

@@ -180,15 +180,40 @@ async fn control_loop_and_fault(
     );
     let started = Instant::now();
     let control = MotionControl::default();
+    // The fake moves only with the policy's permit, like every robot: the default speed caps,
+    // a fence wide enough for the bench's targets (the robot here is the fake on a pty).
+    let policy = robotd_safety::Safety::new(
+        robotd_safety::SafetyConfig {
+            fence_margin_m: 10.0,
+            floor_z_m: -10.0,
+            ceiling_z_m: 10.0,
+            max_reach_m: 10.0,
+            motions_per_minute: 0,
+            ..Default::default()
+        },
+        robotd_kinematics::Kinematics::new(robotd_protocol::RobotModel::WidowX250),
+        control.clone(),
+        &[],
+        robotd_safety::AuditLog::disabled(),
+    );
+    let origin =
+        robotd_protocol::safety::Origin::new(robotd_protocol::safety::OriginKind::Internal)
+            .session("bench widowx");
     for target in [
         vec![0.6, -0.3, 0.4, 0.2, 0.5, 0.3],
         vec![-0.6, -0.1, 0.2, -0.2, 0.3, -0.3],
         vec![0.0, -0.2, 0.3, 0.0, 0.4, 0.0],
     ] {
-        widowx
-            .drivers
-            .arm
-            .execute(Motion::Joints(target), 0.5, &control)
+        let arm = &widowx.drivers.arm;
+        let admission = policy
+            .admit(&origin, "arm", "move_joints", serde_json::Value::Null)
+            .await
+            .map_err(|v| anyhow::anyhow!("motion refused: {v}"))?;
+        let start = arm.joints().map_err(|e| anyhow::anyhow!("joints: {e}"))?;
+        let permit = policy
+            .permit_motion(&admission, &start, Motion::Joints(target))
+            .map_err(|v| anyhow::anyhow!("motion refused: {v}"))?;
+        arm.execute(permit, &control)
             .await
             .map_err(|e| anyhow::anyhow!("motion: {e}"))?;
     }

@@ -7,8 +7,11 @@
 //!
 //! Every motion passes the safety policy ([`robotd_safety::Safety`]) twice: the serving loop
 //! admits the command (e-stop, rate limit, approval, audit) before handing it to the actor,
-//! and the actor checks the planned path (geofence at every sampled tool position, joint
-//! margins, speed caps) before the driver runs it. The actor only accepts [`Admitted`]
+//! and the actor has the policy check the planned path (geofence at every sampled tool
+//! position, joint margins, speed caps) right before the driver runs it: that check makes the
+//! [`robotd_safety::Permit`] without which the driver's `execute` cannot be called. A
+//! calibration is checked the same way (its motion to the rest pose), and clearing the
+//! collision flag needs an admission and a permit too. The actor only accepts [`Admitted`]
 //! commands, which only the policy can make.
 //!
 //! [`serve_arm`] puts it on the bus (`arm/command`). Motion commands go through the
@@ -239,11 +242,16 @@ impl ArmActor {
                 self.move_to(pose, PathKind::Joint, admission).await
             }
             ArmCommand::Calibrate => {
+                let start = ctx.driver.joints().map_err(arm_error)?;
+                let permit = ctx
+                    .safety
+                    .permit_calibration(admission, &start)
+                    .map_err(|v| refusal(&ctx.safety, v))?;
                 ctx.control
                     .begin_motion(admission.stop_generation())
-                    .map_err(arm_error)?;
+                    .map_err(|s| arm_error(s.into()))?;
                 ctx.shared.motion_started();
-                let calibrated = ctx.driver.calibrate().await;
+                let calibrated = ctx.driver.calibrate(permit).await;
                 ctx.shared.motion_ended();
                 calibrated.map_err(arm_error)?;
                 Ok(ArmReply::Ok {
@@ -314,18 +322,15 @@ impl ArmActor {
             return Err(ArmError::Collision);
         }
         let start = ctx.driver.joints().map_err(arm_error)?;
-        let check = ctx
+        let permit = ctx
             .safety
-            .check_arm_motion(admission, &start, &motion)
+            .permit_motion(admission, &start, motion)
             .map_err(|v| refusal(&ctx.safety, v))?;
         ctx.control
             .begin_motion(admission.stop_generation())
-            .map_err(arm_error)?;
+            .map_err(|s| arm_error(s.into()))?;
         ctx.shared.motion_started();
-        let executed = ctx
-            .driver
-            .execute(motion, check.speed_scale, &ctx.control)
-            .await;
+        let executed = ctx.driver.execute(permit, &ctx.control).await;
         ctx.shared.motion_ended();
         executed.map_err(|e| match e {
             DriverError::Stopped { reason } if ctx.control.estop_engaged() => {
@@ -365,25 +370,33 @@ impl Message<Admitted> for ArmActor {
     }
 }
 
-/// Clears the collision flag (not a motion: allowed while e-stopped, never rate limited).
-#[derive(Debug, Clone, Copy)]
-pub struct ClearCollisionFlag;
+/// Clears the collision flag (not a motion: allowed while e-stopped, never rate limited, but
+/// admitted and audited: [`Safety::admit_clear_collision`]).
+#[derive(Debug, Clone)]
+pub struct ClearCollisionFlag {
+    /// The policy's admission.
+    pub admission: Admission,
+}
 
 impl Message<ClearCollisionFlag> for ArmActor {
     type Reply = Result<ArmReply, Infallible>;
 
     async fn handle(
         &mut self,
-        _: ClearCollisionFlag,
+        work: ClearCollisionFlag,
         _: &mut Context<Self, Self::Reply>,
     ) -> Self::Reply {
         let ctx = &self.context;
+        let permit = match ctx.safety.permit_clear_collision(&work.admission) {
+            Ok(permit) => permit,
+            Err(violation) => return Ok(refusal(&ctx.safety, violation).into()),
+        };
         if ctx.driver.flags().collision_detected {
             ctx.shared.retreat_pending.store(true, Ordering::SeqCst);
         }
         let cleared = ctx
             .driver
-            .clear_collision()
+            .clear_collision(permit)
             .await
             .map_err(arm_error)
             .and_then(|()| ctx.tool_pose())
@@ -545,25 +558,41 @@ pub async fn admit_and_run(
             .into());
         }
     }
-    if !command.moves_arm() {
-        // Only ClearCollision reaches here: queries and Stop were answered at once.
-        return actor.ask(ClearCollisionFlag).await.map_err(fault_from);
+    let clear = matches!(command, ArmCommand::ClearCollision);
+    if !clear && !command.moves_arm() {
+        return Ok(ArmError::InvalidCommand {
+            reason: "queries and stop are answered at once by the serving loop, not admitted"
+                .into(),
+        }
+        .into());
     }
     let arguments = serde_json::to_value(&command).unwrap_or_default();
-    let admission = match safety
-        .admit(origin, "arm", command_kind(&command), arguments)
-        .await
-    {
+    let admitted = if clear {
+        safety.admit_clear_collision(origin, arguments).await
+    } else {
+        safety
+            .admit(origin, "arm", command_kind(&command), arguments)
+            .await
+    };
+    let admission = match admitted {
         Ok(admission) => admission,
         Err(violation) => return Ok(refusal(safety, violation).into()),
     };
-    let reply = actor
-        .ask(Admitted {
-            command,
-            admission: admission.clone(),
-        })
-        .await
-        .map_err(fault_from);
+    let reply = if clear {
+        actor
+            .ask(ClearCollisionFlag {
+                admission: admission.clone(),
+            })
+            .await
+    } else {
+        actor
+            .ask(Admitted {
+                command,
+                admission: admission.clone(),
+            })
+            .await
+    }
+    .map_err(fault_from);
     let text = match &reply {
         Ok(ArmReply::Error { error }) => Some(error.to_string()),
         Ok(_) => None,

@@ -185,7 +185,9 @@ impl Skills {
                     let safety = safety.clone();
                     async move {
                         // Approval first, outside the one-skill-at-a-time lock: nothing moves
-                        // before a human said yes.
+                        // before a human said yes. Every run gets the policy's grant (a
+                        // human's yes when the tool needs one); its arm and gripper commands
+                        // carry it, so the policy knows they belong to a decided tool run.
                         let mut origin = current_origin();
                         let mut approval = None;
                         if let Some(safety) = &safety {
@@ -194,7 +196,7 @@ impl Skills {
                                 .approve_tool(&origin, request.skill.tool_name(), &summary)
                                 .await
                             {
-                                Ok(id) => approval = id,
+                                Ok(id) => approval = Some(id),
                                 Err(violation) => {
                                     return Ok(SkillReply::failed(SkillError::Refused {
                                         reason: violation.reason,

@@ -13,6 +13,13 @@
 //! motion runs, because the supervisor's safe-state hook must be able to stop an arm whose
 //! actor just died.
 //!
+//! **One door.** Every method that moves something — [`ArmDriver::execute`],
+//! [`ArmDriver::calibrate`], [`ArmDriver::clear_collision`], [`GripperDriver::open`],
+//! [`GripperDriver::close`], [`GripperDriver::set_width`] — takes a [`Permit`] for that act,
+//! which only the safety policy (`robotd-safety`, in `libs/safety`) can make. Holding a driver
+//! is therefore not enough to move the robot: the caller must have passed the policy. Only
+//! [`ArmDriver::halt`] needs none (stopping is always allowed), and the queries need none.
+//!
 //! A driver crate hands the actors a [`RobotDrivers`]: one driver per actor and the robot's
 //! model. The workspaces (and their observation poses) come from `[robot] workspaces`, not
 //! from the driver, so a real robot starts with the same ones as the simulator. Adding a driver = a crate in `drivers/`
@@ -31,9 +38,12 @@ pub use widowx_config::WidowxConfig;
 
 use nalgebra::Isometry3;
 use robotd_protocol::geometry::{Pose, RobotModel};
+pub use robotd_safety::control::{nominal_travel_time_s, Motion, MotionControl, Stopped};
+pub use robotd_safety::permit::{
+    ArmMotion, Calibration, ClearCollision, Close, Open, Permit, SetWidth,
+};
 use std::future::Future;
 use std::pin::Pin;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 
 /// A driver's answer that arrives later (a motion, a calibration).
@@ -68,108 +78,12 @@ pub enum DriverError {
     Hardware(String),
 }
 
-/// Shared stop signals of one arm: the `Stop` command and the emergency stop. A running motion
-/// checks them at every control tick.
-#[derive(Debug, Clone, Default)]
-pub struct MotionControl {
-    inner: Arc<ControlFlags>,
-}
-
-#[derive(Debug, Default)]
-struct ControlFlags {
-    stop: AtomicBool,
-    stop_generation: AtomicU64,
-    estop: AtomicBool,
-    estop_reason: std::sync::Mutex<String>,
-}
-
-impl MotionControl {
-    /// Asks the running motion (if any) to stop at its next control tick.
-    ///
-    /// Every motion received before the stop is cancelled too: see [`Self::begin_motion`].
-    pub fn request_stop(&self) {
-        self.inner.stop_generation.fetch_add(1, Ordering::SeqCst);
-        self.inner.stop.store(true, Ordering::SeqCst);
-    }
-
-    /// How many stops were requested so far; a motion notes it when it is received.
-    pub fn stop_generation(&self) -> u64 {
-        self.inner.stop_generation.load(Ordering::SeqCst)
-    }
-
-    /// Starts a motion received at stop generation `received_at`: refused with
-    /// [`DriverError::Stopped`] when a stop came in since (a motion queued behind the one a
-    /// stop interrupted never runs later), else clears the stop flag for it.
-    pub fn begin_motion(&self, received_at: u64) -> Result<(), DriverError> {
-        if self.stop_generation() != received_at {
-            return Err(DriverError::Stopped {
-                reason: "a stop command came after the motion was requested".into(),
-            });
+impl From<Stopped> for DriverError {
+    fn from(stopped: Stopped) -> Self {
+        DriverError::Stopped {
+            reason: stopped.reason,
         }
-        self.inner.stop.store(false, Ordering::SeqCst);
-        Ok(())
     }
-
-    /// Engages (`true`) or releases the emergency stop.
-    pub fn set_estop(&self, engaged: bool, reason: &str) {
-        if let Ok(mut r) = self.inner.estop_reason.lock() {
-            *r = reason.to_owned();
-        }
-        self.inner.estop.store(engaged, Ordering::SeqCst);
-    }
-
-    /// Whether the emergency stop is engaged.
-    pub fn estop_engaged(&self) -> bool {
-        self.inner.estop.load(Ordering::SeqCst)
-    }
-
-    /// Why the emergency stop was engaged.
-    pub fn estop_reason(&self) -> String {
-        self.inner
-            .estop_reason
-            .lock()
-            .map(|r| r.clone())
-            .unwrap_or_default()
-    }
-
-    /// `Err(Stopped)` when the motion must stop now (stop requested or e-stop engaged).
-    pub fn check(&self) -> Result<(), DriverError> {
-        if self.estop_engaged() {
-            return Err(DriverError::Stopped {
-                reason: format!("emergency stop: {}", self.estop_reason()),
-            });
-        }
-        if self.inner.stop.load(Ordering::SeqCst) {
-            return Err(DriverError::Stopped {
-                reason: "stop command".into(),
-            });
-        }
-        Ok(())
-    }
-}
-
-/// One motion for [`ArmDriver::execute`].
-#[derive(Debug, Clone, PartialEq)]
-pub enum Motion {
-    /// Joint-space motion to these positions (radians, base to wrist); all joints start and
-    /// end together.
-    Joints(Vec<f64>),
-    /// A straight tool path, given as dense joint waypoints the arm actor computed (and
-    /// checked) with inverse kinematics; the last one is the target.
-    JointPath(Vec<Vec<f64>>),
-}
-
-/// Nominal time, seconds, to travel from joints `a` to `b` at full speed: the slowest joint
-/// at its velocity limit (`max_velocity_rad_s`, one per joint), times 1.5 for a smooth start
-/// and stop (a cubic profile peaks at 1.5 × its average speed). Drivers time a motion run at
-/// `speed_scale` as this divided by the scale; the safety policy predicts tool speeds with it.
-pub fn nominal_travel_time_s(a: &[f64], b: &[f64], max_velocity_rad_s: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .zip(max_velocity_rad_s)
-        .map(|((from, to), limit)| (to - from).abs() / limit.max(1e-6))
-        .fold(0.0, f64::max)
-        * 1.5
 }
 
 /// `Err(OutOfRange)` unless `speed_scale` is in (0, 1], the range [`ArmDriver::execute`]
@@ -210,20 +124,20 @@ pub trait ArmDriver: Send + Sync + 'static {
     fn still_since_unix_ns(&self) -> Option<u64> {
         None
     }
-    /// Executes `motion` at `speed_scale` (0 < scale ≤ 1: the fraction of the joint velocity
-    /// limits, so every segment takes [`nominal_travel_time_s`] / scale); returns when it has
-    /// ended. Checks `control` at every control tick and returns [`DriverError::Stopped`] when
-    /// asked to stop. The scale comes from the safety policy's speed caps.
+    /// Executes the permitted motion at its speed scale (0 < scale ≤ 1: the fraction of the
+    /// joint velocity limits, so every segment takes [`nominal_travel_time_s`] / scale);
+    /// returns when it has ended. Checks `control` at every control tick and returns
+    /// [`DriverError::Stopped`] when asked to stop. The motion and its scale are what the
+    /// safety policy checked ([`ArmMotion`]).
     fn execute<'a>(
         &'a self,
-        motion: Motion,
-        speed_scale: f64,
+        permit: Permit<ArmMotion>,
         control: &'a MotionControl,
     ) -> DriverFuture<'a, ()>;
     /// Runs the calibration (Ned2) or homing.
-    fn calibrate(&self) -> DriverFuture<'_, ()>;
+    fn calibrate(&self, permit: Permit<Calibration>) -> DriverFuture<'_, ()>;
     /// Clears the collision flag (a real robot is asked over its connection).
-    fn clear_collision(&self) -> DriverFuture<'_, ()>;
+    fn clear_collision(&self, permit: Permit<ClearCollision>) -> DriverFuture<'_, ()>;
     /// Stops any motion now and holds position. Safe to call from any task, also while an
     /// [`execute`](Self::execute) is running elsewhere and after the arm actor died.
     fn halt(&self) -> Result<(), DriverError>;
@@ -248,11 +162,11 @@ pub trait GripperDriver: Send + Sync + 'static {
     /// Widest opening, metres.
     fn max_width_m(&self) -> f64;
     /// Opens fully (releasing what it holds).
-    fn open(&self) -> DriverFuture<'_, GripperStatus>;
+    fn open(&self, permit: Permit<Open>) -> DriverFuture<'_, GripperStatus>;
     /// Closes until fully closed or blocked by an object.
-    fn close(&self) -> DriverFuture<'_, GripperStatus>;
-    /// Moves the fingers to `width_m` apart.
-    fn set_width(&self, width_m: f64) -> DriverFuture<'_, GripperStatus>;
+    fn close(&self, permit: Permit<Close>) -> DriverFuture<'_, GripperStatus>;
+    /// Moves the fingers to the permitted width ([`SetWidth::width_m`]) apart.
+    fn set_width(&self, permit: Permit<SetWidth>) -> DriverFuture<'_, GripperStatus>;
     /// Reads the state.
     fn status(&self) -> Result<GripperStatus, DriverError>;
 }

@@ -19,7 +19,8 @@
 use crate::link::{Link, LinkError, Session};
 use crate::wire::{self, Param};
 use robotd_driver::{
-    nominal_travel_time_s, ArmDriver, ArmFlags, DriverError, DriverFuture, Motion, MotionControl,
+    nominal_travel_time_s, ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision,
+    DriverError, DriverFuture, Motion, MotionControl, Permit,
 };
 use robotd_protocol::geometry::RobotModel;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
@@ -285,10 +286,13 @@ impl ArmDriver for NiryoArm {
 
     fn execute<'a>(
         &'a self,
-        motion: Motion,
-        speed_scale: f64,
+        permit: Permit<ArmMotion>,
         control: &'a MotionControl,
     ) -> DriverFuture<'a, ()> {
+        let ArmMotion {
+            motion,
+            speed_scale,
+        } = permit.into_act();
         Box::pin(async move {
             self.moving.store(true, Ordering::SeqCst);
             let _moving = MovingGuard(&self.moving);
@@ -296,7 +300,7 @@ impl ArmDriver for NiryoArm {
         })
     }
 
-    fn calibrate(&self) -> DriverFuture<'_, ()> {
+    fn calibrate(&self, _permit: Permit<Calibration>) -> DriverFuture<'_, ()> {
         Box::pin(async move {
             self.moving.store(true, Ordering::SeqCst);
             let _moving = MovingGuard(&self.moving);
@@ -310,7 +314,7 @@ impl ArmDriver for NiryoArm {
         })
     }
 
-    fn clear_collision(&self) -> DriverFuture<'_, ()> {
+    fn clear_collision(&self, _permit: Permit<ClearCollision>) -> DriverFuture<'_, ()> {
         Box::pin(async move {
             self.link
                 .call(

@@ -10,7 +10,10 @@
 use crate::arm::link_error;
 use crate::link::Link;
 use crate::wire::Param;
-use robotd_driver::{DriverError, DriverFuture, GripperDriver, GripperStatus, NiryoConfig};
+use robotd_driver::{
+    Close, DriverError, DriverFuture, GripperDriver, GripperStatus, NiryoConfig, Open, Permit,
+    SetWidth,
+};
 use std::sync::{Arc, Mutex};
 
 /// Widest opening of the Ned2's standard gripper, metres.
@@ -63,7 +66,7 @@ impl GripperDriver for NiryoGripper {
         MAX_WIDTH_M
     }
 
-    fn open(&self) -> DriverFuture<'_, GripperStatus> {
+    fn open(&self, _permit: Permit<Open>) -> DriverFuture<'_, GripperStatus> {
         Box::pin(self.command(
             "OPEN_GRIPPER",
             GripperStatus {
@@ -73,7 +76,7 @@ impl GripperDriver for NiryoGripper {
         ))
     }
 
-    fn close(&self) -> DriverFuture<'_, GripperStatus> {
+    fn close(&self, _permit: Permit<Close>) -> DriverFuture<'_, GripperStatus> {
         Box::pin(self.command(
             "CLOSE_GRIPPER",
             GripperStatus {
@@ -83,7 +86,8 @@ impl GripperDriver for NiryoGripper {
         ))
     }
 
-    fn set_width(&self, width_m: f64) -> DriverFuture<'_, GripperStatus> {
+    fn set_width(&self, permit: Permit<SetWidth>) -> DriverFuture<'_, GripperStatus> {
+        let width_m = permit.act().width_m;
         Box::pin(async move {
             Err(DriverError::Hardware(format!(
                 "the Ned2's gripper only opens fully or closes (asked for {:.1} mm); use open or close",

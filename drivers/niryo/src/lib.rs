@@ -30,6 +30,7 @@ pub use link::{Link, LinkSettings};
 use robotd_driver::{RobotConfig, RobotDrivers};
 use robotd_kinematics::Kinematics;
 use robotd_protocol::geometry::RobotModel;
+use robotd_safety::Safety;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -60,8 +61,9 @@ pub fn link_settings(config: &RobotConfig) -> LinkSettings {
 /// Opens the Ned2 of `[robot]` (on the current tokio runtime): starts connecting and waits up
 /// to `wait_for_robot` for the first connection, so that the camera's intrinsics are the
 /// robot's; an unreachable robot is not an error (the drivers say why until it answers).
-pub async fn open(config: &RobotConfig, wait_for_robot: Duration) -> NiryoDrivers {
-    let link = Link::new(link_settings(config));
+/// `policy` admits the automatic calibration on connecting (see [`link`]).
+pub async fn open(config: &RobotConfig, wait_for_robot: Duration, policy: Safety) -> NiryoDrivers {
+    let link = Link::new(link_settings(config), Some(policy));
     let kinematics = Kinematics::new(RobotModel::Ned2);
     let arm = Arc::new(NiryoArm::new(
         link.clone(),

@@ -13,9 +13,17 @@
 //! when the robot needs it (and `auto_calibrate` allows), updates the tool, reads the camera's
 //! intrinsics, the collision flag and the joints, and only then lets commands through: so no
 //! command is ever accepted while the arm's position is unknown.
+//!
+//! The automatic calibration is a motion like any other: it asks the motion policy first
+//! ([`robotd_safety::Safety::admit_auto_calibration`], audited) and sends `CALIBRATE AUTO`
+//! only with its permit. While the e-stop is engaged the policy refuses it; the link then
+//! holds the connection, says why in its status (which `/health` shows as the arm's
+//! connection), and asks again once the e-stop is released. A link without a policy (a
+//! benchmark's) never calibrates by itself.
 
 use crate::wire::{self, Param, Reply, WireError};
 use robotd_runtime::backoff::Backoff;
+use robotd_safety::{Calibration, Outcome, Permit, Safety};
 use serde_json::Value;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
@@ -161,9 +169,14 @@ impl HardwareStatus {
     }
 }
 
+/// How often a calibration refused for an engaged e-stop looks again whether it was released.
+const ESTOP_RECHECK: Duration = Duration::from_millis(100);
+
 /// The connection, shared by the arm, gripper and camera drivers.
 pub struct Link {
     settings: LinkSettings,
+    /// The motion policy that admits the automatic calibration (`None`: never calibrate).
+    policy: Option<Safety>,
     connection: tokio::sync::Mutex<Option<TcpStream>>,
     /// `Ok(())` while connected, else why not.
     status: Mutex<Result<(), String>>,
@@ -188,10 +201,12 @@ impl std::fmt::Debug for Link {
 
 impl Link {
     /// A link to the robot of `settings`, not connected yet: [`Link::run_reconnector`]
-    /// connects it.
-    pub fn new(settings: LinkSettings) -> Arc<Self> {
+    /// connects it. `policy` admits the automatic calibration on connecting; without one a
+    /// robot that needs calibration is not calibrated by the link.
+    pub fn new(settings: LinkSettings, policy: Option<Safety>) -> Arc<Self> {
         Arc::new(Link {
             settings,
+            policy,
             connection: tokio::sync::Mutex::new(None),
             status: Mutex::new(Err("not connected yet".into())),
             known: Mutex::new(Known::default()),
@@ -300,14 +315,7 @@ impl Link {
         let (mut stream, hardware) = greet(s).await.map_err(|e| e.to_string())?;
         let mut calibrated = !hardware.calibration_needed;
         if !calibrated && s.auto_calibrate {
-            tracing::info!("the robot needs calibration: calibrating (robot.niryo.auto_calibrate)");
-            ask(
-                &mut stream,
-                "CALIBRATE",
-                vec![Param::Str("AUTO".into())],
-                s.calibrate_timeout,
-            )
-            .await?;
+            self.calibrate_on_connect(&mut stream).await?;
             calibrated = true;
         }
         ask(&mut stream, "UPDATE_TOOL", vec![], s.query_timeout).await?;
@@ -363,6 +371,71 @@ impl Link {
         *lock(&self.status) = Ok(());
         Ok(())
     }
+}
+
+impl Link {
+    /// The automatic calibration of a robot that needs one: admitted by the policy first;
+    /// while the e-stop refuses it, the status says so and the link waits for the release.
+    async fn calibrate_on_connect(&self, stream: &mut TcpStream) -> Result<(), String> {
+        let Some(policy) = &self.policy else {
+            return Err(
+                "the robot needs calibration, and this link has no motion policy to \
+                        admit an automatic one; calibrate it (the calibrate tool)"
+                    .into(),
+            );
+        };
+        let (admission, permit) = loop {
+            match policy.admit_auto_calibration("niryo").await {
+                Ok(admitted) => break admitted,
+                Err(violation) if violation.limit == "estop" => {
+                    let reason = format!(
+                        "connected, but the robot needs calibration and the motion policy \
+                         refused the automatic one: {}; it waits for the e-stop's release",
+                        violation.reason
+                    );
+                    tracing::warn!(%reason, "automatic calibration held");
+                    *lock(&self.status) = Err(reason);
+                    self.connected.notify_waiters();
+                    while policy.estop().is_some() {
+                        tokio::time::sleep(ESTOP_RECHECK).await;
+                    }
+                }
+                Err(violation) => {
+                    return Err(format!(
+                        "the robot needs calibration, and the motion policy refused the \
+                         automatic one: {}",
+                        violation.reason
+                    ))
+                }
+            }
+        };
+        tracing::info!(
+            motion = admission.motion_id(),
+            "the robot needs calibration: calibrating (robot.niryo.auto_calibrate, admitted by the motion policy)"
+        );
+        let done = calibrate(stream, permit, self.settings.calibrate_timeout).await;
+        match &done {
+            Ok(()) => policy.finish(&admission, Outcome::Done),
+            Err(reason) => policy.finish(&admission, Outcome::Failed { reason }),
+        }
+        done
+    }
+}
+
+/// `CALIBRATE AUTO` on `stream`, with the policy's permit.
+async fn calibrate(
+    stream: &mut TcpStream,
+    _permit: Permit<Calibration>,
+    timeout: Duration,
+) -> Result<(), String> {
+    ask(
+        stream,
+        "CALIBRATE",
+        vec![Param::Str("AUTO".into())],
+        timeout,
+    )
+    .await
+    .map(|_| ())
 }
 
 /// Why [`greet`] failed, by step (each wants another fix).

@@ -13,8 +13,8 @@
 
 use crate::player::Clock;
 use robotd_driver::{
-    ArmDriver, ArmFlags, DriverError, DriverFuture, GripperDriver, GripperStatus, Motion,
-    MotionControl,
+    ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision, Close, DriverError, DriverFuture,
+    GripperDriver, GripperStatus, MotionControl, Open, Permit, SetWidth,
 };
 use robotd_protocol::arm::ArmState;
 use robotd_protocol::geometry::RobotModel;
@@ -171,18 +171,17 @@ impl ArmDriver for ReplayArm {
 
     fn execute<'a>(
         &'a self,
-        _motion: Motion,
-        _speed_scale: f64,
+        _permit: Permit<ArmMotion>,
         _control: &'a MotionControl,
     ) -> DriverFuture<'a, ()> {
         Box::pin(async { Err(refused()) })
     }
 
-    fn calibrate(&self) -> DriverFuture<'_, ()> {
+    fn calibrate(&self, _permit: Permit<Calibration>) -> DriverFuture<'_, ()> {
         Box::pin(async { Err(refused()) })
     }
 
-    fn clear_collision(&self) -> DriverFuture<'_, ()> {
+    fn clear_collision(&self, _permit: Permit<ClearCollision>) -> DriverFuture<'_, ()> {
         Box::pin(async { Err(refused()) })
     }
 
@@ -200,15 +199,15 @@ impl GripperDriver for ReplayGripper {
         self.0.max_width_m
     }
 
-    fn open(&self) -> DriverFuture<'_, GripperStatus> {
+    fn open(&self, _permit: Permit<Open>) -> DriverFuture<'_, GripperStatus> {
         Box::pin(async { Err(refused()) })
     }
 
-    fn close(&self) -> DriverFuture<'_, GripperStatus> {
+    fn close(&self, _permit: Permit<Close>) -> DriverFuture<'_, GripperStatus> {
         Box::pin(async { Err(refused()) })
     }
 
-    fn set_width(&self, _width_m: f64) -> DriverFuture<'_, GripperStatus> {
+    fn set_width(&self, _permit: Permit<SetWidth>) -> DriverFuture<'_, GripperStatus> {
         Box::pin(async { Err(refused()) })
     }
 
@@ -220,7 +219,9 @@ impl GripperDriver for ReplayGripper {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use robotd_driver::Motion;
     use robotd_recording::fixture::{arm_state, at, T0};
+    use robotd_safety::testing;
 
     fn robot(clock: &Clock) -> Arc<RecordedRobot> {
         Arc::new(RecordedRobot::new(
@@ -239,16 +240,33 @@ mod tests {
         let robot = robot(&clock);
         let (arm, gripper) = (ReplayArm(robot.clone()), ReplayGripper(robot));
         let control = MotionControl::default();
+        let policy = testing::wide_policy(RobotModel::Ned2);
         let before = arm.joints().unwrap();
         let refusals = [
-            arm.execute(Motion::Joints(vec![0.0; 6]), 1.0, &control)
+            arm.execute(
+                testing::motion(&policy, &before, Motion::Joints(vec![0.0; 6])).await,
+                &control,
+            )
+            .await
+            .unwrap_err(),
+            arm.calibrate(testing::calibration(&policy, &before).await)
                 .await
                 .unwrap_err(),
-            arm.calibrate().await.unwrap_err(),
-            arm.clear_collision().await.unwrap_err(),
-            gripper.open().await.unwrap_err(),
-            gripper.close().await.unwrap_err(),
-            gripper.set_width(0.01).await.unwrap_err(),
+            arm.clear_collision(testing::clear_collision(&policy).await)
+                .await
+                .unwrap_err(),
+            gripper
+                .open(testing::gripper(&policy, Open).await)
+                .await
+                .unwrap_err(),
+            gripper
+                .close(testing::gripper(&policy, Close).await)
+                .await
+                .unwrap_err(),
+            gripper
+                .set_width(testing::gripper(&policy, SetWidth { width_m: 0.01 }).await)
+                .await
+                .unwrap_err(),
         ];
         for refusal in refusals {
             assert_eq!(refusal.to_string(), REFUSAL);

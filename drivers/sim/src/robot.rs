@@ -14,8 +14,9 @@
 use crate::faults::FaultInjector;
 use nalgebra::{Isometry3, Point3, Vector3};
 use robotd_driver::{
-    ArmDriver, ArmFlags, CameraDriver, CaptureInfo, DriverError, DriverFuture, GripperDriver,
-    GripperStatus, Motion, MotionControl,
+    ArmDriver, ArmFlags, ArmMotion, Calibration, CameraDriver, CaptureInfo, ClearCollision, Close,
+    DriverError, DriverFuture, GripperDriver, GripperStatus, Motion, MotionControl, Open, Permit,
+    SetWidth,
 };
 use robotd_kinematics::Kinematics;
 use robotd_protocol::camera::CameraIntrinsics;
@@ -319,6 +320,41 @@ impl SimArm {
     pub fn robot(&self) -> &SimRobot {
         &self.robot
     }
+
+    /// The simulated robot's own controller running `motion` at `speed_scale`: what a fake
+    /// robot does with a motion command it received over its wire (`fakes/`). robotd's actors
+    /// never call it: they hold the arm as an `ArmDriver`, whose
+    /// [`execute`](ArmDriver::execute) needs the policy's permit. Like
+    /// [`SimRobot::teleport`], this is the simulated world's side, not a driver's.
+    pub async fn controller_move(
+        &self,
+        motion: Motion,
+        speed_scale: f64,
+        control: &MotionControl,
+    ) -> Result<(), DriverError> {
+        self.faults.maybe_fail("move").await;
+        match motion {
+            Motion::Joints(target) => {
+                self.robot
+                    .run_path(vec![target], true, speed_scale, control)
+                    .await
+            }
+            Motion::JointPath(path) => self.robot.run_path(path, false, speed_scale, control).await,
+        }
+    }
+
+    /// The simulated robot's own calibration (see [`SimArm::controller_move`]).
+    pub async fn controller_calibrate(&self) -> Result<(), DriverError> {
+        self.faults.maybe_fail("calibrate").await;
+        tokio::time::sleep(self.robot.scaled(0.5)).await;
+        self.robot.lock().calibrated = true;
+        Ok(())
+    }
+
+    /// The simulated robot clearing its collision flag (see [`SimArm::controller_move`]).
+    pub fn controller_clear_collision(&self) {
+        self.robot.lock().collision = None;
+    }
 }
 
 impl ArmDriver for SimArm {
@@ -341,36 +377,22 @@ impl ArmDriver for SimArm {
 
     fn execute<'a>(
         &'a self,
-        motion: Motion,
-        speed_scale: f64,
+        permit: Permit<ArmMotion>,
         control: &'a MotionControl,
     ) -> DriverFuture<'a, ()> {
-        Box::pin(async move {
-            self.faults.maybe_fail("move").await;
-            match motion {
-                Motion::Joints(target) => {
-                    self.robot
-                        .run_path(vec![target], true, speed_scale, control)
-                        .await
-                }
-                Motion::JointPath(path) => {
-                    self.robot.run_path(path, false, speed_scale, control).await
-                }
-            }
-        })
+        let ArmMotion {
+            motion,
+            speed_scale,
+        } = permit.into_act();
+        Box::pin(async move { self.controller_move(motion, speed_scale, control).await })
     }
 
-    fn calibrate(&self) -> DriverFuture<'_, ()> {
-        Box::pin(async move {
-            self.faults.maybe_fail("calibrate").await;
-            tokio::time::sleep(self.robot.scaled(0.5)).await;
-            self.robot.lock().calibrated = true;
-            Ok(())
-        })
+    fn calibrate(&self, _permit: Permit<Calibration>) -> DriverFuture<'_, ()> {
+        Box::pin(self.controller_calibrate())
     }
 
-    fn clear_collision(&self) -> DriverFuture<'_, ()> {
-        self.robot.lock().collision = None;
+    fn clear_collision(&self, _permit: Permit<ClearCollision>) -> DriverFuture<'_, ()> {
+        self.controller_clear_collision();
         Box::pin(async { Ok(()) })
     }
 
@@ -397,6 +419,55 @@ impl SimGripper {
         }
     }
 
+    /// The simulated gripper opening fully by itself: what a fake robot does with the command
+    /// it received (see [`SimArm::controller_move`]); robotd's actors use
+    /// [`GripperDriver::open`], which needs the policy's permit.
+    pub async fn controller_open(&self) -> Result<GripperStatus, DriverError> {
+        self.faults.maybe_fail("open").await;
+        let max = self.max_width_m();
+        let from = self.status_now().width_m;
+        self.travel(from, max).await;
+        self.robot.lock().world.open_gripper(max);
+        Ok(self.status_now())
+    }
+
+    /// The simulated gripper closing by itself (see [`SimGripper::controller_open`]).
+    pub async fn controller_close(&self) -> Result<GripperStatus, DriverError> {
+        self.faults.maybe_fail("close").await;
+        let from = self.status_now().width_m;
+        let outcome = self.robot.lock().world.close_gripper();
+        let to = self.status_now().width_m;
+        self.travel(from, to).await;
+        if let GraspOutcome::Empty { reason } = &outcome {
+            tracing::debug!(%reason, "the simulated gripper closed on nothing");
+        }
+        Ok(self.status_now())
+    }
+
+    /// The simulated gripper moving to `width_m` by itself (see
+    /// [`SimGripper::controller_open`]).
+    pub async fn controller_set_width(&self, width_m: f64) -> Result<GripperStatus, DriverError> {
+        self.faults.maybe_fail("set_width").await;
+        let max = self.max_width_m();
+        if !(0.0..=max).contains(&width_m) {
+            return Err(DriverError::OutOfRange(format!(
+                "gripper width {width_m:.3} m is outside 0 … {max:.3} m"
+            )));
+        }
+        let from = self.status_now().width_m;
+        self.travel(from, width_m).await;
+        let mut state = self.robot.lock();
+        if width_m >= state.world.gripper_width_m() {
+            state.world.open_gripper(width_m);
+        } else {
+            // Closing part-way: a close that stops at the object (or fully closed) is the
+            // only closing motion the simulator models.
+            let _ = state.world.close_gripper();
+        }
+        drop(state);
+        Ok(self.status_now())
+    }
+
     async fn travel(&self, from_m: f64, to_m: f64) {
         let max = gripper_max_width(self.robot.kinematics.model());
         let fraction = ((to_m - from_m).abs() / max).clamp(0.0, 1.0);
@@ -410,53 +481,16 @@ impl GripperDriver for SimGripper {
         gripper_max_width(self.robot.kinematics.model())
     }
 
-    fn open(&self) -> DriverFuture<'_, GripperStatus> {
-        Box::pin(async move {
-            self.faults.maybe_fail("open").await;
-            let max = self.max_width_m();
-            let from = self.status_now().width_m;
-            self.travel(from, max).await;
-            self.robot.lock().world.open_gripper(max);
-            Ok(self.status_now())
-        })
+    fn open(&self, _permit: Permit<Open>) -> DriverFuture<'_, GripperStatus> {
+        Box::pin(self.controller_open())
     }
 
-    fn close(&self) -> DriverFuture<'_, GripperStatus> {
-        Box::pin(async move {
-            self.faults.maybe_fail("close").await;
-            let from = self.status_now().width_m;
-            let outcome = self.robot.lock().world.close_gripper();
-            let to = self.status_now().width_m;
-            self.travel(from, to).await;
-            if let GraspOutcome::Empty { reason } = &outcome {
-                tracing::debug!(%reason, "the simulated gripper closed on nothing");
-            }
-            Ok(self.status_now())
-        })
+    fn close(&self, _permit: Permit<Close>) -> DriverFuture<'_, GripperStatus> {
+        Box::pin(self.controller_close())
     }
 
-    fn set_width(&self, width_m: f64) -> DriverFuture<'_, GripperStatus> {
-        Box::pin(async move {
-            self.faults.maybe_fail("set_width").await;
-            let max = self.max_width_m();
-            if !(0.0..=max).contains(&width_m) {
-                return Err(DriverError::OutOfRange(format!(
-                    "gripper width {width_m:.3} m is outside 0 … {max:.3} m"
-                )));
-            }
-            let from = self.status_now().width_m;
-            self.travel(from, width_m).await;
-            let mut state = self.robot.lock();
-            if width_m >= state.world.gripper_width_m() {
-                state.world.open_gripper(width_m);
-            } else {
-                // Closing part-way: a close that stops at the object (or fully closed) is the
-                // only closing motion the simulator models.
-                let _ = state.world.close_gripper();
-            }
-            drop(state);
-            Ok(self.status_now())
-        })
+    fn set_width(&self, permit: Permit<SetWidth>) -> DriverFuture<'_, GripperStatus> {
+        Box::pin(self.controller_set_width(permit.act().width_m))
     }
 
     fn status(&self) -> Result<GripperStatus, DriverError> {

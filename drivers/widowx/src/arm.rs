@@ -11,7 +11,10 @@
 
 use crate::bus::ServoBus;
 use crate::control_table::{rad_to_ticks, ticks_to_rad};
-use robotd_driver::{ArmDriver, ArmFlags, DriverError, DriverFuture, Motion, MotionControl};
+use robotd_driver::{
+    ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision, DriverError, DriverFuture, Motion,
+    MotionControl, Permit,
+};
 use robotd_kinematics::Kinematics;
 use robotd_protocol::geometry::RobotModel;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -196,7 +199,7 @@ impl WidowxArm {
         faults: u64,
     ) -> Result<(), DriverError> {
         if let Err(stop) = control.check() {
-            return Err(self.hold_after(stop));
+            return Err(self.hold_after(stop.into()));
         }
         if self.halts.load(Ordering::SeqCst) != halts {
             return Err(DriverError::Stopped {
@@ -250,10 +253,13 @@ impl ArmDriver for WidowxArm {
 
     fn execute<'a>(
         &'a self,
-        motion: Motion,
-        speed_scale: f64,
+        permit: Permit<ArmMotion>,
         control: &'a MotionControl,
     ) -> DriverFuture<'a, ()> {
+        let ArmMotion {
+            motion,
+            speed_scale,
+        } = permit.into_act();
         Box::pin(async move {
             self.moving.store(true, Ordering::SeqCst);
             let result = self.run(motion, speed_scale, control).await;
@@ -262,14 +268,14 @@ impl ArmDriver for WidowxArm {
         })
     }
 
-    fn calibrate(&self) -> DriverFuture<'_, ()> {
+    fn calibrate(&self, _permit: Permit<Calibration>) -> DriverFuture<'_, ()> {
         Box::pin(async {
             // The servos' encoders are absolute: there is nothing to calibrate, only to check.
             self.present().map(|_| ())
         })
     }
 
-    fn clear_collision(&self) -> DriverFuture<'_, ()> {
+    fn clear_collision(&self, _permit: Permit<ClearCollision>) -> DriverFuture<'_, ()> {
         Box::pin(async {
             *self.collision.lock().unwrap_or_else(|p| p.into_inner()) = None;
             Ok(())

@@ -12,7 +12,9 @@
 
 use crate::bus::ServoBus;
 use crate::control_table::{address, GRIPPER_ID};
-use robotd_driver::{DriverError, DriverFuture, GripperDriver, GripperStatus};
+use robotd_driver::{
+    Close, DriverError, DriverFuture, GripperDriver, GripperStatus, Open, Permit, SetWidth,
+};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -144,7 +146,7 @@ impl GripperDriver for WidowxGripper {
         self.settings.max_width_m
     }
 
-    fn open(&self) -> DriverFuture<'_, GripperStatus> {
+    fn open(&self, _permit: Permit<Open>) -> DriverFuture<'_, GripperStatus> {
         Box::pin(async move {
             let pwm = -self.closing_sign() * self.settings.pwm;
             let result = self.drive(pwm, self.settings.open_ticks).await;
@@ -155,7 +157,7 @@ impl GripperDriver for WidowxGripper {
         })
     }
 
-    fn close(&self) -> DriverFuture<'_, GripperStatus> {
+    fn close(&self, _permit: Permit<Close>) -> DriverFuture<'_, GripperStatus> {
         Box::pin(async move {
             let pwm = self.closing_sign() * self.settings.pwm;
             let stopped_at = self.drive(pwm, self.settings.closed_ticks).await?;
@@ -174,7 +176,8 @@ impl GripperDriver for WidowxGripper {
         })
     }
 
-    fn set_width(&self, width_m: f64) -> DriverFuture<'_, GripperStatus> {
+    fn set_width(&self, permit: Permit<SetWidth>) -> DriverFuture<'_, GripperStatus> {
+        let width_m = permit.act().width_m;
         Box::pin(async move {
             Err(DriverError::Hardware(format!(
                 "the WidowX gripper runs in PWM mode (so it can squeeze an object): it opens and \

@@ -2,7 +2,7 @@
 //! simulator. Replies and error texts follow `docs/niryo-tcp.md`.
 
 use crate::{lock, FakeNiryo};
-use robotd_driver::{ArmDriver, CameraDriver, DriverError, GripperDriver, Motion};
+use robotd_driver::{ArmDriver, CameraDriver, DriverError, Motion};
 use robotd_driver_niryo::wire;
 use robotd_kinematics::{isometry_to_pose, pose_to_isometry};
 use robotd_protocol::geometry::Pose;
@@ -97,7 +97,7 @@ impl FakeNiryo {
                 arity(params, &[1], "calibrate")?;
                 enum_name(&params[0], &["MANUAL", "AUTO"])?;
                 self.arm
-                    .calibrate()
+                    .controller_calibrate()
                     .await
                     .map_err(|e| execution_error(&e))?;
                 self.flags().calibrated = true;
@@ -164,9 +164,9 @@ impl FakeNiryo {
                     integer(p)?;
                 }
                 let done = if command == "OPEN_GRIPPER" {
-                    self.gripper.open().await
+                    self.gripper.controller_open().await
                 } else {
-                    self.gripper.close().await
+                    self.gripper.controller_close().await
                 };
                 done.map_err(|e| execution_error(&e))?;
                 ok(vec![])
@@ -177,10 +177,7 @@ impl FakeNiryo {
             }
             "CLEAR_COLLISION_DETECTED" => {
                 arity(params, &[0], "clear_collision_detected")?;
-                self.arm
-                    .clear_collision()
-                    .await
-                    .map_err(|e| execution_error(&e))?;
+                self.arm.controller_clear_collision();
                 ok(vec![])
             }
             "SET_LEARNING_MODE" => {
@@ -269,7 +266,7 @@ impl FakeNiryo {
             return ok(vec![]);
         }
         self.arm
-            .execute(Motion::Joints(q), speed, &self.control)
+            .controller_move(Motion::Joints(q), speed, &self.control)
             .await
             .map_err(|e| execution_error(&e))?;
         ok(vec![])

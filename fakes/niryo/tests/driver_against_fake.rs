@@ -1,11 +1,14 @@
 //! The niryo driver against the fake Ned2 over a real TCP socket on loopback: motions,
 //! gripper, camera, collisions, and every fault a real robot's connection can produce.
 
-use robotd_driver::{DriverError, Motion, MotionControl, RobotConfig};
+use robotd_driver::{
+    ArmDriver, Close, DriverError, Motion, MotionControl, Open, RobotConfig, SetWidth,
+};
 use robotd_driver_niryo::{NiryoArm, NiryoDrivers};
 use robotd_fake_niryo::{FakeFaults, FakeNiryo};
 use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::geometry::{Pose, RobotModel};
+use robotd_safety::{testing, AuditConfig, AuditLog, Safety};
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -37,7 +40,24 @@ fn config(port: u16, extra: &str) -> RobotConfig {
 }
 
 async fn open(port: u16, extra: &str) -> NiryoDrivers {
-    robotd_driver_niryo::open(&config(port, extra), Duration::from_secs(3)).await
+    robotd_driver_niryo::open(
+        &config(port, extra),
+        Duration::from_secs(3),
+        testing::wide_policy(RobotModel::Ned2),
+    )
+    .await
+}
+
+/// Runs `motion` on `arm` with a permit of a test policy (wide limits, full speed).
+async fn execute(
+    arm: &Arc<dyn ArmDriver>,
+    motion: Motion,
+    control: &MotionControl,
+) -> Result<(), DriverError> {
+    let policy = testing::wide_policy(RobotModel::Ned2);
+    let start = arm.joints()?;
+    arm.execute(testing::motion(&policy, &start, motion).await, control)
+        .await
 }
 
 /// Waits (polling a condition, bounded) until `done` holds.
@@ -82,9 +102,9 @@ async fn moves_in_segments_grips_and_sees_through_the_real_protocol() {
 
     let target = joints_for(0.25, 0.05, 0.15);
     let before = fake.command_log();
-    arm.execute(
+    execute(
+        &arm,
         Motion::Joints(target.clone()),
-        1.0,
         &MotionControl::default(),
     )
     .await
@@ -112,10 +132,14 @@ async fn moves_in_segments_grips_and_sees_through_the_real_protocol() {
     assert_eq!(read_back, segments, "each segment read back: {sent:?}");
 
     let gripper = niryo.drivers.gripper.clone();
-    assert!(gripper.close().await.unwrap().holding);
-    assert!(!gripper.open().await.unwrap().holding);
+    let policy = testing::wide_policy(RobotModel::Ned2);
+    let permit = testing::gripper(&policy, Close).await;
+    assert!(gripper.close(permit).await.unwrap().holding);
+    let permit = testing::gripper(&policy, Open).await;
+    assert!(!gripper.open(permit).await.unwrap().holding);
+    let permit = testing::gripper(&policy, SetWidth { width_m: 0.01 }).await;
     assert!(
-        gripper.set_width(0.01).await.is_err(),
+        gripper.set_width(permit).await.is_err(),
         "the Ned2 gripper has no width control"
     );
 
@@ -146,24 +170,25 @@ async fn a_collision_stops_the_arm_and_clearing_lets_it_move_again() {
     let niryo = open(address.port(), "").await;
     let arm = niryo.drivers.arm.clone();
     let control = MotionControl::default();
-    arm.execute(Motion::Joints(joints_for(0.25, 0.0, 0.10)), 1.0, &control)
+    execute(&arm, Motion::Joints(joints_for(0.25, 0.0, 0.10)), &control)
         .await
         .unwrap();
     // Straight into the table.
-    let error = arm
-        .execute(Motion::Joints(joints_for(0.25, 0.0, -0.02)), 1.0, &control)
+    let error = execute(&arm, Motion::Joints(joints_for(0.25, 0.0, -0.02)), &control)
         .await
         .unwrap_err();
     assert!(matches!(error, DriverError::Collision { .. }), "{error}");
     assert!(arm.flags().collision_detected);
-    let again = arm
-        .execute(Motion::Joints(joints_for(0.25, 0.0, 0.10)), 1.0, &control)
+    let again = execute(&arm, Motion::Joints(joints_for(0.25, 0.0, 0.10)), &control)
         .await
         .unwrap_err();
     assert_eq!(again, DriverError::CollisionPending);
-    arm.clear_collision().await.unwrap();
+    let policy = testing::wide_policy(RobotModel::Ned2);
+    arm.clear_collision(testing::clear_collision(&policy).await)
+        .await
+        .unwrap();
     assert!(!arm.flags().collision_detected);
-    arm.execute(Motion::Joints(joints_for(0.25, 0.0, 0.10)), 1.0, &control)
+    execute(&arm, Motion::Joints(joints_for(0.25, 0.0, 0.10)), &control)
         .await
         .unwrap();
 }
@@ -173,16 +198,13 @@ async fn a_move_the_robot_answers_ok_but_ignores_is_an_error() {
     let (fake, address) = fake(FakeFaults::default()).await;
     let niryo = open(address.port(), "").await;
     fake.set_faults(|f| f.ignore_moves = true);
-    let error = niryo
-        .drivers
-        .arm
-        .execute(
-            Motion::Joints(joints_for(0.25, 0.05, 0.15)),
-            1.0,
-            &MotionControl::default(),
-        )
-        .await
-        .unwrap_err();
+    let error = execute(
+        &niryo.drivers.arm,
+        Motion::Joints(joints_for(0.25, 0.05, 0.15)),
+        &MotionControl::default(),
+    )
+    .await
+    .unwrap_err();
     assert!(error.to_string().contains("did not arrive"), "{error}");
 }
 
@@ -196,16 +218,19 @@ async fn an_uncalibrated_robot_is_calibrated_on_connect_or_refuses_motions() {
     let niryo = open(address.port(), "auto_calibrate = false").await;
     let arm = niryo.drivers.arm.clone();
     assert!(!arm.flags().calibrated);
-    let error = arm
-        .execute(
-            Motion::Joints(joints_for(0.25, 0.05, 0.15)),
-            1.0,
-            &MotionControl::default(),
-        )
-        .await
-        .unwrap_err();
+    let error = execute(
+        &arm,
+        Motion::Joints(joints_for(0.25, 0.05, 0.15)),
+        &MotionControl::default(),
+    )
+    .await
+    .unwrap_err();
     assert_eq!(error, DriverError::NotCalibrated);
-    arm.calibrate().await.unwrap();
+    let policy = testing::wide_policy(RobotModel::Ned2);
+    let start = arm.joints().unwrap();
+    arm.calibrate(testing::calibration(&policy, &start).await)
+        .await
+        .unwrap();
     assert!(arm.flags().calibrated);
     drop(niryo);
 
@@ -228,6 +253,92 @@ async fn an_uncalibrated_robot_is_calibrated_on_connect_or_refuses_motions() {
     let _ = fake;
 }
 
+/// Issue 39, door 1: the driver's own calibration on connecting asks the motion policy first.
+/// While the e-stop is engaged it is refused (audited), the robot is not calibrated, and the
+/// arm's connection status (what `/health` shows) says why; once the e-stop is released it is
+/// admitted, sent once, and its outcome recorded. On the old code the driver sent `CALIBRATE
+/// AUTO` at once, e-stop or not, with no audit line.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_automatic_calibration_waits_for_the_policy_and_an_engaged_estop() {
+    let (fake, address) = fake(FakeFaults {
+        needs_calibration: true,
+        ..Default::default()
+    })
+    .await;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("audit.jsonl");
+    let audit = AuditLog::start(&AuditConfig {
+        path: path.clone(),
+        max_file_bytes: 1 << 20,
+        keep_files: 2,
+        queue: 64,
+        key: None,
+    })
+    .unwrap();
+    let control = MotionControl::default();
+    let policy = Safety::new(
+        testing::wide_config(100.0),
+        Kinematics::new(RobotModel::Ned2),
+        control.clone(),
+        &[],
+        audit.clone(),
+    );
+    control.set_estop(true, "cable in the way");
+    let niryo =
+        robotd_driver_niryo::open(&config(address.port(), ""), Duration::ZERO, policy).await;
+    let arm = niryo.drivers.arm.clone();
+    until(
+        "the held calibration reported",
+        Duration::from_secs(5),
+        || {
+            arm.connection().is_err_and(|reason| {
+                reason.contains("needs calibration")
+                    && reason.contains("emergency stop engaged: cable in the way")
+            })
+        },
+    )
+    .await;
+    assert_eq!(count(&fake.command_log(), "CALIBRATE"), 0);
+    assert!(!arm.flags().calibrated);
+    assert!(
+        arm.joints().is_err(),
+        "no command before the robot is ready"
+    );
+
+    control.set_estop(false, "");
+    until(
+        "calibrated after the release",
+        Duration::from_secs(5),
+        || arm.connection().is_ok(),
+    )
+    .await;
+    assert_eq!(count(&fake.command_log(), "CALIBRATE"), 1);
+    assert!(arm.flags().calibrated);
+
+    audit.flush(Duration::from_secs(5)).unwrap();
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["event"].take())
+        .collect();
+    let calibrations: Vec<_> = lines
+        .iter()
+        .filter(|l| l["action"] == "calibrate_on_connect")
+        .collect();
+    assert_eq!(calibrations.len(), 2, "{lines:?}");
+    assert_eq!(calibrations[0]["decision"], "refused");
+    assert_eq!(calibrations[0]["limit"], "estop");
+    assert_eq!(calibrations[1]["decision"], "admitted");
+    assert_eq!(calibrations[1]["origin"]["kind"], "internal");
+    let admitted = &calibrations[1]["motion"];
+    assert!(
+        lines
+            .iter()
+            .any(|l| l["event"] == "outcome" && &l["motion"] == admitted && l["outcome"] == "done"),
+        "{lines:?}"
+    );
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_unreachable_robot_is_reported_and_becomes_available_by_itself() {
     // A port held by a bound socket that does not listen: connections to it are refused, and
@@ -235,7 +346,12 @@ async fn an_unreachable_robot_is_reported_and_becomes_available_by_itself() {
     let holder = tokio::net::TcpSocket::new_v4().unwrap();
     holder.bind("127.0.0.1:0".parse().unwrap()).unwrap();
     let port = holder.local_addr().unwrap().port();
-    let niryo = robotd_driver_niryo::open(&config(port, ""), Duration::ZERO).await;
+    let niryo = robotd_driver_niryo::open(
+        &config(port, ""),
+        Duration::ZERO,
+        testing::wide_policy(RobotModel::Ned2),
+    )
+    .await;
     let arm = niryo.drivers.arm.clone();
     // `open` did not wait: the first attempt may still be under way ("not connected yet").
     until(
@@ -271,7 +387,7 @@ async fn a_connection_lost_mid_motion_fails_it_at_once_and_never_resends_it() {
     let niryo = open(address.port(), "segment_rad = 3.0").await;
     let arm = niryo.drivers.arm.clone();
     let control = MotionControl::default();
-    arm.execute(Motion::Joints(joints_for(0.25, 0.0, 0.15)), 1.0, &control)
+    execute(&arm, Motion::Joints(joints_for(0.25, 0.0, 0.15)), &control)
         .await
         .unwrap();
     fake.set_faults(|f| {
@@ -282,8 +398,7 @@ async fn a_connection_lost_mid_motion_fails_it_at_once_and_never_resends_it() {
     let before = fake.command_log().len();
     let handshakes = count(&fake.command_log(), "HANDSHAKE");
     let started = Instant::now();
-    let error = arm
-        .execute(Motion::Joints(target.clone()), 1.0, &control)
+    let error = execute(&arm, Motion::Joints(target.clone()), &control)
         .await
         .unwrap_err();
     let failed_after = started.elapsed();
@@ -384,7 +499,7 @@ async fn a_stop_takes_effect_at_the_end_of_the_current_segment() {
     let control = MotionControl::default();
     let motion = {
         let (arm, control) = (arm.clone(), control.clone());
-        tokio::spawn(async move { arm.execute(Motion::Joints(target), 1.0, &control).await })
+        tokio::spawn(async move { execute(&arm, Motion::Joints(target), &control).await })
     };
     let start = fake.sim().joints()[3];
     until("moving", Duration::from_secs(5), || {

@@ -1,12 +1,41 @@
 //! The widowx driver against the fake servo bus on a real pseudo-terminal: bring-up, motions,
 //! the gripper's grasp, a servo fault, corrupt and lost packets, the adapter unplugged.
 
-use robotd_driver::{DriverError, Motion, MotionControl, RobotConfig};
+use robotd_driver::{ArmDriver, Close, DriverError, Motion, MotionControl, Open, RobotConfig};
 use robotd_driver_widowx::control_table::{address, GRIPPER_ID};
 use robotd_driver_widowx::WidowxDrivers;
 use robotd_fake_widowx::FakeServoBus;
+use robotd_kinematics::Kinematics;
+use robotd_protocol::RobotModel;
+use robotd_safety::testing;
 use std::sync::atomic::Ordering;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+/// Tool speed caps of the test policy: one the arm never reaches (full speed), and one that
+/// keeps a long motion going for a few seconds (to stop or fault it on the way).
+const FULL: f64 = 100.0;
+const SLOW: f64 = 0.1;
+
+/// Runs `motion` on `arm` with a permit of a test policy (wide limits) capping the tool at
+/// `speed_m_s`. A disconnected arm is planned from its rest pose (the driver refuses anyway).
+async fn execute(
+    arm: &Arc<dyn ArmDriver>,
+    motion: Motion,
+    speed_m_s: f64,
+    control: &MotionControl,
+) -> Result<(), DriverError> {
+    let policy = testing::policy(
+        RobotModel::WidowX250,
+        testing::wide_config(speed_m_s),
+        MotionControl::default(),
+    );
+    let start = arm
+        .joints()
+        .unwrap_or_else(|_| Kinematics::new(RobotModel::WidowX250).home_joints());
+    arm.execute(testing::motion(&policy, &start, motion).await, control)
+        .await
+}
 
 struct Rig {
     fake: FakeServoBus,
@@ -99,7 +128,7 @@ async fn brings_up_the_bus_and_moves_the_simulated_arm() {
 
     let target = vec![0.3, -0.2, 0.3, 0.0, 0.4, 0.1];
     let control = MotionControl::default();
-    arm.execute(Motion::Joints(target.clone()), 1.0, &control)
+    execute(arm, Motion::Joints(target.clone()), FULL, &control)
         .await
         .unwrap();
     assert!(
@@ -123,9 +152,10 @@ async fn a_stop_holds_the_arm_within_a_tick_or_two() {
     let control = MotionControl::default();
     let motion_control = control.clone();
     let motion = tokio::spawn(async move {
-        arm.execute(
+        execute(
+            &arm,
             Motion::Joints(vec![1.2, -0.2, 0.3, 0.0, 0.4, 0.1]),
-            0.3,
+            SLOW,
             &motion_control,
         )
         .await
@@ -153,10 +183,17 @@ async fn a_stop_holds_the_arm_within_a_tick_or_two() {
 async fn the_gripper_closes_on_nothing_and_opens() {
     let rig = rig().await;
     let gripper = &rig.widowx.drivers.gripper;
-    let closed = gripper.close().await.unwrap();
+    let policy = testing::wide_policy(RobotModel::WidowX250);
+    let closed = gripper
+        .close(testing::gripper(&policy, Close).await)
+        .await
+        .unwrap();
     assert!(!closed.holding, "nothing between the fingers: {closed:?}");
     assert!(closed.width_m < 0.003, "{closed:?}");
-    let open = gripper.open().await.unwrap();
+    let open = gripper
+        .open(testing::gripper(&policy, Open).await)
+        .await
+        .unwrap();
     assert!(!open.holding);
     assert!(open.width_m > gripper.max_width_m() - 0.003, "{open:?}");
 }
@@ -168,9 +205,10 @@ async fn a_servo_fault_is_named_the_arm_held_and_the_servo_rebooted_within_a_sec
     let control = MotionControl::default();
     let motion_control = control.clone();
     let motion = tokio::spawn(async move {
-        arm.execute(
+        execute(
+            &arm,
             Motion::Joints(vec![1.0, -0.2, 0.3, 0.0, 0.4, 0.1]),
-            0.3,
+            SLOW,
             &motion_control,
         )
         .await
@@ -194,12 +232,14 @@ async fn a_servo_fault_is_named_the_arm_held_and_the_servo_rebooted_within_a_sec
     );
     // And the arm moves again.
     let target = vec![0.2, -0.2, 0.3, 0.0, 0.4, 0.1];
-    rig.widowx
-        .drivers
-        .arm
-        .execute(Motion::Joints(target.clone()), 1.0, &control)
-        .await
-        .unwrap();
+    execute(
+        &rig.widowx.drivers.arm,
+        Motion::Joints(target.clone()),
+        FULL,
+        &control,
+    )
+    .await
+    .unwrap();
     assert!(max_diff(&rig.fake.sim().joints(), &target) < 0.01);
 }
 
@@ -229,13 +269,14 @@ async fn corrupt_and_lost_packets_are_errors_and_the_bus_carries_on() {
         reason.contains("stopped answering") || reason.contains("does not answer"),
         "{reason}"
     );
-    let refused = rig
-        .widowx
-        .drivers
-        .arm
-        .execute(Motion::Joints(vec![0.0; 6]), 1.0, &MotionControl::default())
-        .await
-        .unwrap_err();
+    let refused = execute(
+        &rig.widowx.drivers.arm,
+        Motion::Joints(vec![0.0; 6]),
+        FULL,
+        &MotionControl::default(),
+    )
+    .await
+    .unwrap_err();
     assert!(
         refused.to_string().contains("robot not connected"),
         "{refused}"

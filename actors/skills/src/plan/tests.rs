@@ -62,7 +62,10 @@ fn a_grasp_takes_the_yaw_with_room_and_names_what_blocks_every_yaw() {
     let s = settings();
     let cube = object("obj-1", "red cube", 0.25, 0.0, 0.03, 0.03, 0.03);
     // Alone: its own yaw.
-    assert_eq!(grasp_yaw(&s, &cube, &[cube.clone()], 0.015).unwrap(), 0.0);
+    assert_eq!(
+        grasp_yaw(&s, &cube, std::slice::from_ref(&cube), 0.015).unwrap(),
+        0.0
+    );
     // A tall neighbour where the fingers open at yaw 0 (they close along y): the turned grasp.
     let left = object("obj-2", "blue cylinder", 0.25, 0.035, 0.02, 0.02, 0.04);
     let yaw = grasp_yaw(&s, &cube, &[cube.clone(), left.clone()], 0.015).unwrap();
@@ -129,7 +132,7 @@ fn stacking_needs_a_larger_support_and_side_places_step_outwards() {
     // The cube onto the larger square: at the square's centre, on its top.
     let (at, z) = place_target(
         &s,
-        &[square.clone()],
+        std::slice::from_ref(&square),
         &held(&cube),
         square.xy(),
         Location::OnTopOf,
@@ -140,7 +143,7 @@ fn stacking_needs_a_larger_support_and_side_places_step_outwards() {
     // The square onto the smaller cube: refused, it would overhang.
     let text = place_target(
         &s,
-        &[cube.clone()],
+        std::slice::from_ref(&cube),
         &held(&square),
         cube.xy(),
         Location::OnTopOf,
@@ -178,7 +181,7 @@ fn stacking_needs_a_larger_support_and_side_places_step_outwards() {
     // Nowhere to go: the reason names the reference and the search.
     let text = place_target(
         &s,
-        &[square.clone()],
+        std::slice::from_ref(&square),
         &held(&pencil),
         square.xy(),
         Location::Below,
@@ -200,7 +203,13 @@ fn pushes_refuse_to_shove_another_object_or_leave_the_sheet() {
     assert!(push_problem(&s, &cube, &others, Point2::new(0.25, 0.03)).is_none());
     let text = push_problem(&s, &cube, &others, Point2::new(0.28, 0.0)).unwrap();
     assert!(text.contains("would shove 'blue square'"), "{text}");
-    let text = push_problem(&s, &cube, &[cube.clone()], Point2::new(0.25, 0.095)).unwrap();
+    let text = push_problem(
+        &s,
+        &cube,
+        std::slice::from_ref(&cube),
+        Point2::new(0.25, 0.095),
+    )
+    .unwrap();
     assert!(text.contains("stick out of the sheet"), "{text}");
 }
 
@@ -214,7 +223,7 @@ fn a_free_spot_is_free_and_nearest_the_centre() {
     let alone = free_spot(&s, &[], &plan).unwrap();
     assert!(alone.distance_to(&centre) < 0.0036, "{alone:?}");
     let square = object("obj-2", "blue square", 0.25, 0.0, 0.045, 0.045, 0.01);
-    let spot = free_spot(&s, &[square.clone()], &plan).unwrap();
+    let spot = free_spot(&s, std::slice::from_ref(&square), &plan).unwrap();
     let release = release_height(&s, &plan, 0.0);
     assert!(placement_problem(&s, &[square], &plan, spot, 0.0, release).is_none());
     assert!(

@@ -155,6 +155,16 @@ impl Approvals {
         id != 0 && self.lock_granted().contains_key(&id)
     }
 
+    /// Grants `action` (a tool the policy lets run without a human) a fresh id without
+    /// asking anyone: the tool run's token, valid until [`Approvals::finish`]. The arm and
+    /// gripper commands the run sends carry it, so the policy knows they belong to a tool
+    /// whose approval it already decided.
+    pub fn grant(&self, action: &str) -> u64 {
+        let id = random_id();
+        self.lock_granted().insert(id, action.to_owned());
+        id
+    }
+
     /// The approved work ended: the id no longer admits motions.
     pub fn finish(&self, id: u64) {
         self.lock_granted().remove(&id);
@@ -167,6 +177,45 @@ impl Approvals {
     fn lock_granted(&self) -> std::sync::MutexGuard<'_, HashMap<u64, String>> {
         self.granted.lock().unwrap_or_else(|e| e.into_inner())
     }
+}
+
+/// The arm and gripper commands (their audit `action` names) each motion tool sends, through
+/// the skills actor. A command that arrives without a tool run's grant (a client talking to
+/// `arm/command` or `gripper/command` directly) needs a human's approval when a tool listed
+/// in `approval_tools` could have sent it: the policy cannot tell which tool a bare command
+/// serves, so it takes the strictest. A command's own name may be listed too
+/// (`"move_joints"`).
+pub const TOOL_ACTIONS: &[(&str, &[&str])] = &[
+    ("pick_object", MOTIONS),
+    ("place_object", MOTIONS),
+    ("pick_place_object", MOTIONS),
+    ("push_object", MOTIONS),
+    ("move2by", MOTIONS),
+    ("move2observation_pose", &["go_to_observation_pose"]),
+    ("calibrate", &["calibrate"]),
+    ("clear_collision_detected", &["clear_collision"]),
+];
+
+/// The commands a pick, place, push or move-by is made of.
+const MOTIONS: &[&str] = &[
+    "move_to_pose",
+    "shift_pose",
+    "move_joints",
+    "go_to_observation_pose",
+    "open",
+    "close",
+    "set_width",
+];
+
+/// Whether a bare command `action` (not part of a granted tool run) needs a human's approval
+/// under `approval_tools`: see [`TOOL_ACTIONS`].
+pub fn bare_command_needs_approval(approval_tools: &[String], action: &str) -> bool {
+    approval_tools.iter().any(|tool| {
+        tool == action
+            || TOOL_ACTIONS
+                .iter()
+                .any(|(name, actions)| name == tool && actions.contains(&action))
+    })
 }
 
 /// A random non-zero id (SipHash with the process's random keys over the time and a counter).

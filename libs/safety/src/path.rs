@@ -8,12 +8,12 @@
 //! skill's target.
 //!
 //! It also predicts the tool's peak speed and acceleration at full speed from the drivers'
-//! timing contract ([`robotd_driver::nominal_travel_time_s`]) and returns the speed scale that
+//! timing contract ([`crate::control::nominal_travel_time_s`]) and returns the speed scale that
 //! keeps both under the caps.
 
+use crate::control::{nominal_travel_time_s, Motion};
 use crate::fence::{Fence, Violation};
 use nalgebra::Vector3;
-use robotd_driver::{nominal_travel_time_s, Motion};
 use robotd_kinematics::Kinematics;
 
 /// Largest joint change between two checked samples, radians (≈ 9 mm of tool travel at

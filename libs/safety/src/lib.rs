@@ -16,10 +16,24 @@
 //!    acceleration caps ([`path`]). LLM origins get lower caps.
 //! 3. **Outcome** ([`Safety::finish`]): what happened, to the audit log.
 //!
-//! The arm actor accepts only [`Admission`]s, which only this crate can make, so no code path
-//! reaches the arm's driver without passing here. Refusals are [`Violation`]s: the limit's name
-//! and a reason with the values, e.g. "the tool centre would go to z -0.030 m, below the table
-//! floor 0.000 m".
+//! **One door.** Every actuator method of the driver traits (`robotd-driver`: arm motion,
+//! calibration, clear-collision, gripper open, close and width) takes a [`Permit`] for that
+//! act, and only this crate can make one ([`permit`]): from an [`Admission`], right before the
+//! driver call, after the e-stop and (for motions and calibrations) the plan check. A driver's
+//! own automatic calibration asks here too ([`Safety::admit_auto_calibration`]). So no code
+//! path reaches a driver without passing here, and the compiler checks it. Refusals are
+//! [`Violation`]s: the limit's name and a reason with the values, e.g. "the tool centre would
+//! go to z -0.030 m, below the table floor 0.000 m".
+//!
+//! Approval and rate limits are decided here for every origin, not by the caller: a tool run
+//! gets a grant from [`Safety::approve_tool`] (a human's yes when the tool is listed in
+//! `approval_tools`), and a command without one — a client on `arm/command` directly — waits
+//! for a human when a listed tool could have sent it ([`approval::bare_command_needs_approval`]).
+//! Rate limits count per origin kind, all sessions together ([`rate`]).
+//!
+//! This crate is a library under the drivers (`libs/safety`): the drivers take its permits,
+//! the actors and edges call it. [`control`] holds what the policy and the drivers share: the
+//! stop and e-stop signals ([`MotionControl`]) and the shape of a motion ([`Motion`]).
 //!
 //! The emergency stop's latch lives in the arm's [`MotionControl`]: engaged from any entry
 //! point through the `safety/estop` topic, it halts the arm within one control tick and
@@ -30,18 +44,25 @@
 pub mod approval;
 pub mod audit;
 pub mod config;
+pub mod control;
 pub mod estop;
 pub mod fence;
 pub mod path;
+pub mod permit;
 pub mod rate;
+#[cfg(feature = "testing")]
+pub mod testing;
 
 pub use approval::{ApprovalRequest, Approvals, NotApproved};
 pub use audit::{AuditConfig, AuditError, AuditKey, AuditLog};
 pub use config::{SafetyConfig, SafetyMode};
+pub use control::{Motion, MotionControl, Stopped};
 pub use fence::{Fence, Violation};
 pub use path::{Caps, MotionCheck};
+pub use permit::{
+    ArmMotion, Calibration, ClearCollision, Close, GripperAct, Open, Permit, SetWidth,
+};
 
-use robotd_driver::{Motion, MotionControl};
 use robotd_kinematics::Kinematics;
 use robotd_protocol::safety::Origin;
 use robotd_protocol::workspace::WorkspaceSpec;
@@ -49,12 +70,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// A motion the policy let through, carried to the actor that executes it. Only
-/// [`Safety::admit`] makes one.
+/// A command the policy let through, carried to the actor that executes it. Only
+/// [`Safety::admit`] (and its siblings) makes one; the actor turns it into a [`Permit`] right
+/// before the driver call.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Admission {
     motion_id: u64,
     origin: Origin,
+    actor: &'static str,
     stop_generation: u64,
 }
 
@@ -67,6 +90,11 @@ impl Admission {
     /// Who asked.
     pub fn origin(&self) -> &Origin {
         &self.origin
+    }
+
+    /// The actor it is for (`"arm"`, `"gripper"`).
+    pub fn actor(&self) -> &'static str {
+        self.actor
     }
 
     /// The arm's stop generation when the command arrived: a stop after that cancels it
@@ -176,6 +204,11 @@ impl Safety {
         &self.inner.fence
     }
 
+    /// The arm's stop and e-stop signals, which the policy reads.
+    pub fn control(&self) -> &MotionControl {
+        &self.inner.control
+    }
+
     /// The approval queue.
     pub fn approvals(&self) -> &Approvals {
         &self.inner.approvals
@@ -220,19 +253,20 @@ impl Safety {
             || self.inner.config.approval_tools.iter().any(|t| t == tool)
     }
 
-    /// For a motion tool: waits for a human's approval when `tool` needs one. `Ok(Some(id))`
-    /// once approved (put the id in the work's origin, and [`Approvals::finish`] it when the
-    /// work ends), `Ok(None)` when no approval is needed.
+    /// For a motion tool's run: the policy's grant, waiting for a human's approval when
+    /// `tool` needs one. `Ok(id)`: put the id in the work's origin (`approval_id`), so the
+    /// arm and gripper commands of the run are known to belong to a decided tool, and
+    /// [`Approvals::finish`] it when the work ends.
     pub async fn approve_tool(
         &self,
         origin: &Origin,
         tool: &str,
         summary: &str,
-    ) -> Result<Option<u64>, Violation> {
+    ) -> Result<u64, Violation> {
         if !self.needs_approval(tool) {
-            return Ok(None);
+            return Ok(self.inner.approvals.grant(tool));
         }
-        self.ask_approval(origin, tool, summary).await.map(Some)
+        self.ask_approval(origin, tool, summary).await
     }
 
     async fn ask_approval(
@@ -261,9 +295,33 @@ impl Safety {
         action: &str,
         arguments: serde_json::Value,
     ) -> Result<Admission, Violation> {
+        self.admit_as(origin, actor, action, arguments, Checks::MOTION)
+            .await
+    }
+
+    /// Admits clearing the arm's collision flag: not a motion, so neither the e-stop nor the
+    /// rate limit refuses it, but it is audited, and a bare one waits for a human when
+    /// `clear_collision_detected` is listed in `approval_tools`.
+    pub async fn admit_clear_collision(
+        &self,
+        origin: &Origin,
+        arguments: serde_json::Value,
+    ) -> Result<Admission, Violation> {
+        self.admit_as(origin, "arm", "clear_collision", arguments, Checks::FLAG)
+            .await
+    }
+
+    async fn admit_as(
+        &self,
+        origin: &Origin,
+        actor: &'static str,
+        action: &str,
+        arguments: serde_json::Value,
+        checks: Checks,
+    ) -> Result<Admission, Violation> {
         let motion_id = self.inner.next_motion.fetch_add(1, Ordering::Relaxed);
         let stop_generation = self.inner.control.stop_generation();
-        let decision = self.decide(origin, action).await;
+        let decision = self.decide(origin, action, checks).await;
         let mut record = serde_json::json!({
             "event": "admission",
             "motion": motion_id,
@@ -282,6 +340,7 @@ impl Safety {
                 Ok(Admission {
                     motion_id,
                     origin: origin.clone(),
+                    actor,
                     stop_generation,
                 })
             }
@@ -298,14 +357,27 @@ impl Safety {
         }
     }
 
-    async fn decide(&self, origin: &Origin, action: &str) -> Result<(), Violation> {
-        self.check_estop()?;
-        if self.inner.config.mode == SafetyMode::Supervised
-            && !self.inner.approvals.is_granted(origin.approval_id)
+    /// The decision on a command: e-stop, approval, rate limit — the same for every origin.
+    async fn decide(&self, origin: &Origin, action: &str, checks: Checks) -> Result<(), Violation> {
+        if checks.estop {
+            self.check_estop()?;
+        }
+        // A command of a tool run carries the run's grant: its tool's approval was decided
+        // when the run began (`approve_tool`). A bare one is decided here.
+        let config = &self.inner.config;
+        let bare = !self.inner.approvals.is_granted(origin.approval_id);
+        let supervised = config.mode == SafetyMode::Supervised && checks.rate;
+        if bare
+            && (supervised || approval::bare_command_needs_approval(&config.approval_tools, action))
         {
             self.ask_approval(origin, action, &format!("{action} from {origin}"))
                 .await?;
-            self.check_estop()?;
+            if checks.estop {
+                self.check_estop()?;
+            }
+        }
+        if !checks.rate {
+            return Ok(());
         }
         let per_minute = if origin.is_llm() {
             self.inner.config.llm_motions_per_minute
@@ -323,7 +395,7 @@ impl Safety {
             })
     }
 
-    fn check_estop(&self) -> Result<(), Violation> {
+    pub(crate) fn check_estop(&self) -> Result<(), Violation> {
         match self.estop() {
             Some(reason) => Err(Violation {
                 limit: "estop",
@@ -375,6 +447,28 @@ impl Safety {
             tracing::error!(%error, motion = admission.motion_id, "could not record a motion's outcome");
         }
     }
+}
+
+/// Which parts of the decision apply to a command.
+#[derive(Debug, Clone, Copy)]
+struct Checks {
+    /// Refused while the e-stop is engaged.
+    estop: bool,
+    /// Counted against the rate limit (and, in supervised mode, approved like a motion).
+    rate: bool,
+}
+
+impl Checks {
+    /// A motion: everything.
+    const MOTION: Checks = Checks {
+        estop: true,
+        rate: true,
+    };
+    /// A flag that moves nothing (clear-collision): approval of bare commands only.
+    const FLAG: Checks = Checks {
+        estop: false,
+        rate: false,
+    };
 }
 
 /// How an admitted motion ended, for the audit log.
