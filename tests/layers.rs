@@ -161,12 +161,6 @@ const EXCEPTIONS: &[(&str, &str, Kind, &str)] = &[
         Kind::Normal,
         "the MCP routes use the HTTP guard's body deadline and bearer-token reading",
     ),
-    (
-        "robotd-driver-mjpeg",
-        "robotd-driver-sim",
-        Kind::Dev,
-        "its stream test (drivers/mjpeg/tests/stream.rs) serves the simulated camera",
-    ),
 ];
 
 // ------------------------------------------------------------------------------------------
