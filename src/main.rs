@@ -10,6 +10,7 @@ mod catalog;
 mod chat;
 mod dashboard;
 mod detect;
+mod disk;
 mod doctor;
 mod estop;
 mod fake_niryo;
@@ -646,6 +647,7 @@ fn run() -> Result<std::process::ExitCode> {
                 .map(PathBuf::from)
                 .unwrap_or_else(|| PathBuf::from("."));
             let report = doctor::run(&doctor::DoctorOptions {
+                disk_places: disk::places(&config),
                 redis_url: config.redis.url.clone(),
                 http_bind: Some(config.http.bind.to_string()),
                 bus_namespace: config.bus.namespace.clone(),

@@ -7,7 +7,8 @@
 //!   (the hardware actors have started and the driver has answered whether its link is up):
 //!   `systemctl start robotd` returns then, and units ordered after robotd start;
 //! - `STATUS=…`, one line that `systemctl status robotd` shows, saying what robotd waits for
-//!   (the robot not connected, the e-stop engaged, an actor degraded) or that all is well;
+//!   (the robot not connected, the e-stop engaged, an actor degraded, the disk nearly full)
+//!   or that all is well;
 //!   checked every second and sent when it changes;
 //! - `WATCHDOG=1` at half of `WATCHDOG_USEC` (systemd sets it from `WatchdogSec=`), sent by
 //!   the supervision loops themselves through the runtime's watchdog
@@ -140,6 +141,10 @@ pub fn status_line(report: &serde_json::Value, address: &str) -> String {
     if !degraded.is_empty() {
         waiting.push(format!("degraded actor: {}", degraded.join(", ")));
     }
+    if report["disk"]["low"] == true {
+        let reason = report["disk"]["reason"].as_str().unwrap_or("");
+        waiting.push(format!("disk low: {}", one_line(reason)));
+    }
     if waiting.is_empty() {
         format!(
             "serving on http://{address}; robot {} connected",
@@ -193,11 +198,12 @@ mod tests {
         report["robot"]["reason"] = "robot not connected: 10.10.10.10:40001 refused".into();
         report["safety"]["estop"] = json!({"engaged": true, "reason": "operator\npressed"});
         report["actors"][1]["state"] = "restarting".into();
+        report["disk"] = json!({"low": true, "reason": "log /var/log/robotd has 100.0 MiB free"});
         assert_eq!(
             status_line(&report, "0.0.0.0:8000"),
             "serving on http://0.0.0.0:8000; waiting: robot not connected: 10.10.10.10:40001 \
              refused; e-stop engaged (operator pressed): motions refused until released; \
-             degraded actor: tts restarting"
+             degraded actor: tts restarting; disk low: log /var/log/robotd has 100.0 MiB free"
         );
     }
 

@@ -177,6 +177,7 @@ impl Runtime {
         let report_safety = hardware.safety.clone();
         let perception_stats = perception.as_ref().map(Perception::stats);
         let robot_link = hardware.arm_context.driver.clone();
+        let disk_places = crate::disk::places(config);
         let health_source: HealthSource = Arc::new(move || {
             let mut report = report_health.report(&report_config, &robot, started);
             // A real robot can be down while its actors run: say why.
@@ -198,6 +199,11 @@ impl Runtime {
             if let Some(stats) = &perception_stats {
                 report["external_detections"] = external_detections_report(&stats.external);
             }
+            let disk = crate::disk::report(&disk_places);
+            if disk["low"] == true {
+                report["status"] = "degraded".into();
+            }
+            report["disk"] = disk;
             report["redis"] = match &redis_status {
                 Some(status) => status.to_json(),
                 None => serde_json::json!({"state": "off"}),

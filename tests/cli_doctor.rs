@@ -7,8 +7,9 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 const SECRET: &str = "sk-test-secret-value";
-const CHECKS: [&str; 7] = [
+const CHECKS: [&str; 8] = [
     "shm",
+    "disk",
     "iceoryx2",
     "redis",
     "redis-edge",

@@ -39,6 +39,7 @@
 //! | module | row | what it asks |
 //! |---|---|---|
 //! | [`shm`] | `shm` | is `/dev/shm` there, writable, big enough |
+//! | [`disk`] | `disk` | free space where robotd writes: log directory, audit log, speech spool, recordings |
 //! | [`bus`] | `iceoryx2` | dead bus nodes, services of the namespace (`--clean`) |
 //! | [`redis`] | `redis` | the service's Redis target answers PING |
 //! | [`health`] | `redis-edge` | a running robotd's view of its Redis edge |
@@ -64,6 +65,7 @@
 //!     widowx: None,
 //!     camera: None,
 //!     replay: None,
+//!     disk_places: Vec::new(),
 //! };
 //! let report = run(&opts)?;
 //! print!("{}", report.render_table());
@@ -74,6 +76,7 @@
 mod audio;
 mod bus;
 mod camera;
+mod disk;
 mod espeak;
 mod health;
 mod llm_keys;
@@ -127,6 +130,8 @@ pub struct DoctorOptions {
     pub camera: Option<(String, (u32, u32))>,
     /// `[robot.replay]` when `robot.driver = "replay"` (`None` otherwise).
     pub replay: Option<robotd_driver::ReplayConfig>,
+    /// Where robotd writes (`crate::disk::places`): their free space is checked.
+    pub disk_places: Vec<(&'static str, PathBuf)>,
 }
 
 /// Runs every check and returns the report. Takes a few seconds at most, whatever the network
@@ -136,6 +141,7 @@ pub fn run(opts: &DoctorOptions) -> Result<DoctorReport> {
     let env = |key: &str| std::env::var(key).ok().filter(|v| !v.trim().is_empty());
     let checks = vec![
         shm::check_shm(Path::new("/dev/shm")),
+        disk::check_disk(&opts.disk_places),
         bus::check_bus(Config::global_config(), &opts.bus_namespace, opts.clean),
         redis::check_redis(opts.redis_url.as_deref(), &env, &secrets),
         health::check_redis_edge(opts.http_bind.as_deref()),
@@ -176,6 +182,7 @@ mod tests {
             widowx: None,
             camera: None,
             replay: None,
+            disk_places: vec![("log", std::env::temp_dir())],
         };
         let start = Instant::now();
         let report = run(&opts).expect("doctor runs");
@@ -185,6 +192,7 @@ mod tests {
             names,
             [
                 "shm",
+                "disk",
                 "iceoryx2",
                 "redis",
                 "redis-edge",

@@ -7,7 +7,8 @@
 //! 10 MiB per subscriber.
 
 use super::Check;
-use std::io::{ErrorKind, Write};
+use crate::disk::{fs_space, human_bytes};
+use std::io::Write;
 use std::path::Path;
 
 /// Below this much free space in /dev/shm the shm row warns.
@@ -69,38 +70,6 @@ pub(super) fn check_shm(dir: &Path) -> Check {
         )
     } else {
         Check::ok(NAME, found)
-    }
-}
-
-/// Total and available bytes of the file system holding `dir`.
-fn fs_space(dir: &Path) -> std::io::Result<(u64, u64)> {
-    use std::os::unix::ffi::OsStrExt;
-    let c_path = std::ffi::CString::new(dir.as_os_str().as_bytes())
-        .map_err(|e| std::io::Error::new(ErrorKind::InvalidInput, e))?;
-    // SAFETY: `statvfs` is plain old data, so all-zero is a valid value; `c_path` is a valid
-    // NUL-terminated string and `st` a valid, writable statvfs for the duration of the call.
-    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
-    let rc = unsafe { libc::statvfs(c_path.as_ptr(), &mut st) };
-    if rc != 0 {
-        return Err(std::io::Error::last_os_error());
-    }
-    #[allow(clippy::unnecessary_cast)] // the field types differ between platforms
-    let (frsize, blocks, avail) = (st.f_frsize as u64, st.f_blocks as u64, st.f_bavail as u64);
-    Ok((blocks.saturating_mul(frsize), avail.saturating_mul(frsize)))
-}
-
-fn human_bytes(bytes: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
-    let mut value = bytes as f64;
-    let mut unit = 0;
-    while value >= 1024.0 && unit + 1 < UNITS.len() {
-        value /= 1024.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{bytes} B")
-    } else {
-        format!("{value:.1} {}", UNITS[unit])
     }
 }
 

@@ -9,7 +9,9 @@
 //! The log is bounded ([`CallLogLimits`], from `[mcp]`): an `arguments` or `result` longer
 //! than `max_field_bytes` is cut there (the line says which fields were cut and their full
 //! sizes), and the file rotates at `max_file_bytes`, keeping `keep_files` old ones
-//! (`….log.1` is the newest).
+//! (`….log.1` is the newest). Each run starts a file of its own; when it does, the files of
+//! earlier runs (rotated ones included) beyond the newest `keep_files` are deleted, so the
+//! directory holds at most `2 × keep_files + 1` call-log files of `max_file_bytes` each.
 
 use robotd_runtime::telemetry::rotating::RotatingFile;
 use serde_json::{json, Map, Value};
@@ -99,6 +101,11 @@ impl CallLog {
     /// off and the error is returned alongside, for the caller to report.
     pub fn open(dir: &Path, limits: CallLogLimits) -> (Self, Option<std::io::Error>) {
         let path = dir.join(format!("mcp_server_{}.log", file_stamp(now_s())));
+        robotd_runtime::telemetry::retention::keep_newest(
+            dir,
+            |name| name.starts_with("mcp_server_") && name.contains(".log"),
+            limits.keep_files as usize,
+        );
         let opened = std::fs::create_dir_all(dir)
             .and_then(|_| RotatingFile::open(&path, limits.max_file_bytes, limits.keep_files));
         match opened {
@@ -279,5 +286,49 @@ mod tests {
             let size = file.unwrap().metadata().unwrap().len();
             assert!(size <= 2_000, "{size}");
         }
+    }
+
+    #[test]
+    fn a_new_run_deletes_earlier_runs_files_beyond_keep_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let now = SystemTime::now();
+        // Forty earlier runs, some rotated, and a file that is not the call log's.
+        for run in 0..40u64 {
+            let stamp = 20260101_000000 + run;
+            for name in [
+                format!("mcp_server_{stamp}.log"),
+                format!("mcp_server_{stamp}.log.1"),
+            ] {
+                let file = std::fs::File::create(dir.path().join(name)).unwrap();
+                file.set_modified(now - Duration::from_secs(3_600 * (41 - run)))
+                    .unwrap();
+            }
+        }
+        std::fs::write(dir.path().join("robotd.2026-01-01.log"), "kept").unwrap();
+        let limits = CallLogLimits {
+            keep_files: 3,
+            ..CallLogLimits::default()
+        };
+        let (log, error) = CallLog::open(dir.path(), limits);
+        assert!(error.is_none());
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        let current = log.path().unwrap().file_name().unwrap().to_string_lossy();
+        assert!(names.contains(&current.to_string()));
+        assert!(names.contains(&"robotd.2026-01-01.log".to_owned()));
+        let earlier: Vec<&String> = names
+            .iter()
+            .filter(|n| n.starts_with("mcp_server_") && **n != current)
+            .collect();
+        assert_eq!(earlier.len(), 3, "the newest three: {names:?}");
+        assert!(
+            earlier
+                .iter()
+                .all(|n| n.contains("000039.log") || n.contains("000038.log")),
+            "{earlier:?}"
+        );
     }
 }

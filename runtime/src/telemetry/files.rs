@@ -57,6 +57,13 @@ pub(super) fn session_file_writer(
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_secs())
         .unwrap_or(0);
+    // Each session writes a file of its own: those older than keep_log_days go.
+    super::retention::remove_older_than(
+        dir,
+        |name| name.starts_with("mcp_client_") && name.ends_with(".log"),
+        std::time::Duration::from_secs(86_400 * config.keep_log_days.max(1) as u64),
+        std::time::SystemTime::now(),
+    );
     let path = dir.join(format!("mcp_client_{}.log", file_stamp(now)));
     let file = std::fs::OpenOptions::new()
         .create(true)

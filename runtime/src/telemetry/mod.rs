@@ -73,6 +73,7 @@
 
 pub mod escape;
 mod files;
+pub mod retention;
 pub mod rotating;
 
 pub use files::{file_stamp, utc_fields};
