@@ -58,6 +58,10 @@ pub struct AgentConfig {
     pub memory_tokens: usize,
     /// Recovery nudges per request for tool calls written as text.
     pub max_nudges: usize,
+    /// Whether the model is sent the pictures tools return (`agent.images`).
+    pub images: crate::vision::Images,
+    /// Pictures kept in the history, newest first.
+    pub max_pictures: usize,
     /// Retries and timeouts of LLM calls.
     pub retry: RetryPolicy,
 }
@@ -68,6 +72,8 @@ impl Default for AgentConfig {
             max_rounds: 15,
             memory_tokens: 12_000,
             max_nudges: 2,
+            images: crate::vision::Images::Auto,
+            max_pictures: crate::memory::DEFAULT_MAX_PICTURES,
             retry: RetryPolicy::default(),
         }
     }
@@ -133,7 +139,12 @@ pub fn system_prompt(workspaces: &[WorkspaceHint]) -> String {
             then the first one into the other's old place.\n\
          5. When the task is done, return to the observation pose (move2observation_pose).\n\
          6. Call tools one at a time through function calling. Never write a tool call as \
-            text, JSON or code in your reply.\n\n\
+            text, JSON or code in your reply.\n\
+         7. Look with get_camera_image when the user names something the detection tools do \
+            not list, or before acting on an 'unknown object': the picture shows each object's \
+            id. If you recognise it, name it with label_object(object_id, label) and then use \
+            that name. (If you are not shown pictures, its text lists the objects; ask the \
+            user what an unknown object is.)\n\n\
          Before your first tool call, state in one or two sentences what you understood and \
          your plan — in the same reply as that tool call. When the task is done (or cannot be \
          done), answer briefly in plain words what you did and what you saw.",
@@ -214,7 +225,7 @@ impl Agent {
             llm: LlmClient::new(settings, config.retry)?,
             specs: tools.tools(),
             tools,
-            memory: Memory::new(config.memory_tokens),
+            memory: Memory::with_pictures(config.memory_tokens, config.max_pictures),
             prompt: system_prompt(workspaces),
             config,
         })
@@ -236,6 +247,12 @@ impl Agent {
         &self.specs
     }
 
+    /// Whether the model in use is sent pictures.
+    pub fn takes_images(&self) -> bool {
+        let settings = self.llm.settings();
+        crate::vision::takes_images(settings.provider, &settings.model, self.config.images)
+    }
+
     /// The conversation so far.
     pub fn memory(&self) -> &Memory {
         &self.memory
@@ -252,7 +269,14 @@ impl Agent {
         if let Some(summary) = self.memory.summary() {
             messages.push(Message::System(summary));
         }
-        messages.extend(self.memory.messages().cloned());
+        // A model switched to mid-conversation that takes no images never sees one.
+        let pictures = self.takes_images();
+        messages.extend(
+            self.memory
+                .messages()
+                .filter(|m| pictures || !matches!(m, Message::Picture { .. }))
+                .cloned(),
+        );
         messages
     }
 
@@ -354,6 +378,9 @@ impl Agent {
                 content: text,
                 tool_calls: calls.clone(),
             });
+            // Pictures follow all the round's tool results (a user message may not stand
+            // between a model's tool calls and their results).
+            let mut pictures = Vec::new();
             for (i, call) in calls.iter().enumerate() {
                 if cancel.is_cancelled() {
                     self.skip_calls(&calls[i..]);
@@ -376,10 +403,20 @@ impl Agent {
                     name: call.name.clone(),
                     content: result.text,
                 });
+                if self.takes_images() {
+                    pictures.extend(result.images.into_iter().map(|image| Message::Picture {
+                        call_id: call.id.clone(),
+                        name: call.name.clone(),
+                        image,
+                    }));
+                }
                 if cancel.is_cancelled() {
                     self.skip_calls(&calls[i + 1..]);
                     return AgentEventKind::Cancelled;
                 }
+            }
+            for picture in pictures {
+                self.memory.push_to_current_turn(picture);
             }
         }
         AgentEventKind::Error {

@@ -41,6 +41,10 @@ pub struct AgentSection {
     /// Largest LLM reply read, bytes (64 KiB … 256 MiB); a larger one is an error.
     #[serde(default = "defaults::max_reply_bytes")]
     pub max_reply_bytes: usize,
+    /// Whether the model is sent the pictures tools return: `auto` (by the model's name, see
+    /// [`crate::vision`]), `on` or `off`.
+    #[serde(default = "defaults::agent_api", deserialize_with = "lenient::string")]
+    pub images: String,
 }
 
 impl Default for AgentSection {
@@ -55,6 +59,7 @@ impl Default for AgentSection {
             ollama_host: None,
             llm_base_url: None,
             max_reply_bytes: defaults::max_reply_bytes(),
+            images: defaults::agent_api(),
         }
     }
 }
@@ -96,6 +101,7 @@ impl AgentSection {
                 max_reply_bytes: self.max_reply_bytes,
                 ..defaults.retry
             },
+            images: crate::vision::Images::parse(&self.images).unwrap_or_default(),
             ..defaults
         }
     }
@@ -109,6 +115,12 @@ impl Section for AgentSection {
             64 * 1024..=256 * 1024 * 1024,
             "",
         );
+        if crate::vision::Images::parse(&self.images).is_none() {
+            checks.problem(
+                "images",
+                format!("'{}' is not one of auto, on, off", self.images),
+            );
+        }
         for (key, url) in [
             ("openai_base_url", &self.openai_base_url),
             ("groq_base_url", &self.groq_base_url),

@@ -35,6 +35,7 @@
 //! - [`memory`]: the bounded conversation history.
 //! - [`tools`]: the [`ToolBackend`] trait and the registry's implementation (the MCP one is in
 //!   the MCP edge, `robotd_mcp::agent_tools`).
+//! - [`vision`]: which models are sent the pictures tools return (`agent.images`).
 //! - [`agent`]: the system prompt and the tool-calling loop.
 //! - [`actor`]: the agent on the bus (`agent/request` → `agent/events`, `agent/cancel`).
 //! - `mock` (feature `mock`, tests only): a scripted LLM server speaking the real wire formats.
@@ -50,6 +51,7 @@ pub mod memory;
 pub mod mock;
 pub mod providers;
 pub mod tools;
+pub mod vision;
 
 pub use agent::{Agent, AgentConfig, WorkspaceHint};
 pub use tools::{RegistryTools, ToolBackend, ToolResultText};

@@ -22,6 +22,7 @@
 //! ```
 
 use crate::providers::{ProviderSettings, Wire};
+use crate::vision::ImagePart;
 use robotd_runtime::backoff::Backoff;
 use serde_json::{json, Map, Value};
 use std::time::Duration;
@@ -49,7 +50,21 @@ pub enum Message {
         /// The result text.
         content: String,
     },
+    /// A picture a tool returned, shown to a model that takes images: sent as a user message
+    /// after the tool results of its round (tool messages carry text only).
+    Picture {
+        /// The call that returned it.
+        call_id: String,
+        /// The tool's name.
+        name: String,
+        /// The picture.
+        image: ImagePart,
+    },
 }
+
+/// What a picture counts for in the history's size, in estimated tokens (about what the
+/// providers bill for a 640×480 picture).
+pub const PICTURE_TOKENS: usize = 800;
 
 impl Message {
     /// A user message.
@@ -72,6 +87,7 @@ impl Message {
                         .sum::<usize>()
             }
             Message::Tool { content, name, .. } => content.len() + name.len(),
+            Message::Picture { name, .. } => return PICTURE_TOKENS + name.len() / 4,
         };
         chars / 4 + 4
     }
@@ -517,6 +533,14 @@ pub fn openai_body(model: &str, messages: &[Message], tools: &[ToolSpec]) -> Val
                 name,
                 content,
             } => json!({"role": "tool", "tool_call_id": call_id, "name": name, "content": content}),
+            Message::Picture {
+                call_id,
+                name,
+                image,
+            } => json!({"role": "user", "content": [
+                {"type": "text", "text": picture_caption(name, call_id)},
+                {"type": "image_url", "image_url": {"url": image.data_url()}},
+            ]}),
         })
         .collect();
     let mut body = json!({"model": model, "messages": messages});
@@ -558,6 +582,15 @@ pub fn ollama_body(model: &str, messages: &[Message], tools: &[ToolSpec]) -> Val
             Message::Tool { name, content, .. } => {
                 json!({"role": "tool", "tool_name": name, "content": content})
             }
+            Message::Picture {
+                call_id,
+                name,
+                image,
+            } => json!({
+                "role": "user",
+                "content": picture_caption(name, call_id),
+                "images": [image.data_base64],
+            }),
         })
         .collect();
     let mut body = json!({"model": model, "messages": messages, "stream": false});
@@ -565,6 +598,13 @@ pub fn ollama_body(model: &str, messages: &[Message], tools: &[ToolSpec]) -> Val
         body["tools"] = Value::Array(tools_json(tools));
     }
     body
+}
+
+/// The words that come with a picture.
+fn picture_caption(name: &str, call_id: &str) -> String {
+    format!(
+        "The picture {name} returned (call {call_id}); the ids drawn on it are the objects' ids."
+    )
 }
 
 fn non_empty(text: Option<&str>) -> Option<String> {

@@ -8,6 +8,11 @@
 //! turn alone is over the bound (a very long tool loop), the oldest tool results in it are
 //! shortened.
 //!
+//! Pictures (`get_camera_image`'s, for models that take images) are the heaviest messages and
+//! the soonest stale: history keeps only the newest few ([`DEFAULT_MAX_PICTURES`]), and when it
+//! is over the bound the oldest pictures go first, before any turn. The tool result that came
+//! with a picture stays (its text lists what the picture showed).
+//!
 //! ```
 //! use robotd_agent::memory::Memory;
 //! use robotd_agent::llm::Message;
@@ -30,11 +35,15 @@ const SUMMARY_REQUESTS: usize = 4;
 const SUMMARY_CHARS: usize = 60;
 /// Characters a shortened tool result keeps.
 const SHORTENED_RESULT: usize = 160;
+/// Pictures kept in the history by default: the newest two (the scene now, and before the
+/// last change).
+pub const DEFAULT_MAX_PICTURES: usize = 2;
 
 /// Bounded conversation history (see the module docs).
 #[derive(Debug, Clone)]
 pub struct Memory {
     max_tokens: usize,
+    max_pictures: usize,
     turns: Vec<Vec<Message>>,
     dropped_turns: usize,
     dropped_requests: Vec<String>,
@@ -43,8 +52,15 @@ pub struct Memory {
 impl Memory {
     /// An empty history holding at most about `max_tokens` tokens.
     pub fn new(max_tokens: usize) -> Memory {
+        Self::with_pictures(max_tokens, DEFAULT_MAX_PICTURES)
+    }
+
+    /// An empty history holding at most about `max_tokens` tokens and `max_pictures`
+    /// pictures.
+    pub fn with_pictures(max_tokens: usize, max_pictures: usize) -> Memory {
         Memory {
             max_tokens: max_tokens.max(64),
+            max_pictures,
             turns: Vec::new(),
             dropped_turns: 0,
             dropped_requests: Vec::new(),
@@ -80,6 +96,33 @@ impl Memory {
         self.turns.clear();
         self.dropped_turns = 0;
         self.dropped_requests.clear();
+    }
+
+    /// Pictures kept.
+    pub fn pictures(&self) -> usize {
+        self.messages()
+            .filter(|m| matches!(m, Message::Picture { .. }))
+            .count()
+    }
+
+    /// Drops the oldest picture (of the turns before the current one, with `older_turns_only`);
+    /// false when there is none.
+    fn drop_oldest_picture(&mut self, older_turns_only: bool) -> bool {
+        let turns = if older_turns_only {
+            self.turns.len().saturating_sub(1)
+        } else {
+            self.turns.len()
+        };
+        for turn in &mut self.turns[..turns] {
+            if let Some(i) = turn
+                .iter()
+                .position(|m| matches!(m, Message::Picture { .. }))
+            {
+                turn.remove(i);
+                return true;
+            }
+        }
+        false
     }
 
     /// Turns kept.
@@ -123,6 +166,9 @@ impl Memory {
     }
 
     fn enforce(&mut self) {
+        while self.pictures() > self.max_pictures && self.drop_oldest_picture(false) {}
+        // Old pictures go before old turns; the current turn's stay while a turn can go.
+        while self.estimated_tokens() > self.max_tokens && self.drop_oldest_picture(true) {}
         while self.estimated_tokens() > self.max_tokens && self.turns.len() > 1 {
             let turn = self.turns.remove(0);
             self.dropped_turns += 1;
@@ -137,11 +183,15 @@ impl Memory {
                 }
             }
         }
+        // One turn left and still too big: its pictures but the newest go, then its oldest
+        // tool results are shortened (never the user's request, never the newest message).
+        while self.estimated_tokens() > self.max_tokens
+            && self.pictures() > 1
+            && self.drop_oldest_picture(false)
+        {}
         if self.estimated_tokens() <= self.max_tokens {
             return;
         }
-        // One turn left and still too big: shorten its oldest tool results (never the user's
-        // request, never the newest message).
         self.shorten_current_turn();
     }
 
@@ -281,5 +331,59 @@ mod tests {
         memory.clear();
         assert_eq!(memory.messages().count(), 0);
         assert_eq!(memory.summary(), None);
+    }
+
+    #[test]
+    fn old_pictures_go_first_and_the_history_stays_bounded() {
+        let picture = |i: usize| Message::Picture {
+            call_id: format!("c{i}"),
+            name: "get_camera_image".into(),
+            image: crate::vision::ImagePart {
+                mime_type: "image/jpeg".into(),
+                data_base64: "A".repeat(40_000),
+            },
+        };
+        let mut memory = Memory::new(3000);
+        for i in 0..100 {
+            tool_turn(&mut memory, i);
+            memory.push(picture(i));
+            assert!(memory.pictures() <= DEFAULT_MAX_PICTURES);
+            assert!(
+                memory.estimated_tokens() <= 3000,
+                "{i}: {}",
+                memory.estimated_tokens()
+            );
+        }
+        // The newest pictures are the ones kept.
+        let kept: Vec<&str> = memory
+            .messages()
+            .filter_map(|m| match m {
+                Message::Picture { call_id, .. } => Some(call_id.as_str()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(kept.last(), Some(&"c99"), "the newest picture is kept");
+        // With room, the two newest are kept.
+        let mut roomy = Memory::new(50_000);
+        for i in 0..10 {
+            tool_turn(&mut roomy, i);
+            roomy.push(picture(i));
+        }
+        let kept: Vec<String> = roomy
+            .messages()
+            .filter_map(|m| match m {
+                Message::Picture { call_id, .. } => Some(call_id.clone()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(kept, ["c8", "c9"]);
+        assert_eq!(roomy.turns(), 10, "pictures went, no turn did");
+        // Over the bound, a picture goes before a turn.
+        let mut small = Memory::with_pictures(1100, 5);
+        tool_turn(&mut small, 0);
+        small.push(picture(0));
+        tool_turn(&mut small, 1);
+        assert_eq!(small.turns(), 2, "the first turn is kept");
+        assert_eq!(small.pictures(), 0, "its picture was dropped instead");
     }
 }

@@ -9,6 +9,7 @@
 //! which robotd's edge does the same.
 
 use crate::llm::ToolSpec;
+use crate::vision::ImagePart;
 use robotd_protocol::safety::{Origin, OriginKind};
 use robotd_runtime::origin::{current_origin, with_origin};
 use serde_json::{Map, Value};
@@ -23,15 +24,24 @@ pub struct ToolResultText {
     pub text: String,
     /// Whether the call succeeded.
     pub ok: bool,
+    /// Pictures that came with the text (`get_camera_image`); sent on only to models that
+    /// take images ([`crate::vision`]).
+    pub images: Vec<ImagePart>,
 }
 
 impl ToolResultText {
-    /// A failed call with this explanation.
-    pub fn failed(text: impl Into<String>) -> Self {
+    /// A call's text, without pictures.
+    pub fn new(text: impl Into<String>, ok: bool) -> Self {
         Self {
             text: text.into(),
-            ok: false,
+            ok,
+            images: Vec::new(),
         }
+    }
+
+    /// A failed call with this explanation.
+    pub fn failed(text: impl Into<String>) -> Self {
+        Self::new(text, false)
     }
 }
 
@@ -103,6 +113,14 @@ impl ToolBackend for RegistryTools {
             match with_origin(origin, self.registry.call(name, Some(arguments), hooks)).await {
                 Ok(out) => ToolResultText {
                     ok: !out.is_failure,
+                    images: out
+                        .images
+                        .iter()
+                        .map(|i| ImagePart {
+                            mime_type: i.mime_type.to_owned(),
+                            data_base64: i.base64(),
+                        })
+                        .collect(),
                     text: out.text,
                 },
                 Err(error) => ToolResultText::failed(format!("❌ {error}")),

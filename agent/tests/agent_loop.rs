@@ -44,10 +44,7 @@ impl ToolBackend for RecordingTools {
                 cancel.cancelled().await;
                 return ToolResultText::failed("❌ Motion stopped: cancelled");
             }
-            ToolResultText {
-                text: format!("✓ {name} done"),
-                ok: true,
-            }
+            ToolResultText::new(format!("✓ {name} done"), true)
         })
     }
 }

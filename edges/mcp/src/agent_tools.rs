@@ -108,7 +108,20 @@ impl ToolBackend for McpTools {
                         .collect::<Vec<_>>()
                         .join("\n");
                     let failed = result.is_error == Some(true) || text.starts_with('❌');
-                    ToolResultText { text, ok: !failed }
+                    let images = result
+                        .content
+                        .iter()
+                        .filter_map(|c| c.as_image())
+                        .map(|i| robotd_agent::vision::ImagePart {
+                            mime_type: i.mime_type.clone(),
+                            data_base64: i.data.clone(),
+                        })
+                        .collect();
+                    ToolResultText {
+                        text,
+                        ok: !failed,
+                        images,
+                    }
                 }
                 Err(error) => ToolResultText::failed(format!(
                     "❌ calling {name} on {} failed: {error}",

@@ -1,0 +1,154 @@
+//! Pictures for models that look, and only for them.
+//!
+//! A tool may return pictures beside its text (`get_camera_image`: the camera's view with the
+//! objects' ids drawn on it). The agent passes a picture on to the model only when the model
+//! takes images, which [`takes_images`] decides from the `agent.images` setting ([`Images`]):
+//! `on` and `off` say it outright; `auto` (the default) goes by the model's name — the vision
+//! families of OpenAI (`gpt-4o`, `gpt-4.1`, `gpt-5`, `o3`, `o4`), every Gemini, Groq's and
+//! Ollama's vision models (`llama-4-scout`/`maverick`, `llava`, `llama3.2-vision`, `qwen2.5vl`,
+//! `gemma3`, `minicpm-v`, `moondream`, and any name with `vision` or `-vl`). A text-only model
+//! gets the tool's text item alone, which lists the same ids, labels and positions.
+//!
+//! A picture travels as a user message after the tool results of its round
+//! ([`crate::llm::Message::Picture`]): OpenAI-style servers get an `image_url` part with a
+//! `data:` URL, Ollama an `images` entry. History keeps few of them (see [`crate::memory`]):
+//! old pictures are dropped first.
+//!
+//! ```
+//! use robotd_agent::providers::Provider;
+//! use robotd_agent::vision::{takes_images, Images};
+//! assert!(takes_images(Provider::OpenAi, "gpt-4o-mini", Images::Auto));
+//! assert!(!takes_images(Provider::Groq, "llama-3.3-70b-versatile", Images::Auto));
+//! assert!(takes_images(Provider::Ollama, "qwen2.5vl:7b", Images::Auto));
+//! assert!(!takes_images(Provider::OpenAi, "gpt-4o", Images::Off));
+//! assert!(takes_images(Provider::OpenAiCompatible, "my-model", Images::On));
+//! ```
+
+use crate::providers::Provider;
+
+/// Whether the model is sent pictures (`agent.images`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Images {
+    /// By the model's name (see the module docs).
+    #[default]
+    Auto,
+    /// Always: the model takes images.
+    On,
+    /// Never: the model gets the text only.
+    Off,
+}
+
+impl Images {
+    /// The setting's words: `auto`, `on` (`true`, `yes`), `off` (`false`, `no`).
+    pub fn parse(word: &str) -> Option<Images> {
+        match word.trim().to_ascii_lowercase().as_str() {
+            "auto" => Some(Images::Auto),
+            "on" | "true" | "yes" => Some(Images::On),
+            "off" | "false" | "no" => Some(Images::Off),
+            _ => None,
+        }
+    }
+}
+
+/// Name parts of models that take images, by provider family.
+const VISION_NAMES: &[&str] = &[
+    "gpt-4o",
+    "gpt-4.1",
+    "gpt-4-turbo",
+    "gpt-5",
+    "chatgpt-4o",
+    "o3",
+    "o4",
+    "gemini",
+    "llama-4-scout",
+    "llama-4-maverick",
+    "llava",
+    "bakllava",
+    "llama3.2-vision",
+    "qwen2.5vl",
+    "qwen2.5-vl",
+    "qwen3-vl",
+    "gemma3",
+    "minicpm-v",
+    "moondream",
+    "granite3.2-vision",
+    "pixtral",
+    "vision",
+    "-vl",
+];
+
+/// Whether `model` of `provider` is sent pictures under `setting`.
+pub fn takes_images(provider: Provider, model: &str, setting: Images) -> bool {
+    match setting {
+        Images::On => true,
+        Images::Off => false,
+        Images::Auto => {
+            let model = model.to_ascii_lowercase();
+            // A model's own name (after a vendor prefix such as `openai/` or `models/`).
+            let name = model.rsplit('/').next().unwrap_or(&model);
+            if provider == Provider::Gemini {
+                return true;
+            }
+            VISION_NAMES.iter().any(|part| match *part {
+                // "o3", "o4": the reasoning families, not any name containing those letters.
+                "o3" | "o4" => name == *part || name.starts_with(&format!("{part}-")),
+                _ => name.contains(part),
+            })
+        }
+    }
+}
+
+/// One picture a tool returned, as the model is sent it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ImagePart {
+    /// `image/jpeg`.
+    pub mime_type: String,
+    /// The file, standard base64.
+    pub data_base64: String,
+}
+
+impl ImagePart {
+    /// The `data:` URL of OpenAI's `image_url` parts.
+    pub fn data_url(&self) -> String {
+        format!("data:{};base64,{}", self.mime_type, self.data_base64)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vision_is_decided_by_setting_then_by_name() {
+        let yes = [
+            (Provider::OpenAi, "gpt-4o-mini"),
+            (Provider::OpenAi, "gpt-4.1-nano"),
+            (Provider::OpenAi, "o4-mini"),
+            (Provider::Gemini, "gemini-2.0-flash"),
+            (Provider::Groq, "meta-llama/llama-4-scout-17b-16e-instruct"),
+            (Provider::Ollama, "llava:13b"),
+            (Provider::Ollama, "llama3.2-vision"),
+            (Provider::Ollama, "gemma3:4b"),
+            (Provider::OpenAiCompatible, "Qwen/Qwen2.5-VL-7B-Instruct"),
+        ];
+        for (provider, model) in yes {
+            assert!(takes_images(provider, model, Images::Auto), "{model}");
+            assert!(!takes_images(provider, model, Images::Off), "{model}");
+        }
+        let no = [
+            (Provider::OpenAi, "gpt-3.5-turbo"),
+            (Provider::Groq, "llama-3.3-70b-versatile"),
+            (Provider::Ollama, "qwen3:8b"),
+            (Provider::Ollama, "llama3.1"),
+            (Provider::OpenAiCompatible, "mock-model"),
+            (Provider::OpenAiCompatible, "phi-o3x"),
+        ];
+        for (provider, model) in no {
+            assert!(!takes_images(provider, model, Images::Auto), "{model}");
+            assert!(takes_images(provider, model, Images::On), "{model}");
+        }
+        assert_eq!(Images::parse(" ON "), Some(Images::On));
+        assert_eq!(Images::parse("no"), Some(Images::Off));
+        assert_eq!(Images::parse("maybe"), None);
+    }
+}
