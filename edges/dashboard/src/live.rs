@@ -275,6 +275,7 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
     let mut last_encoded: Option<Instant> = None;
     let mut drawn: Vec<DetectedObject> = Vec::new();
     let mut tracked: Vec<DetectedObject> = Vec::new();
+    let mut renamed = Vec::new();
     let (mut bus_rate, mut page_rate, mut detection_rate) = (Rate::new(), Rate::new(), Rate::new());
     let mut encode_ms: VecDeque<f64> = VecDeque::new();
     let mut last_rate_sample = Instant::now();
@@ -293,6 +294,7 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
         }
         while let Some(message) = objects.try_recv()? {
             tracked = message.body.objects.clone();
+            renamed = message.body.renamed.clone();
             live.update(|s| s.objects = message.body.objects);
         }
         while let Some(message) = overlays.try_recv()? {
@@ -349,7 +351,7 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
                 last_encoded = Some(Instant::now());
                 let mut rgb = sample.pixels()[..bytes].to_vec();
                 drop(sample);
-                let named = crate::overlay_ids::with_stable_ids(&drawn, &tracked);
+                let named = crate::overlay_ids::with_stable_ids(&drawn, &tracked, &renamed);
                 robotd_render::annotate::draw_objects(&mut rgb, w, h, &named);
                 let started = Instant::now();
                 match robotd_render::encode_jpeg(&rgb, w as u32, h as u32, quality) {

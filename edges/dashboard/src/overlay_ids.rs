@@ -5,18 +5,33 @@
 //! the id of the tracked object it shows: the nearest one with the same label in the same
 //! workspace, no farther than [`MATCH_RADIUS_M`] on the table. A detection no tracked object
 //! is close to (new, or the model has not seen it twice yet) keeps an empty id.
+//!
+//! An object named by `label_object` is tracked under its name while the detector still calls
+//! it what it sees (`unknown object`): the workspace model lists it among the `renamed` with
+//! that label, the detection is matched by it, and the box shows the name.
 
 use robotd_protocol::objects::DetectedObject;
+use robotd_protocol::workspace::RenamedObject;
 
 /// Farthest a detection may lie from a tracked object and still be called that object, m.
 pub const MATCH_RADIUS_M: f64 = 0.03;
 
-/// `detections` with each empty `id` set from the matching object in `tracked`; closest pairs
-/// first, and each tracked object names one detection at most.
+/// `detections` with each empty `id` set from the matching object in `tracked` (and the label
+/// of a `renamed` one set to its name); closest pairs first, and each tracked object names one
+/// detection at most.
 pub fn with_stable_ids(
     detections: &[DetectedObject],
     tracked: &[DetectedObject],
+    renamed: &[RenamedObject],
 ) -> Vec<DetectedObject> {
+    // The label each tracked object's detections carry.
+    let detected_as = |object: &DetectedObject| -> String {
+        renamed
+            .iter()
+            .find(|r| r.id == object.id)
+            .map_or_else(|| object.label.clone(), |r| r.detected_as.clone())
+    };
+    let labels: Vec<String> = tracked.iter().map(detected_as).collect();
     let mut named = detections.to_vec();
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for (d, detection) in detections.iter().enumerate() {
@@ -24,7 +39,7 @@ pub fn with_stable_ids(
             continue;
         }
         for (t, object) in tracked.iter().enumerate() {
-            if object.label == detection.label && object.workspace_id == detection.workspace_id {
+            if labels[t] == detection.label && object.workspace_id == detection.workspace_id {
                 let distance = table_distance(detection, object);
                 if distance <= MATCH_RADIUS_M {
                     pairs.push((distance, d, t));
@@ -40,6 +55,7 @@ pub fn with_stable_ids(
             object_used[t] = true;
             detection_named[d] = true;
             named[d].id = tracked[t].id.clone();
+            named[d].label = tracked[t].label.clone();
         }
     }
     named
@@ -78,7 +94,7 @@ mod tests {
             object("", "red cube", 0.30, 0.0),
             object("", "pencil", 0.201, 0.0),
         ];
-        let named = with_stable_ids(&detections, &tracked);
+        let named = with_stable_ids(&detections, &tracked, &[]);
         let ids: Vec<&str> = named.iter().map(|o| o.id.as_str()).collect();
         assert_eq!(ids, ["obj-2", "", "obj-1"]);
     }
@@ -90,7 +106,7 @@ mod tests {
             object("", "pencil", 0.21, 0.0),
             object("", "pencil", 0.201, 0.0),
         ];
-        let named = with_stable_ids(&detections, &tracked);
+        let named = with_stable_ids(&detections, &tracked, &[]);
         let ids: Vec<&str> = named.iter().map(|o| o.id.as_str()).collect();
         assert_eq!(ids, ["", "obj-1"], "the closer box gets the id");
     }
@@ -105,8 +121,27 @@ mod tests {
                 object("own", "pencil", 0.2, 0.0),
             ],
             &[elsewhere],
+            &[],
         );
         assert_eq!(named[0].id, "");
         assert_eq!(named[1].id, "own");
+    }
+
+    #[test]
+    fn a_renamed_object_is_matched_by_what_the_detector_sees_and_shows_its_name() {
+        let tracked = [object("obj-4", "screwdriver", 0.25, 0.0)];
+        let renamed = [RenamedObject {
+            id: "obj-4".into(),
+            detected_as: "unknown object".into(),
+        }];
+        let detections = [object("", "unknown object", 0.251, 0.0)];
+        let named = with_stable_ids(&detections, &tracked, &renamed);
+        assert_eq!(
+            (named[0].id.as_str(), named[0].label.as_str()),
+            ("obj-4", "screwdriver")
+        );
+        // Without the rename it is not that object.
+        let plain = with_stable_ids(&detections, &tracked, &[]);
+        assert_eq!(plain[0].id, "");
     }
 }
