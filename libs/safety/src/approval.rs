@@ -285,6 +285,44 @@ mod tests {
         );
     }
 
+    #[test]
+    fn a_bare_command_needs_approval_when_a_listed_tool_could_have_sent_it() {
+        let listed = |tools: &[&str]| tools.iter().map(|t| t.to_string()).collect::<Vec<_>>();
+        let push = listed(&["push_object"]);
+        for action in [
+            "move_to_pose",
+            "shift_pose",
+            "close",
+            "go_to_observation_pose",
+        ] {
+            assert!(bare_command_needs_approval(&push, action), "{action}");
+        }
+        assert!(!bare_command_needs_approval(&push, "calibrate"));
+        assert!(!bare_command_needs_approval(&push, "clear_collision"));
+        let observe = listed(&["move2observation_pose"]);
+        assert!(bare_command_needs_approval(
+            &observe,
+            "go_to_observation_pose"
+        ));
+        assert!(!bare_command_needs_approval(&observe, "move_to_pose"));
+        // A command's own name may be listed.
+        assert!(bare_command_needs_approval(
+            &listed(&["move_joints"]),
+            "move_joints"
+        ));
+        assert!(!bare_command_needs_approval(&[], "move_joints"));
+    }
+
+    #[test]
+    fn a_grant_is_valid_until_its_work_finishes() {
+        let approvals = Approvals::default();
+        let id = approvals.grant("pick_object");
+        assert!(approvals.is_granted(id));
+        assert!(approvals.pending().is_empty(), "nobody was asked");
+        approvals.finish(id);
+        assert!(!approvals.is_granted(id));
+    }
+
     #[tokio::test(start_paused = true)]
     async fn no_answer_is_a_refusal() {
         let approvals = Approvals::default();

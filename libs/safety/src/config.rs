@@ -43,8 +43,8 @@ pub struct SafetyConfig {
     /// Highest tool-centre acceleration for LLM motions, m/s² (0.1 … 20).
     #[serde(default = "SafetyConfig::llm_max_tcp_acceleration_m_s2")]
     pub llm_max_tcp_acceleration_m_s2: f64,
-    /// Most arm and gripper motions per minute from one client (origin kind and session);
-    /// 0 = no limit (0 … 100000).
+    /// Most arm and gripper motions per minute from one origin kind, all its sessions
+    /// together; 0 = no limit (0 … 100000).
     #[serde(default = "SafetyConfig::motions_per_minute")]
     pub motions_per_minute: u32,
     /// Most motions per minute for LLM origins; 0 = no limit (0 … 100000).

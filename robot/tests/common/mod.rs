@@ -1,0 +1,189 @@
+//! What the one-door tests share: drivers that record every actuator call (with its permit's
+//! audit number and whether the e-stop was engaged at that moment) before passing it on to
+//! the simulator, and the robot's actors started on them over a real bus.
+
+#![allow(dead_code)]
+
+use robotd_config::Config;
+use robotd_driver::{
+    ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision, Close, DriverError, DriverFuture,
+    GripperDriver, GripperStatus, MotionControl, Open, Permit, RobotDrivers, SetWidth,
+};
+use robotd_protocol::geometry::RobotModel;
+use robotd_robot::Hardware;
+use robotd_runtime::bus::{Bus, BusOptions};
+use robotd_runtime::supervision::{observer_fn, SupervisionEvent};
+use robotd_safety::Safety;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// One actuator call that reached a driver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Call {
+    /// The trait method.
+    pub method: &'static str,
+    /// The permit's motion number in the audit log.
+    pub motion_id: u64,
+    /// Whether the e-stop was engaged when the call began.
+    pub estop_engaged: bool,
+}
+
+/// The calls of one robot, shared by its recording drivers.
+#[derive(Debug, Clone, Default)]
+pub struct Calls(Arc<Mutex<Vec<Call>>>);
+
+impl Calls {
+    fn push<A>(&self, method: &'static str, permit: &Permit<A>, control: &MotionControl) {
+        self.0.lock().unwrap().push(Call {
+            method,
+            motion_id: permit.motion_id(),
+            estop_engaged: control.estop_engaged(),
+        });
+    }
+
+    /// Everything recorded so far.
+    pub fn all(&self) -> Vec<Call> {
+        self.0.lock().unwrap().clone()
+    }
+
+    /// How many calls of `method`.
+    pub fn count(&self, method: &str) -> usize {
+        self.all().iter().filter(|c| c.method == method).count()
+    }
+}
+
+/// An arm driver that records every actuator call, then runs it on `inner`.
+pub struct RecordingArm {
+    pub inner: Arc<dyn ArmDriver>,
+    pub calls: Calls,
+    pub control: MotionControl,
+}
+
+impl ArmDriver for RecordingArm {
+    fn model(&self) -> RobotModel {
+        self.inner.model()
+    }
+    fn joints(&self) -> Result<Vec<f64>, DriverError> {
+        self.inner.joints()
+    }
+    fn flags(&self) -> ArmFlags {
+        self.inner.flags()
+    }
+    fn execute<'a>(
+        &'a self,
+        permit: Permit<ArmMotion>,
+        control: &'a MotionControl,
+    ) -> DriverFuture<'a, ()> {
+        self.calls.push("execute", &permit, &self.control);
+        self.inner.execute(permit, control)
+    }
+    fn calibrate(&self, permit: Permit<Calibration>) -> DriverFuture<'_, ()> {
+        self.calls.push("calibrate", &permit, &self.control);
+        self.inner.calibrate(permit)
+    }
+    fn clear_collision(&self, permit: Permit<ClearCollision>) -> DriverFuture<'_, ()> {
+        self.calls.push("clear_collision", &permit, &self.control);
+        self.inner.clear_collision(permit)
+    }
+    fn halt(&self) -> Result<(), DriverError> {
+        self.inner.halt()
+    }
+}
+
+/// A gripper driver that records every actuator call, then runs it on `inner`.
+pub struct RecordingGripper {
+    pub inner: Arc<dyn GripperDriver>,
+    pub calls: Calls,
+    pub control: MotionControl,
+}
+
+impl GripperDriver for RecordingGripper {
+    fn max_width_m(&self) -> f64 {
+        self.inner.max_width_m()
+    }
+    fn open(&self, permit: Permit<Open>) -> DriverFuture<'_, GripperStatus> {
+        self.calls.push("open", &permit, &self.control);
+        self.inner.open(permit)
+    }
+    fn close(&self, permit: Permit<Close>) -> DriverFuture<'_, GripperStatus> {
+        self.calls.push("close", &permit, &self.control);
+        self.inner.close(permit)
+    }
+    fn set_width(&self, permit: Permit<SetWidth>) -> DriverFuture<'_, GripperStatus> {
+        self.calls.push("set_width", &permit, &self.control);
+        self.inner.set_width(permit)
+    }
+    fn status(&self) -> Result<GripperStatus, DriverError> {
+        self.inner.status()
+    }
+}
+
+/// A configuration on a bus namespace of its own: the simulated Ned2 at `time_scale`, 100 Hz
+/// control, no audit log (set one to read it back).
+pub fn fresh_config(time_scale: f64) -> Config {
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    let mut config = Config::default();
+    config.bus.namespace = format!(
+        "door-{}-{}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    );
+    config.robot.time_scale = time_scale;
+    config.robot.control_rate_hz = 100;
+    config.robot.camera.fps = 5.0;
+    config.supervision.backoff_initial_ms = 5;
+    config.safety.audit.enabled = false;
+    config
+}
+
+/// The robot of `config` (the simulator) behind recording drivers, its actors on a bus.
+pub struct Rig {
+    pub bus: Bus,
+    pub hardware: Hardware,
+    pub safety: Safety,
+    pub calls: Calls,
+    pub sim: robotd_driver_sim::SimRobot,
+}
+
+pub async fn rig(config: &Config) -> Rig {
+    let bus = Bus::open(BusOptions::new(&config.bus.namespace, "door-test")).expect("bus");
+    let sim = robotd_driver_sim::open(&config.robot).expect("the simulator");
+    let safety = Hardware::policy(config, sim.drivers.model).expect("the policy");
+    let calls = Calls::default();
+    let control = safety.control().clone();
+    let drivers = RobotDrivers {
+        model: sim.drivers.model,
+        arm: Arc::new(RecordingArm {
+            inner: sim.drivers.arm.clone(),
+            calls: calls.clone(),
+            control: control.clone(),
+        }),
+        gripper: Arc::new(RecordingGripper {
+            inner: sim.drivers.gripper.clone(),
+            calls: calls.clone(),
+            control,
+        }),
+        camera: sim.drivers.camera.clone(),
+    };
+    let hardware = Hardware::start_on(&bus, config, drivers, safety.clone(), |_| {
+        observer_fn(|_: &SupervisionEvent| {})
+    })
+    .await
+    .expect("hardware");
+    Rig {
+        bus,
+        hardware,
+        safety,
+        calls,
+        sim: sim.robot,
+    }
+}
+
+/// The audit log's events (the `event` object of each line) of `config`'s log.
+pub fn audit_events(config: &Config) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(&config.safety.audit.path)
+        .unwrap_or_default()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["event"].take())
+        .collect()
+}
