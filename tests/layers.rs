@@ -155,12 +155,6 @@ const EXCEPTIONS: &[(&str, &str, Kind, &str)] = &[
         Kind::Normal,
         "edges/mcp/src/agent_tools.rs implements the agent's ToolBackend for MCP servers",
     ),
-    (
-        "robotd-mcp",
-        "robotd-http",
-        Kind::Normal,
-        "the MCP routes use the HTTP guard's body deadline and bearer-token reading",
-    ),
 ];
 
 // ------------------------------------------------------------------------------------------

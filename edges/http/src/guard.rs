@@ -21,7 +21,7 @@
 //!    engages whatever its body (it reads only the first bytes, [`crate::safety`]).
 
 use axum::extract::{DefaultBodyLimit, Request, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::http::{header, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::Router;
@@ -185,20 +185,7 @@ async fn check(State(guard): State<Arc<HttpGuard>>, request: Request, next: Next
     }
 }
 
-/// The bearer token a request presents: `Authorization: Bearer <token>`, else
-/// `?access_token=<token>` in its URL `query` (what a browser can send for a page, an image
-/// or an event stream). The guard checks it; the MCP edge binds sessions to it.
-pub fn bearer_token<'a>(headers: &'a HeaderMap, query: Option<&'a str>) -> Option<&'a str> {
-    headers
-        .get(header::AUTHORIZATION)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "))
-        .or_else(|| {
-            query?
-                .split('&')
-                .find_map(|pair| pair.strip_prefix("access_token="))
-        })
-}
+pub use robotd_web::bearer::bearer_token;
 
 /// The guard's answer to a request it refuses, or `None` to serve it.
 fn refusal(guard: &HttpGuard, request: &Request) -> Option<Response> {

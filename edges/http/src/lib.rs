@@ -15,7 +15,7 @@
 //! # }
 //! ```
 
-pub mod body_deadline;
+pub use robotd_web::body_deadline;
 pub mod config;
 pub mod connections;
 pub mod guard;

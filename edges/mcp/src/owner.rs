@@ -32,7 +32,7 @@ impl SessionOwner {
             .map(|info| canonical(info.0.ip()))
             .unwrap_or(IpAddr::V4(Ipv4Addr::UNSPECIFIED));
         // The token as the guard reads it; any other Authorization as sent.
-        let credential = robotd_http::guard::bearer_token(headers, query)
+        let credential = robotd_web::bearer::bearer_token(headers, query)
             .map(str::as_bytes)
             .or_else(|| headers.get(header::AUTHORIZATION).map(|v| v.as_bytes()))
             .unwrap_or_default();

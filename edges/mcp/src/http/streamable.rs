@@ -108,7 +108,7 @@ pub(super) async fn streamable_checks(
         let (parts, body) = request.into_parts();
         let bytes = match axum::body::to_bytes(body, max_body_bytes).await {
             Ok(bytes) => bytes,
-            Err(error) if robotd_http::body_deadline::is_too_slow(&error) => {
+            Err(error) if robotd_web::body_deadline::is_too_slow(&error) => {
                 return (
                     StatusCode::REQUEST_TIMEOUT,
                     format!("Request Timeout: {error}"),
