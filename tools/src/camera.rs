@@ -5,7 +5,10 @@
 //! registry is asked for, it sleeps until a call asks for "a frame taken after time t", then
 //! takes the newest frame waiting on its port (the topic keeps only the latest), or waits for
 //! the next one until the call's deadline, and copies its pixels out as RGB8. Between calls
-//! it reads nothing: frames nobody asked for are overwritten on the bus, never copied.
+//! it reads nothing: frames nobody asked for are overwritten on the bus, never copied. The
+//! last frame copied is kept: when nothing newer waits on the port, it is still the newest
+//! frame, and a call it is new enough for is answered with it at once rather than waiting up
+//! to a frame period for the next.
 
 use robotd_runtime::bus::{Bus, FrameSample, FrameSubscriber};
 use robotd_runtime::catalog::CAMERA_FRAMES;
@@ -13,6 +16,9 @@ use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
+/// How long the last frame copied may answer a call when nothing newer arrived (a camera
+/// that stopped gives no picture rather than an old one), ns.
+const LAST_FRAME_KEPT_NS: u64 = 1_000_000_000;
 /// Calls waiting for a frame at once; one more is refused rather than queued without bound.
 const WAITING_CALLS: usize = 16;
 
@@ -90,22 +96,41 @@ async fn serve(bus: Bus, mut asks: mpsc::Receiver<Ask>) {
             return;
         }
     };
+    let mut last: Option<Frame> = None;
     while let Some(ask) = asks.recv().await {
         if ask.reply.is_closed() {
             continue; // the call went away while it waited its turn
         }
-        let result = grab(&mut frames, ask.after_unix_ns, ask.deadline).await;
+        let result = grab(&mut frames, &mut last, ask.after_unix_ns, ask.deadline).await;
         let _ = ask.reply.send(result);
     }
 }
 
-/// The newest frame after `after`: what waits on the port, else the next to arrive.
+/// The newest frame after `after`: what waits on the port, else the last one copied (`last`)
+/// if it is new enough, else the next to arrive.
 async fn grab(
     frames: &mut FrameSubscriber,
+    last: &mut Option<Frame>,
     after_unix_ns: u64,
     deadline: Instant,
 ) -> Result<Frame, String> {
-    let mut newest: Option<Frame> = None;
+    let frame = grab_new(frames, last, after_unix_ns, deadline).await?;
+    *last = Some(frame.clone());
+    Ok(frame)
+}
+
+async fn grab_new(
+    frames: &mut FrameSubscriber,
+    last: &Option<Frame>,
+    after_unix_ns: u64,
+    deadline: Instant,
+) -> Result<Frame, String> {
+    let now = robotd_protocol::envelope::unix_now_ns();
+    let mut newest: Option<Frame> = last
+        .as_ref()
+        .filter(|f| f.timestamp_unix_ns > after_unix_ns)
+        .filter(|f| now.saturating_sub(f.timestamp_unix_ns) < LAST_FRAME_KEPT_NS)
+        .cloned();
     let mut last_problem: Option<String> = None;
     loop {
         loop {
