@@ -77,16 +77,19 @@ pub fn human_bytes(bytes: u64) -> String {
     }
 }
 
+/// One place robotd writes to, measured: (what, directory, total and free bytes).
+type Measured<'a> = (&'a str, &'a Path, std::io::Result<(u64, u64)>);
+
 /// `/health`'s `disk`: each place with its free space, and `low` when any place is low.
 pub fn report(places: &[(&'static str, PathBuf)]) -> serde_json::Value {
-    let measured: Vec<(&str, &Path, std::io::Result<(u64, u64)>)> = places
+    let measured: Vec<Measured<'_>> = places
         .iter()
         .map(|(what, dir)| (*what, dir.as_path(), fs_space(dir)))
         .collect();
     report_of(&measured)
 }
 
-fn report_of(measured: &[(&str, &Path, std::io::Result<(u64, u64)>)]) -> serde_json::Value {
+fn report_of(measured: &[Measured<'_>]) -> serde_json::Value {
     let mut low = Vec::new();
     let places: Vec<serde_json::Value> = measured
         .iter()

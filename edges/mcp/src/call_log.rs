@@ -294,7 +294,7 @@ mod tests {
         let now = SystemTime::now();
         // Forty earlier runs, some rotated, and a file that is not the call log's.
         for run in 0..40u64 {
-            let stamp = 20260101_000000 + run;
+            let stamp = 20_260_101_000_000 + run;
             for name in [
                 format!("mcp_server_{stamp}.log"),
                 format!("mcp_server_{stamp}.log.1"),
