@@ -102,15 +102,14 @@ fn random_command(rng: &mut Rng) -> Command {
 
 /// Whether a reply says the e-stop refused it.
 fn estopped(reply: &Result<Reply, String>) -> bool {
-    match reply {
+    matches!(
+        reply,
         Ok(Reply::Arm(ArmReply::Error {
             error: ArmError::EStopped { .. },
-        })) => true,
-        Ok(Reply::Gripper(GripperReply::Error {
+        })) | Ok(Reply::Gripper(GripperReply::Error {
             error: GripperError::EStopped { .. },
-        })) => true,
-        _ => false,
-    }
+        }))
+    )
 }
 
 #[derive(Debug)]
