@@ -131,7 +131,10 @@ impl WorkspaceSpec {
 
 /// The workspaces robotd knows for `model` when `[robot] workspaces` lists none: the sheets of
 /// the robot's standard set-up (docs/robot-models.md, "Workspaces").
-// gazebo_1's pitch is the 1.5708 the Python stack configures, kept as written.
+// gazebo_1's orientation is the one the Python stack configures, kept as written; its height
+// is 3 cm lower (0.33 m, not 0.36 m): from 0.36 m the Ned2's wrist joint would have to reach
+// -1.911 rad, beyond its limit less the safety margin (-1.910 rad), so the pose could not be
+// reached at all. From 0.33 m it needs -1.785 rad and the camera still sees the whole sheet.
 #[allow(clippy::approx_constant)]
 pub fn builtin_workspaces(model: RobotModel) -> Vec<WorkspaceSpec> {
     let spec = |id: &str, upper_left, lower_right, observation_pose| WorkspaceSpec {
@@ -152,7 +155,7 @@ pub fn builtin_workspaces(model: RobotModel) -> Vec<WorkspaceSpec> {
                 "gazebo_1",
                 [0.337, 0.087],
                 [0.163, -0.087],
-                [0.18, 0.0, 0.36, 2.4, 1.5708, 2.4],
+                [0.18, 0.0, 0.33, 2.4, 1.5708, 2.4],
             ),
         ],
         RobotModel::WidowX250 => vec![spec(

@@ -40,7 +40,7 @@ pub struct Group {
 }
 
 /// A piece is small next to a group with more than this many times its area.
-const SMALL_PIECE_RATIO: u32 = 2;
+const SMALL_PIECE_RATIO: u32 = 5;
 
 /// Distances and sizes, in pixels, that decide which blobs are one object.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -58,7 +58,7 @@ pub struct Gaps {
 /// within `gaps.join_px` of each other — never two colours in one group, unless they are
 /// neighbouring hues (`neighbour_hues`: one printed wrapper's blue and cyan) or one side is a
 /// sliver (at most `gaps.sliver_px`) — then joins each small dark or unknown-coloured piece
-/// (under half of the other's area) to a group whose box comes within `gaps.absorb_px` of its
+/// (under a fifth of the other's area: a dark object as large as a pen stays one) to a group whose box comes within `gaps.absorb_px` of its
 /// box. A coloured object is never joined to another this way. `unknown` is the class of dark
 /// and unknown-coloured pixels.
 pub fn group_fragments(
@@ -385,6 +385,13 @@ mod tests {
         sliver_px: 2,
     };
 
+    fn wide_gaps() -> Gaps {
+        Gaps {
+            absorb_px: 8,
+            ..GAPS
+        }
+    }
+
     #[test]
     fn touching_fragments_join_and_distant_objects_stay_apart() {
         // A red (1) square with a dark (9) rim on its right, a blue (2) piece 1 px from the
@@ -458,6 +465,22 @@ mod tests {
             groups.iter().map(|g| (g.class, g.pixels.len())).collect();
         found.sort();
         assert_eq!(found, vec![(1, 2 * 2 * 12), (2, 8 * 12)], "{groups:?}");
+        // A dark pen 4 px from a tray 4.6 times its area stays an object of its own (only
+        // small dark pieces — a shadow's tail, a wrapper's twisted end — join a neighbour).
+        let (w3, h3) = (60, 40);
+        let mut pen_by_tray = vec![0u8; w3 * h3];
+        for v in 0..h3 {
+            for u in 0..w3 {
+                if (2..38).contains(&u) && (2..34).contains(&v) {
+                    pen_by_tray[v * w3 + u] = 2;
+                } else if (42..49).contains(&u) && (2..38).contains(&v) {
+                    pen_by_tray[v * w3 + u] = 9;
+                }
+            }
+        }
+        c.label(&pen_by_tray, w3, h3, 1);
+        let groups = group_fragments(&c, 9, w3, wide_gaps(), |_, _| false);
+        assert_eq!(groups.len(), 2, "{groups:?}");
         // Printing inside a wrapper: a small blue mark inside a large dark object joins it.
         let mut wrapper = vec![0u8; w * h];
         for v in 1..11 {
