@@ -2,8 +2,9 @@
 //! datagram socket, starts `robotd serve` with `NOTIFY_SOCKET` pointing at it and
 //! `WATCHDOG_USEC` set, and checks what arrives: `READY=1` with a status line once the port
 //! serves, a `STATUS=` line when the e-stop is engaged, `WATCHDOG=1` at half the watchdog
-//! period, no more pings once a supervision loop hangs (the test hook behind SIGUSR1, in test
-//! builds only) while `/health` still answers, and `STOPPING=1` on SIGTERM.
+//! period, no more pings once a supervision loop hangs (the test hook behind SIGUSR1, in debug
+//! builds with `TEST_ROBOTD_HOOKS=1` only) while `/health` still answers, and `STOPPING=1` on
+//! SIGTERM.
 
 mod common;
 
@@ -75,6 +76,7 @@ fn robotd_tells_systemd_it_is_ready_what_it_waits_for_that_it_lives_and_that_it_
         &[
             ("NOTIFY_SOCKET", path.to_str().unwrap()),
             ("WATCHDOG_USEC", &WATCHDOG_USEC.to_string()),
+            ("TEST_ROBOTD_HOOKS", "1"),
         ],
     );
 

@@ -25,10 +25,11 @@
 //!
 //! Without [`install`] nothing of this runs: supervisors do not beat.
 //!
-//! With the crate's `test-hooks` feature (tests only, never in a release build),
-//! [`test_hooks::hang_one_loop`] makes the next supervision loop that beats hang for good,
-//! and `SIGUSR1` calls it in a process whose watchdog is installed, so a test can watch the
-//! pings stop.
+//! For tests, [`test_hooks::hang_one_loop`] makes the next supervision loop that beats hang
+//! for good, and in a process started with `TEST_ROBOTD_HOOKS=1` whose watchdog is installed,
+//! `SIGUSR1` calls it, so a test can watch the pings stop. The hooks are compiled into debug
+//! builds (the ones tests run) and with the crate's `test-hooks` feature, never into a
+//! `release` or `dist` build.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex, OnceLock};
@@ -69,7 +70,7 @@ pub fn install(
         members: Mutex::new(Members::default()),
     });
     WATCHDOG.set(watchdog).map_err(|_| AlreadyInstalled)?;
-    #[cfg(feature = "test-hooks")]
+    #[cfg(any(feature = "test-hooks", debug_assertions))]
     test_hooks::listen_for_sigusr1();
     Ok(())
 }
@@ -177,7 +178,7 @@ pub(crate) fn ticker(name: &str) -> Option<(Member, tokio::time::Interval)> {
 
 /// Beats for the loop that owns `ticker` (after [`next_beat`] returned).
 pub(crate) async fn beat(ticker: &Option<(Member, tokio::time::Interval)>) {
-    #[cfg(feature = "test-hooks")]
+    #[cfg(any(feature = "test-hooks", debug_assertions))]
     if test_hooks::take_hang() {
         tracing::warn!("test hook: this supervision loop now hangs for good");
         std::future::pending::<()>().await;
@@ -187,8 +188,9 @@ pub(crate) async fn beat(ticker: &Option<(Member, tokio::time::Interval)>) {
     }
 }
 
-/// Test-only controls (the `test-hooks` feature): never part of a release build.
-#[cfg(feature = "test-hooks")]
+/// Test-only controls (debug builds and the `test-hooks` feature): never part of a release
+/// build.
+#[cfg(any(feature = "test-hooks", debug_assertions))]
 pub mod test_hooks {
     use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -203,9 +205,15 @@ pub mod test_hooks {
         HANG.swap(false, Ordering::SeqCst)
     }
 
-    /// In a tokio runtime: `SIGUSR1` calls [`hang_one_loop`], so a test can block a running
-    /// robotd's supervision from outside.
+    /// The environment variable that arms the hooks in a process.
+    pub const ENV: &str = "TEST_ROBOTD_HOOKS";
+
+    /// With `TEST_ROBOTD_HOOKS=1`, in a tokio runtime: `SIGUSR1` calls [`hang_one_loop`], so a
+    /// test can block a running robotd's supervision from outside.
     pub(super) fn listen_for_sigusr1() {
+        if std::env::var(ENV).as_deref() != Ok("1") {
+            return;
+        }
         let Ok(runtime) = tokio::runtime::Handle::try_current() else {
             return;
         };
