@@ -4,7 +4,8 @@
 //!   `objects_fps` entries a second), each object with
 //!   the id the workspace model tracks it under (taken from the newest `workspace/objects`:
 //!   same label, within the tracker's 3 cm gate; a frame-local id `f<frame>-<n>` until the model
-//!   has it). Detections that came in from Redis are not sent back out.
+//!   has it), under the name `label_object` gave it if it has one. Detections that came in from
+//!   Redis are not sent back out.
 //! - `workspace/labels` → `detectable_labels`, at start, on every change, and every 30 s
 //!   (the Python side takes a list older than 60 s for stale).
 //! - `overlay/text` → `video_text_overlays`.
@@ -35,9 +36,13 @@ fn now_s() -> f64 {
         .unwrap_or(0.0)
 }
 
-/// The tracked ids of `detections`' objects, from `tracked` (same workspace and label, nearest
-/// within 3 cm), else `f<frame>-<n>`.
-pub fn tracked_ids(detections: &Detections, tracked: Option<&TrackedObjects>) -> Vec<String> {
+/// The tracked id of each of `detections`' objects, from `tracked` (same workspace and label,
+/// nearest within 3 cm), else `f<frame>-<n>`; and the name `label_object` gave it, if any (a
+/// named object is matched by what the detector calls it, `renamed`).
+pub fn tracked_ids(
+    detections: &Detections,
+    tracked: Option<&TrackedObjects>,
+) -> Vec<(String, Option<String>)> {
     let mut taken: Vec<&str> = Vec::new();
     detections
         .objects
@@ -47,20 +52,30 @@ pub fn tracked_ids(detections: &Detections, tracked: Option<&TrackedObjects>) ->
             let candidate = tracked
                 .filter(|t| t.workspace_id == detections.workspace_id)
                 .and_then(|t| {
+                    let detected_as = |o: &robotd_protocol::objects::DetectedObject| {
+                        t.renamed
+                            .iter()
+                            .find(|r| r.id == o.id)
+                            .map(|r| r.detected_as.clone())
+                    };
                     t.objects
                         .iter()
-                        .filter(|o| o.label_is(&object.label) && !taken.contains(&o.id.as_str()))
-                        .map(|o| (o.xy().distance_to(&object.xy()), o))
-                        .filter(|(d, _)| *d <= 0.03)
+                        .filter(|o| !taken.contains(&o.id.as_str()))
+                        .filter_map(|o| match detected_as(o) {
+                            Some(label) => object.label_is(&label).then_some((o, true)),
+                            None => o.label_is(&object.label).then_some((o, false)),
+                        })
+                        .map(|(o, named)| (o.xy().distance_to(&object.xy()), o, named))
+                        .filter(|(d, _, _)| *d <= 0.03)
                         .min_by(|a, b| a.0.total_cmp(&b.0))
-                        .map(|(_, o)| o)
+                        .map(|(_, o, named)| (o, named))
                 });
             match candidate {
-                Some(o) => {
+                Some((o, named)) => {
                     taken.push(&o.id);
-                    o.id.clone()
+                    (o.id.clone(), named.then(|| o.label.clone()))
                 }
-                None => format!("f{}-{n}", detections.frame_id),
+                None => (format!("f{}-{n}", detections.frame_id), None),
             }
         })
         .collect()
@@ -121,7 +136,15 @@ pub fn start(
                         continue;
                     }
                     last_objects = Some(tokio::time::Instant::now());
-                    let ids = tracked_ids(&d, tracked.as_ref());
+                    let matched = tracked_ids(&d, tracked.as_ref());
+                    // A named object goes out under its name, as the tools list it.
+                    let mut d = d;
+                    for (object, (_, name)) in d.objects.iter_mut().zip(&matched) {
+                        if let Some(name) = name {
+                            object.label.clone_from(name);
+                        }
+                    }
+                    let ids: Vec<String> = matched.into_iter().map(|(id, _)| id).collect();
                     sender.offer(detections_entry(&instance, &d, &ids));
                 }
                 received = objects.recv() => {
@@ -155,4 +178,62 @@ pub fn start(
             }
         }
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robotd_protocol::objects::DetectedObject;
+    use robotd_protocol::workspace::RenamedObject;
+    use robotd_protocol::Point3;
+
+    fn object(id: &str, label: &str, x: f64, y: f64) -> DetectedObject {
+        let mut o = DetectedObject {
+            id: id.into(),
+            label: label.into(),
+            workspace_id: "niryo_ws".into(),
+            ..Default::default()
+        };
+        o.position.center_of_mass = Point3::new(x, y, 0.01);
+        o.position.center = o.position.center_of_mass;
+        o
+    }
+
+    #[test]
+    fn named_objects_keep_their_id_and_go_out_under_their_name() {
+        let detections = Detections {
+            frame_id: 7,
+            workspace_id: "niryo_ws".into(),
+            source: BUILTIN_SOURCE.into(),
+            objects: vec![
+                object("", "unknown object", 0.25, 0.0),
+                object("", "red cube", 0.28, 0.04),
+                object("", "red cube", 0.20, -0.06),
+            ],
+            ..Default::default()
+        };
+        let tracked = TrackedObjects {
+            workspace_id: "niryo_ws".into(),
+            objects: vec![
+                object("obj-3", "screwdriver", 0.251, 0.001),
+                object("obj-1", "red cube", 0.281, 0.04),
+            ],
+            renamed: vec![RenamedObject {
+                id: "obj-3".into(),
+                detected_as: "unknown object".into(),
+            }],
+            ..Default::default()
+        };
+        let matched = tracked_ids(&detections, Some(&tracked));
+        assert_eq!(
+            matched,
+            vec![
+                ("obj-3".to_owned(), Some("screwdriver".to_owned())),
+                ("obj-1".to_owned(), None),
+                ("f7-2".to_owned(), None),
+            ]
+        );
+        // Without the model's list: frame-local ids, no names.
+        assert_eq!(tracked_ids(&detections, None)[0], ("f7-0".to_owned(), None));
+    }
 }
