@@ -10,6 +10,8 @@
 #   cargo nextest run --workspace + cargo test --workspace --doc  (or cargo test --workspace
 #   when cargo-nextest is not installed; nextest runs every test in its own process, which
 #   keeps iceoryx2 nodes of different tests apart)
+#   the real-photo tests of robotd detect, when the photos are there (REAL_IMAGES_DIR or
+#   ../shared/real_images; they are not part of the repository)
 #   robotd bench soak --minutes 3  (SOAK_MINUTES=N to change, 0 to skip)
 # Tests that need a redis-server start their own on a free port; this script only makes sure
 # the binary is there. CI runs it through .ci/run.
@@ -147,6 +149,14 @@ if cargo nextest --version >/dev/null 2>&1; then
 else
     section "cargo test --workspace (cargo-nextest not installed)"
     cargo test --workspace --no-fail-fast
+fi
+
+# The real photos are not part of the repository: their tests are #[ignore]d and run here
+# when the folder is there (REAL_IMAGES_DIR, or ../shared/real_images beside the checkout).
+PHOTOS="${REAL_IMAGES_DIR:-$ROOT/../shared/real_images}"
+if [ -d "$PHOTOS" ]; then
+    section "robotd detect on the real photos ($PHOTOS)"
+    REAL_IMAGES_DIR="$PHOTOS" cargo test --quiet --test cli_detect -- --ignored
 fi
 
 # The soak: the service under a realistic mix with faults, for SOAK_MINUTES (3 by default;
