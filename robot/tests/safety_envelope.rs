@@ -17,7 +17,8 @@ use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, PathKind};
 use robotd_protocol::geometry::{Pose, PoseDelta, RobotModel};
 use robotd_protocol::safety::{Origin, OriginKind};
 use robotd_runtime::supervision::Supervisor;
-use robotd_safety::{AuditLog, Fence, Safety, SafetyConfig};
+use robotd_safety::config::KeepOutBox;
+use robotd_safety::{AuditLog, BodyDepth, Fence, Safety, SafetyConfig};
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
@@ -178,9 +179,9 @@ fn grown(fence: &Fence, by: f64) -> Fence {
     wide
 }
 
-/// Every tool position of `motion` from `start`, the driver's way (joint interpolation),
+/// Every joint position of `motion` from `start`, the driver's way (joint interpolation),
 /// sampled every 0.004 rad of the fastest joint.
-fn tool_positions(kin: &Kinematics, start: &[f64], motion: &Motion) -> Vec<nalgebra::Vector3<f64>> {
+fn joint_samples(start: &[f64], motion: &Motion) -> Vec<Vec<f64>> {
     let targets: Vec<Vec<f64>> = match motion {
         Motion::Joints(q) => vec![q.clone()],
         Motion::JointPath(path) => path.clone(),
@@ -197,7 +198,7 @@ fn tool_positions(kin: &Kinematics, start: &[f64], motion: &Motion) -> Vec<nalge
         for i in 0..=n {
             let t = i as f64 / n as f64;
             let q: Vec<f64> = from.iter().zip(&to).map(|(a, b)| a + (b - a) * t).collect();
-            out.push(kin.tool_pose(&q).unwrap().translation.vector);
+            out.push(q);
         }
         from = to;
     }
@@ -230,9 +231,16 @@ async fn random_motions_from_every_origin_never_leave_the_envelope() {
         inner: sim.drivers.arm.clone(),
         executed: Mutex::default(),
     });
+    // A mast beside the base, over the way to the workspace's left side: the tool centre
+    // never goes there (it is outside the fence), the elbow and forearm would.
     let config = SafetyConfig {
         motions_per_minute: 0,
         llm_motions_per_minute: 0,
+        keep_out: vec![KeepOutBox {
+            name: "mast".into(),
+            min: [0.07, 0.07, 0.20],
+            max: [0.11, 0.11, 0.50],
+        }],
         ..SafetyConfig::default()
     };
     let control = MotionControl::default();
@@ -305,18 +313,25 @@ async fn random_motions_from_every_origin_never_leave_the_envelope() {
     }
     let executed = recording.executed.lock().unwrap().clone();
     let mut outside = Vec::new();
+    let mut link_samples = 0;
     for (start, motion, scale) in &executed {
         assert!(*scale > 0.0 && *scale <= 1.0, "speed scale {scale}");
-        for p in tool_positions(&kinematics, start, motion) {
-            if let Err(v) = tolerance.check(&p) {
+        for q in joint_samples(start, motion) {
+            let p = kinematics.tool_pose(&q).unwrap().translation.vector;
+            let body = kinematics.body(&q).unwrap();
+            if let Err(v) = tolerance
+                .check(&p)
+                .and_then(|()| tolerance.check_body(&body, BodyDepth::default()))
+            {
                 outside.push(v.reason);
                 break;
             }
+            link_samples += body.len();
         }
     }
     let total = per_origin * OriginKind::ALL.len();
     eprintln!(
-        "{total} commands, {} reached the driver; outcomes: {outcomes:?}",
+        "{total} commands, {} reached the driver ({link_samples} link boxes checked); outcomes: {outcomes:?}",
         executed.len()
     );
     assert_eq!(
@@ -334,7 +349,12 @@ async fn random_motions_from_every_origin_never_leave_the_envelope() {
         "too few motions ran: {}",
         executed.len()
     );
-    for limit in ["refused: fence", "refused: floor", "refused: joint_limit"] {
+    for limit in [
+        "refused: fence",
+        "refused: floor",
+        "refused: joint_limit",
+        "refused: keep_out",
+    ] {
         assert!(
             outcomes.get(limit).copied().unwrap_or(0) > 0,
             "no '{limit}' in {outcomes:?}"

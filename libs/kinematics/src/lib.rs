@@ -26,6 +26,9 @@
 use k::prelude::*;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use robotd_protocol::geometry::Pose;
+mod body;
+
+pub use body::BodyBox;
 pub use robotd_protocol::geometry::RobotModel;
 use std::sync::{Arc, Mutex};
 
@@ -116,6 +119,8 @@ pub struct Kinematics {
     chain: Arc<Mutex<Chains>>,
     limits: Vec<JointLimit>,
     cartesian: CartesianLimits,
+    /// The links' shapes, for [`Kinematics::body`].
+    body: Arc<Vec<body::LinkShape>>,
 }
 
 struct Chains {
@@ -198,6 +203,7 @@ impl Kinematics {
             })),
             limits,
             cartesian,
+            body: Arc::new(body::link_shapes(&robot, tcp_link)),
         }
     }
 

@@ -14,17 +14,19 @@ pub struct SafetyConfig {
     /// How far the tool centre may leave the workspaces' rectangles, metres (0 … 0.2).
     #[serde(default = "SafetyConfig::fence_margin_m")]
     pub fence_margin_m: f64,
-    /// Lowest tool-centre height, metres: the table top (−0.1 … 0.2).
+    /// Lowest height of the tool centre and of every lifted link, metres: the table top
+    /// (−0.1 … 0.2).
     #[serde(default)]
     pub floor_z_m: f64,
-    /// Highest tool-centre height, metres (0.05 … 1.5).
+    /// Highest height of the tool centre and of every link, metres (0.05 … 1.5).
     #[serde(default = "SafetyConfig::ceiling_z_m")]
     pub ceiling_z_m: f64,
     /// Farthest the tool centre may be from the base axis, metres (0.1 … 1.5); 0 = the
     /// robot model's own reach.
     #[serde(default)]
     pub max_reach_m: f64,
-    /// Boxes the tool centre must never enter (a fixture, a person's side of the table).
+    /// Boxes neither the tool centre nor any link may enter (a fixture, a person's side of
+    /// the table).
     #[serde(default)]
     pub keep_out: Vec<KeepOutBox>,
     /// Joint targets must stay this far inside each joint's limits, radians (0 … 0.5).
@@ -170,7 +172,8 @@ impl SafetyConfig {
         0.03
     }
     fn ceiling_z_m() -> f64 {
-        0.45
+        // Above the Ned2's elbow at its highest observation pose (0.450 m at `gazebo_1`).
+        0.55
     }
     fn joint_margin_rad() -> f64 {
         0.01

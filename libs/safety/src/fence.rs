@@ -8,6 +8,7 @@
 
 use crate::config::{KeepOutBox, SafetyConfig};
 use nalgebra::Vector3;
+use robotd_kinematics::BodyBox;
 use std::fmt;
 
 /// Which limit a point or motion broke, for refusals and the audit log.
@@ -132,6 +133,73 @@ impl Fence {
     }
 }
 
+/// How far a body is past the floor and the ceiling, metres (0 when inside).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BodyDepth {
+    /// Depth of the lowest lifted box below the floor.
+    pub below_floor_m: f64,
+    /// Height of the highest lifted box above the ceiling.
+    pub above_ceiling_m: f64,
+}
+
+impl Fence {
+    /// How far `body`'s lifted links (those moved by more than the base's vertical axis) are
+    /// past the floor and the ceiling.
+    pub fn body_depth(&self, body: &[BodyBox]) -> BodyDepth {
+        let mut depth = BodyDepth::default();
+        for part in body.iter().filter(|b| b.joints_from_base >= 2) {
+            let (low, high) = part.z_range();
+            depth.below_floor_m = depth.below_floor_m.max(self.min.z - low);
+            depth.above_ceiling_m = depth.above_ceiling_m.max(high - self.max.z);
+        }
+        depth
+    }
+
+    /// `Ok` when every link of `body` is inside the fence: lifted links above the floor and
+    /// below the ceiling by more than `allowed` (an arm already past a limit may move as
+    /// long as it goes no deeper), no moving link in a keep-out box.
+    pub fn check_body(&self, body: &[BodyBox], allowed: BodyDepth) -> Result<(), Violation> {
+        const EPSILON_M: f64 = 1e-6;
+        for part in body.iter().filter(|b| b.joints_from_base >= 2) {
+            let (low, high) = part.z_range();
+            if self.min.z - low > allowed.below_floor_m.max(0.0) + EPSILON_M {
+                return Err(Violation {
+                    limit: "floor",
+                    reason: format!(
+                        "the arm's {} would go down to z {low:.3} m, below the table floor {:.3} m",
+                        part.link, self.min.z
+                    ),
+                });
+            }
+            if high - self.max.z > allowed.above_ceiling_m.max(0.0) + EPSILON_M {
+                return Err(Violation {
+                    limit: "ceiling",
+                    reason: format!(
+                        "the arm's {} would go up to z {high:.3} m, above the ceiling {:.3} m",
+                        part.link, self.max.z
+                    ),
+                });
+            }
+        }
+        for part in body.iter().filter(|b| b.joints_from_base >= 1) {
+            for keep_out in &self.keep_out {
+                let (min, max) = (Vector3::from(keep_out.min), Vector3::from(keep_out.max));
+                if part.overlaps_aligned_box(&min, &max) {
+                    let c = part.pose.translation.vector;
+                    return Err(Violation {
+                        limit: "keep_out",
+                        reason: format!(
+                            "the arm's {} would enter the keep-out box '{}' (the link's centre at ({:.3}, {:.3}, {:.3}) m)",
+                            part.link, keep_out.name, c.x, c.y, c.z
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -163,7 +231,7 @@ mod tests {
             "fence"
         );
         assert_eq!(
-            f.check(&Vector3::new(0.25, 0.0, 0.5)).unwrap_err().limit,
+            f.check(&Vector3::new(0.25, 0.0, 0.6)).unwrap_err().limit,
             "ceiling"
         );
         assert_eq!(

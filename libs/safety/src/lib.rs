@@ -55,9 +55,9 @@ pub mod testing;
 
 pub use approval::{ApprovalRequest, Approvals, NotApproved};
 pub use audit::{AuditConfig, AuditError, AuditKey, AuditLog};
-pub use config::{SafetyConfig, SafetyMode};
+pub use config::{KeepOutBox, SafetyConfig, SafetyMode};
 pub use control::{Motion, MotionControl, Stopped};
-pub use fence::{Fence, Violation};
+pub use fence::{BodyDepth, Fence, Violation};
 pub use path::{Caps, MotionCheck};
 pub use permit::{
     ArmMotion, Calibration, ClearCollision, Close, GripperAct, Open, Permit, SetWidth,

@@ -3,7 +3,10 @@
 //! The arm actor plans every motion as joint positions (one target, or dense waypoints for a
 //! straight tool path). This module follows the tool centre through that plan — joint
 //! targets sampled every [`SAMPLE_STEP_RAD`] of the fastest-moving joint — and checks every
-//! sample against the [`Fence`], and every joint target against its limits minus the margin.
+//! sample against the [`Fence`]: the tool centre point against the whole fence, and the box
+//! of every link (elbow, forearm, wrist, gripper housing, camera) against the floor, the
+//! ceiling and the keep-out boxes ([`Fence::check_body`]). Every joint target is checked
+//! against its limits minus the margin.
 //! So approach, push and retreat points are checked wherever they come from, not just a
 //! skill's target.
 //!
@@ -12,7 +15,7 @@
 //! keeps both under the caps.
 
 use crate::control::{nominal_travel_time_s, Motion};
-use crate::fence::{Fence, Violation};
+use crate::fence::{BodyDepth, Fence, Violation};
 use nalgebra::Vector3;
 use robotd_kinematics::Kinematics;
 
@@ -80,9 +83,17 @@ pub fn check_motion(
                 reason: format!("the tool position of a planned joint target is unknown: {e}"),
             })
     };
+    let body = |q: &[f64]| {
+        kinematics.body(q).map_err(|e| Violation {
+            limit: "kinematics",
+            reason: format!("the arm's links for a planned joint target are unknown: {e}"),
+        })
+    };
     let start_tcp = tcp(start)?;
     let start_outside = fence.check(&start_tcp).is_err();
     let start_distance = distance_outside(fence, &start_tcp);
+    // An arm whose links are already past the floor or the ceiling may not go deeper.
+    let start_depth: BodyDepth = fence.body_depth(&body(start)?);
     let allowed = |p: &Vector3<f64>| -> Result<(), Violation> {
         match fence.check(p) {
             Ok(()) => Ok(()),
@@ -97,9 +108,15 @@ pub fn check_motion(
             Err(v) => Err(v),
         }
     };
+    let allowed_at = |q: &[f64]| -> Result<Vector3<f64>, Violation> {
+        let p = tcp(q)?;
+        allowed(&p)?;
+        fence.check_body(&body(q)?, start_depth)?;
+        Ok(p)
+    };
     // The target first, so a refusal names it rather than the first point on the way there.
     if let Some(target) = targets.last() {
-        allowed(&tcp(target)?)?;
+        allowed_at(target)?;
     }
     let mut samples = 0;
     let (mut peak_speed, mut peak_acceleration) = (0.0_f64, 0.0_f64);
@@ -120,11 +137,10 @@ pub fn check_motion(
                 .zip(target)
                 .map(|(a, b)| a + (b - a) * t)
                 .collect();
-            let p = tcp(&q)?;
+            let p = allowed_at(&q)?;
             samples += 1;
             length += (p - previous).norm();
             previous = p;
-            allowed(&p)?;
         }
         let duration = nominal_travel_time_s(&from, target, &velocities);
         if duration > 0.0 {
@@ -285,6 +301,83 @@ mod tests {
         };
         let gentle = check_motion(&kin, &fence, 0.01, &start, &motion, cap).unwrap();
         assert!((gentle.speed_scale - 0.5).abs() < 1e-9, "{gentle:?}");
+    }
+
+    #[test]
+    fn a_link_in_a_keep_out_box_is_refused_where_the_tool_centre_is_not() {
+        let (kin, mut fence, start) = setup();
+        let target = joints_at(&kin, 0.25, 0.05, 0.06);
+        let forearm = kin
+            .body(&target)
+            .unwrap()
+            .into_iter()
+            .find(|b| b.link == "forearm_link")
+            .unwrap();
+        let c = forearm.pose.translation.vector;
+        let tcp = kin.tool_pose(&target).unwrap().translation.vector;
+        assert!(
+            (c - tcp).norm() > 0.1,
+            "the forearm is far from the tool centre"
+        );
+        fence.keep_out.push(crate::config::KeepOutBox {
+            name: "camera mast".into(),
+            min: [c.x - 0.005, c.y - 0.005, c.z - 0.005],
+            max: [c.x + 0.005, c.y + 0.005, c.z + 0.005],
+        });
+        assert!(fence.check(&tcp).is_ok());
+        let v =
+            check_motion(&kin, &fence, 0.01, &start, &Motion::Joints(target), FAST).unwrap_err();
+        assert_eq!(v.limit, "keep_out", "{v}");
+        assert!(
+            v.reason
+                .starts_with("the arm's forearm_link would enter the keep-out box 'camera mast'"),
+            "{v}"
+        );
+    }
+
+    #[test]
+    fn the_gripper_housing_may_not_dip_into_the_table() {
+        // Tool level, 2 cm above the table: the tool centre is fine, the hand and the
+        // gripper housing around it reach below the table.
+        let (kin, fence, start) = setup();
+        let level = Pose::new(0.30, 0.0, 0.02, 0.0, 0.0, 0.0);
+        let target = kin.inverse(&pose_to_isometry(&level), None).unwrap();
+        assert!(fence
+            .check(&kin.tool_pose(&target).unwrap().translation.vector)
+            .is_ok());
+        let v =
+            check_motion(&kin, &fence, 0.01, &start, &Motion::Joints(target), FAST).unwrap_err();
+        assert_eq!(v.limit, "floor", "{v}");
+        assert!(v.reason.starts_with("the arm's "), "{v}");
+        // Pointing down at the same height it is allowed: the fingertips end at the tool
+        // centre.
+        let down = joints_at(&kin, 0.30, 0.0, 0.02);
+        assert!(check_motion(&kin, &fence, 0.01, &start, &Motion::Joints(down), FAST).is_ok());
+    }
+
+    #[test]
+    fn an_arm_with_a_link_past_the_floor_may_only_rise() {
+        let (kin, fence, _) = setup();
+        let low = kin
+            .inverse(
+                &pose_to_isometry(&Pose::new(0.30, 0.0, 0.015, 0.0, 0.0, 0.0)),
+                None,
+            )
+            .unwrap();
+        let lower = kin
+            .inverse(
+                &pose_to_isometry(&Pose::new(0.30, 0.0, 0.005, 0.0, 0.0, 0.0)),
+                None,
+            )
+            .unwrap();
+        let up = joints_at(&kin, 0.25, 0.0, 0.15);
+        assert!(check_motion(&kin, &fence, 0.01, &low, &Motion::Joints(up), FAST).is_ok());
+        assert_eq!(
+            check_motion(&kin, &fence, 0.01, &low, &Motion::Joints(lower), FAST)
+                .unwrap_err()
+                .limit,
+            "floor"
+        );
     }
 
     #[test]
