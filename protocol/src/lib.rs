@@ -72,6 +72,7 @@ pub mod diagnostics;
 pub mod envelope;
 pub mod geometry;
 pub mod gripper;
+pub mod gripper_geometry;
 pub mod health;
 pub mod location;
 pub mod objects;

@@ -83,6 +83,9 @@ pub struct SkillsSettings {
     pub finger_length_m: f64,
     /// How far the palm reaches from the tool centre across the closing axis, metres.
     pub palm_reach_m: f64,
+    /// How far the palm reaches from the tool centre along the closing axis, metres (a bit
+    /// more than the open fingers on both robots).
+    pub palm_half_length_m: f64,
     /// Extra release height when stacking onto another object, whose height the camera
     /// measures to a few millimetres, metres.
     pub stack_height_margin_m: f64,
@@ -106,32 +109,23 @@ pub struct SkillsSettings {
 impl SkillsSettings {
     /// The defaults for `robot` on `workspaces`.
     pub fn new(robot: RobotModel, workspaces: Vec<WorkspaceInfo>) -> Self {
+        // The gripper's sizes are the simulator's too: what the checks accept, it can do.
+        let gripper = robotd_protocol::gripper_geometry::GripperGeometry::for_model(robot);
         Self {
             robot,
             workspaces,
             workspace_margin_m: 0.02,
             pick_radius_m: 0.05,
-            gripper_max_width_m: match robot {
-                RobotModel::Ned2 => 0.040,
-                RobotModel::WidowX250 => 0.044,
-            },
+            gripper_max_width_m: gripper.max_opening_m,
             approach_height_m: 0.06,
             min_tcp_z_m: 0.003,
             release_gap_m: 0.002,
             container_floor_m: 0.004,
-            finger_reach_m: match robot {
-                RobotModel::Ned2 => 0.009,
-                RobotModel::WidowX250 => 0.010,
-            },
-            finger_length_m: match robot {
-                RobotModel::Ned2 => 0.035,
-                RobotModel::WidowX250 => 0.040,
-            },
-            palm_reach_m: match robot {
-                RobotModel::Ned2 => 0.015,
-                RobotModel::WidowX250 => 0.0175,
-            },
-            finger_thickness_m: 0.008,
+            finger_reach_m: gripper.finger_width_m / 2.0,
+            finger_length_m: gripper.finger_length_m,
+            palm_reach_m: gripper.palm_m[2] / 2.0,
+            palm_half_length_m: gripper.palm_m[1] / 2.0,
+            finger_thickness_m: gripper.finger_thickness_m,
             stack_height_margin_m: 0.005,
             marker_keep_out_m: 0.02,
             push_gap_m: 0.010,

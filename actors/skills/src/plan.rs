@@ -85,7 +85,13 @@ fn open_reach(settings: &SkillsSettings) -> f64 {
     settings.gripper_max_width_m / 2.0 + settings.finger_thickness_m
 }
 
-/// The first of `others` whose footprint meets `area` and whose top is above `above_z`.
+/// How close below `above_z` an object's top may come and still count as in the way, metres:
+/// the camera measures heights to a few millimetres, and a finger that touches a top is a
+/// collision.
+const TOP_MARGIN_M: f64 = 0.002;
+
+/// The first of `others` whose footprint meets `area` and whose top reaches `above_z` (within
+/// [`TOP_MARGIN_M`]).
 fn first_in<'a>(
     area: &Rect,
     others: &'a [DetectedObject],
@@ -93,7 +99,23 @@ fn first_in<'a>(
 ) -> Option<&'a DetectedObject> {
     others
         .iter()
-        .find(|o| top_z(o) > above_z + 0.001 && area.overlaps(&Rect::of_object(o)))
+        .find(|o| top_z(o) > above_z - TOP_MARGIN_M && area.overlaps(&Rect::of_object(o)))
+}
+
+/// Gap kept between a grasped object's top and the palm, metres.
+pub(crate) const PALM_CLEARANCE_M: f64 = 0.003;
+
+/// The tool height for grasping `object` with the caller's `z_offset_m` above its centre of
+/// mass: never below the lowest commanded height, and high enough that the palm, on top of
+/// the fingers, clears the object's own top (a tall object is held by its upper part).
+pub(crate) fn grasp_height(
+    settings: &SkillsSettings,
+    object: &DetectedObject,
+    z_offset_m: f64,
+) -> f64 {
+    let wanted = object.position.center_of_mass.z_m + z_offset_m;
+    let palm_clear = top_z(object) - settings.finger_length_m + PALM_CLEARANCE_M;
+    wanted.max(palm_clear).max(settings.min_tcp_z_m)
 }
 
 /// The gripper yaw for grasping `object` at tool height `grasp_z` among `others` (the object
@@ -119,9 +141,20 @@ pub(crate) fn grasp_yaw(
     let mut blocker = None;
     for yaw in yaws {
         let sweep = finger_sweep(object.xy(), yaw, reach, settings.finger_reach_m);
+        // The palm, on top of the fingers, is wider than they are: taller neighbours must
+        // clear it too.
+        let palm = finger_sweep(
+            object.xy(),
+            yaw,
+            settings.palm_half_length_m,
+            settings.palm_reach_m,
+        );
+        let palm_z = grasp_z + settings.finger_length_m;
         let mut room = None;
         for gap in CLEARANCE_STEPS_M {
-            match first_in(&sweep.grown(gap), &neighbours, grasp_z) {
+            let hit = first_in(&sweep.grown(gap), &neighbours, grasp_z)
+                .or_else(|| first_in(&palm.grown(gap), &neighbours, palm_z));
+            match hit {
                 None => room = Some(gap),
                 Some(o) => {
                     if gap == 0.0 && blocker.is_none() {
@@ -480,6 +513,9 @@ pub(crate) fn place_target(
     )))
 }
 
+#[cfg(test)]
+#[path = "plan/against_sim.rs"]
+mod against_sim;
 #[cfg(test)]
 #[path = "plan/tests.rs"]
 mod tests;

@@ -529,8 +529,7 @@ impl Runner {
             });
         }
         let xy = object_xy(&object);
-        let grasp_z =
-            (object.position.center_of_mass.z_m + z_offset_m).max(self.settings.min_tcp_z_m);
+        let grasp_z = plan::grasp_height(&self.settings, &object, z_offset_m);
         let yaw = plan::grasp_yaw(&self.settings, &object, &objects, grasp_z)?;
         let base_z = (object.position.center_of_mass.z_m * 2.0 - top_z(&object)).max(0.0);
         let held = HeldPlan {

@@ -9,11 +9,9 @@ use robotd_protocol::geometry::RobotModel;
 
 /// The gripper's largest opening between the fingers, metres: 40 mm for the Ned2's standard
 /// gripper, 44 mm for the WidowX 250 s.
+/// (`robotd_protocol::gripper_geometry`, where the fingers' and palm's sizes are too).
 pub fn gripper_max_width(model: RobotModel) -> f64 {
-    match model {
-        RobotModel::Ned2 => 0.040,
-        RobotModel::WidowX250 => 0.044,
-    }
+    robotd_protocol::gripper_geometry::GripperGeometry::for_model(model).max_opening_m
 }
 
 /// The Niryo Ned2 wrist camera: 640×480, fx 508.069, fy 506.445, cx 332.821, cy 242.984,

@@ -6,53 +6,19 @@
 //! the fingers.
 
 use nalgebra::{Isometry3, Translation3, Vector3};
-use robotd_protocol::geometry::RobotModel;
 
-/// Sizes of a two-finger parallel gripper, metres.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GripperGeometry {
-    /// Largest distance between the fingers' inner faces.
-    pub max_opening_m: f64,
-    /// Finger thickness along the closing axis (TCP y).
-    pub finger_thickness_m: f64,
-    /// Finger width across the closing axis (TCP z).
-    pub finger_width_m: f64,
-    /// Finger length along the tool axis (TCP x).
-    pub finger_length_m: f64,
-    /// Palm box: `[along the tool axis (x), along the closing axis (y), across (z)]`.
-    pub palm_m: [f64; 3],
-}
+pub use robotd_protocol::gripper_geometry::GripperGeometry;
 
-impl GripperGeometry {
-    /// The gripper of `model`.
-    ///
-    /// - Ned2 ("Gripper 1"): 0.040 m maximum opening (docs/robot-models.md), fingers 8 × 18 × 35 mm, palm
-    ///   30 × 60 × 30 mm.
-    /// - WidowX 250: each finger's prismatic joint runs 0.015 … 0.037 m from the centre and the
-    ///   fingers touch at 0.015, so the opening between the pads is 2 × (joint − 0.015) =
-    ///   0 … 0.044 m; fingers 8 × 20 × 40 mm, palm 30 × 70 × 35 mm (approximate).
-    pub fn for_model(model: RobotModel) -> Self {
-        match model {
-            RobotModel::Ned2 => Self {
-                max_opening_m: 0.040,
-                finger_thickness_m: 0.008,
-                finger_width_m: 0.018,
-                finger_length_m: 0.035,
-                palm_m: [0.030, 0.060, 0.030],
-            },
-            RobotModel::WidowX250 => Self {
-                max_opening_m: 0.044,
-                finger_thickness_m: 0.008,
-                finger_width_m: 0.020,
-                finger_length_m: 0.040,
-                palm_m: [0.030, 0.070, 0.035],
-            },
-        }
-    }
-
+/// The gripper's solid boxes for a [`GripperGeometry`] (whose numbers live in
+/// `robotd_protocol`, shared with the skills' planner).
+pub trait GripperBoxes {
     /// The three solid boxes of the gripper with the TCP at `tcp` and the fingers `opening_m`
     /// apart: left finger (+y), right finger (−y), palm.
-    pub fn boxes(&self, tcp: &Isometry3<f64>, opening_m: f64) -> [GripperBox; 3] {
+    fn boxes(&self, tcp: &Isometry3<f64>, opening_m: f64) -> [GripperBox; 3];
+}
+
+impl GripperBoxes for GripperGeometry {
+    fn boxes(&self, tcp: &Isometry3<f64>, opening_m: f64) -> [GripperBox; 3] {
         let l = self.finger_length_m;
         let t = self.finger_thickness_m;
         let half_finger = Vector3::new(l / 2.0, t / 2.0, self.finger_width_m / 2.0);

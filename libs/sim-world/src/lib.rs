@@ -68,7 +68,7 @@ mod gripper;
 mod scene;
 mod world;
 
-pub use gripper::{GripperBox, GripperGeometry};
+pub use gripper::{GripperBox, GripperBoxes, GripperGeometry};
 pub use scene::{
     colour_by_name, Marker, ObjectShape, ObjectSpec, Rgb, Scene, SceneError, WorkspaceSpec,
     COLOURS, CONTAINER_WALL_M, MARKER_RADIUS_M, MARKER_Z_M, MAX_COORD_M, MAX_SIZE_M, MIN_SIZE_M,

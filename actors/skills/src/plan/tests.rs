@@ -87,6 +87,25 @@ fn a_grasp_takes_the_yaw_with_room_and_names_what_blocks_every_yaw() {
 }
 
 #[test]
+fn a_tall_neighbour_beside_the_palm_blocks_a_grasp_the_fingers_would_clear() {
+    // A 12 mm cube and, 11 mm beyond its edge, a tall bottle: the fingers (9 mm each side
+    // across the closing axis) pass it, the palm above them (15 mm each side) does not.
+    let s = settings();
+    let small = object("obj-1", "small cube", 0.25, 0.0, 0.012, 0.012, 0.012);
+    let bottle = object("obj-2", "bottle", 0.271, 0.0, 0.02, 0.02, 0.08);
+    let text = grasp_yaw(&s, &small, &[small.clone(), bottle.clone()], 0.006)
+        .unwrap_err()
+        .to_string();
+    assert!(text.contains("bottle"), "{text}");
+    // A short one at the same place stays below the palm: allowed.
+    let cup = object("obj-3", "cup", 0.271, 0.0, 0.02, 0.02, 0.03);
+    assert_eq!(
+        grasp_yaw(&s, &small, &[small.clone(), cup], 0.006).unwrap(),
+        0.0
+    );
+}
+
+#[test]
 fn a_place_must_be_on_the_sheet_clear_of_objects_and_markers() {
     let s = settings();
     let pencil = object("obj-1", "pencil", 0.0, 0.0, 0.01, 0.115, 0.01);

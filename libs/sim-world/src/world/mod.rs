@@ -34,7 +34,7 @@ pub use grasp::{
 pub use motion::{StepOutcome, SUB_STEP_M};
 
 use crate::geom::Hull;
-use crate::gripper::{GripperBox, GripperGeometry};
+use crate::gripper::{GripperBox, GripperBoxes, GripperGeometry};
 use crate::scene::{
     markers_of, sheet_rects, Marker, ObjectSpec, Scene, SceneError, WorkspaceSpec, MARKER_RADIUS_M,
     OVERLAP_TOLERANCE_M, SHEET_MARGIN_M, SHEET_Z_M,
