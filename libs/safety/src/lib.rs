@@ -204,6 +204,11 @@ impl Safety {
         &self.inner.fence
     }
 
+    /// The kinematics the plan checks follow.
+    pub fn kinematics(&self) -> &Kinematics {
+        &self.inner.kinematics
+    }
+
     /// The arm's stop and e-stop signals, which the policy reads.
     pub fn control(&self) -> &MotionControl {
         &self.inner.control

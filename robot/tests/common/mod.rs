@@ -26,6 +26,8 @@ pub struct Call {
     pub motion_id: u64,
     /// Whether the e-stop was engaged when the call began.
     pub estop_engaged: bool,
+    /// For a motion: the joints it started from and what it was to do.
+    pub motion: Option<(Vec<f64>, robotd_safety::Motion)>,
 }
 
 /// The calls of one robot, shared by its recording drivers.
@@ -34,10 +36,21 @@ pub struct Calls(Arc<Mutex<Vec<Call>>>);
 
 impl Calls {
     fn push<A>(&self, method: &'static str, permit: &Permit<A>, control: &MotionControl) {
+        self.push_motion(method, permit, control, None);
+    }
+
+    fn push_motion<A>(
+        &self,
+        method: &'static str,
+        permit: &Permit<A>,
+        control: &MotionControl,
+        motion: Option<(Vec<f64>, robotd_safety::Motion)>,
+    ) {
         self.0.lock().unwrap().push(Call {
             method,
             motion_id: permit.motion_id(),
             estop_engaged: control.estop_engaged(),
+            motion,
         });
     }
 
@@ -74,7 +87,10 @@ impl ArmDriver for RecordingArm {
         permit: Permit<ArmMotion>,
         control: &'a MotionControl,
     ) -> DriverFuture<'a, ()> {
-        self.calls.push("execute", &permit, &self.control);
+        let start = self.inner.joints().ok();
+        let motion = start.map(|start| (start, permit.act().motion.clone()));
+        self.calls
+            .push_motion("execute", &permit, &self.control, motion);
         self.inner.execute(permit, control)
     }
     fn calibrate(&self, permit: Permit<Calibration>) -> DriverFuture<'_, ()> {
