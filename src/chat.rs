@@ -202,6 +202,15 @@ fn show(event: &AgentEventKind) {
             }
             print_out(&format!("← {}\n", shown.replace('\n', "\n  ")));
         }
+        AgentEventKind::Picture {
+            name,
+            mime_type,
+            data_base64,
+            ..
+        } => print_out(&format!(
+            "  ({name} returned a picture: {mime_type}, {} kB)\n",
+            data_base64.len() * 3 / 4 / 1000
+        )),
         AgentEventKind::Answer { text } => print_out(&format!("Answer: {text}\n")),
         AgentEventKind::Error { message } => eprintln!("robotd chat: error: {message}"),
         AgentEventKind::Cancelled => eprintln!("robotd chat: cancelled"),

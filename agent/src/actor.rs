@@ -40,7 +40,8 @@ use tokio_util::sync::CancellationToken;
 
 pub use robotd_runtime::catalog::{AGENT_CANCEL, AGENT_EVENTS, AGENT_REQUEST};
 
-/// Longest text an event carries (tool results can be long; the bus slice is 64 KiB).
+/// Longest text an event carries (tool results can be long; a picture event is bounded by
+/// `MAX_PICTURE_BYTES`, and the bus slice is 256 KiB).
 const MAX_EVENT_TEXT: usize = 16 * 1024;
 
 /// The running actor; dropping it stops it.
@@ -90,6 +91,8 @@ fn clipped(event: AgentEventKind) -> AgentEventKind {
             text: clip(text),
             ok,
         },
+        // Bounded where it is made (`MAX_PICTURE_BYTES`); the topic takes 256 KiB.
+        picture @ AgentEventKind::Picture { .. } => picture,
         AgentEventKind::Answer { text } => AgentEventKind::Answer { text: clip(text) },
         AgentEventKind::Error { message } => AgentEventKind::Error {
             message: clip(message),

@@ -7,8 +7,9 @@
 //!   ([`AgentEventKind::Plan`]) — in the same LLM call as the first tool calls, with no extra
 //!   planning round;
 //! - the tool calls run one at a time, in order, each reported as
-//!   [`AgentEventKind::ToolCall`] and [`AgentEventKind::ToolResult`]; the results go back to
-//!   the model;
+//!   [`AgentEventKind::ToolCall`] and [`AgentEventKind::ToolResult`] (and an
+//!   [`AgentEventKind::Picture`] per picture a tool returned, for the user to see); the
+//!   results go back to the model;
 //! - a reply with no tool calls is the [`AgentEventKind::Answer`] — unless it is a tool call
 //!   written as text (`pick_place_object(...)`, a JSON object naming a tool), which gets a
 //!   recovery nudge asking for real function calling.
@@ -398,6 +399,16 @@ impl Agent {
                     text: result.text.clone(),
                     ok: result.ok,
                 });
+                // The user sees every picture a tool returned, whether or not the model does.
+                let shown = self.takes_images();
+                for image in &result.images {
+                    match crate::vision::picture_event(&call.id, &call.name, image, shown) {
+                        Ok(event) => on_event(event),
+                        Err(error) => {
+                            tracing::warn!(tool = %call.name, %error, "a picture not passed on")
+                        }
+                    }
+                }
                 self.memory.push(Message::Tool {
                     call_id: call.id.clone(),
                     name: call.name.clone(),

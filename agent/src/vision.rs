@@ -9,6 +9,12 @@
 //! `gemma3`, `minicpm-v`, `moondream`, and any name with `vision` or `-vl`). A text-only model
 //! gets the tool's text item alone, which lists the same ids, labels and positions.
 //!
+//! Whatever the model is sent, the user is shown every picture: [`picture_event`] makes the
+//! [`AgentEventKind::Picture`] that follows the call's result (the dashboard's chat shows it),
+//! after checking it is a JPEG or PNG of at most
+//! [`MAX_PICTURE_BYTES`](robotd_protocol::agent::MAX_PICTURE_BYTES) — a picture from another
+//! MCP server is data from outside.
+//!
 //! A picture travels as a user message after the tool results of its round
 //! ([`crate::llm::Message::Picture`]): OpenAI-style servers get an `image_url` part with a
 //! `data:` URL, Ollama an `images` entry. History keeps few of them (see [`crate::memory`]):
@@ -25,6 +31,8 @@
 //! ```
 
 use crate::providers::Provider;
+use robotd_protocol::agent::{validate_picture, AgentEventKind};
+use robotd_protocol::validate::ValidationError;
 
 /// Whether the model is sent pictures (`agent.images`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -114,9 +122,64 @@ impl ImagePart {
     }
 }
 
+/// The event that shows the user `image`, which call `call_id` of tool `name` returned;
+/// `shown_to_model` says whether the model was sent it. Refused unless it is a JPEG or PNG in
+/// standard base64 of at most
+/// [`MAX_PICTURE_BYTES`](robotd_protocol::agent::MAX_PICTURE_BYTES) (see
+/// [`robotd_protocol::agent::validate_picture`]).
+pub fn picture_event(
+    call_id: &str,
+    name: &str,
+    image: &ImagePart,
+    shown_to_model: bool,
+) -> Result<AgentEventKind, ValidationError> {
+    validate_picture(&image.mime_type, &image.data_base64)?;
+    Ok(AgentEventKind::Picture {
+        call_id: call_id.to_owned(),
+        name: name.to_owned(),
+        mime_type: image.mime_type.clone(),
+        data_base64: image.data_base64.clone(),
+        shown_to_model,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_picture_event_carries_the_exact_file_and_refuses_others() {
+        use robotd_protocol::agent::MAX_PICTURE_BYTES;
+        let jpeg = ImagePart {
+            mime_type: "image/jpeg".into(),
+            data_base64: "/9j/4AAQSkZJ".into(),
+        };
+        assert_eq!(
+            picture_event("c1", "get_camera_image", &jpeg, false),
+            Ok(AgentEventKind::Picture {
+                call_id: "c1".into(),
+                name: "get_camera_image".into(),
+                mime_type: "image/jpeg".into(),
+                data_base64: "/9j/4AAQSkZJ".into(),
+                shown_to_model: false,
+            })
+        );
+        let too_big = ImagePart {
+            data_base64: format!("/9j/{}", "A".repeat(MAX_PICTURE_BYTES * 4 / 3 + 4)),
+            ..jpeg.clone()
+        };
+        let svg = ImagePart {
+            mime_type: "image/svg+xml".into(),
+            data_base64: "PHN2Zz4=".into(),
+        };
+        let not_base64 = ImagePart {
+            data_base64: "/9j/<script>".into(),
+            ..jpeg
+        };
+        for image in [too_big, svg, not_base64] {
+            assert!(picture_event("c1", "t", &image, true).is_err(), "{image:?}");
+        }
+    }
 
     #[test]
     fn vision_is_decided_by_setting_then_by_name() {

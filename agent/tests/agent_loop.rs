@@ -131,6 +131,7 @@ async fn plan_and_first_tool_call_come_from_one_llm_call() {
             AgentEventKind::Plan { .. } => "plan",
             AgentEventKind::ToolCall { .. } => "call",
             AgentEventKind::ToolResult { .. } => "result",
+            AgentEventKind::Picture { .. } => "picture",
             AgentEventKind::Answer { .. } => "answer",
             AgentEventKind::Error { .. } => "error",
             AgentEventKind::Cancelled => "cancelled",

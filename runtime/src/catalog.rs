@@ -131,10 +131,11 @@ pub const SKILLS_CANCEL: crate::bus::Topic<robotd_protocol::skills::SkillCancel>
 pub const AGENT_REQUEST: crate::bus::Topic<robotd_protocol::agent::AgentRequest> =
     crate::bus::Topic::new("agent/request", Overflow::back_pressure(16));
 
-/// The agent's plan, tool calls, results and answer per request. Back-pressure: a reader
-/// never misses a tool call or the answer.
+/// The agent's plan, tool calls, results, the pictures it looked at and its answer per
+/// request. Back-pressure: a reader never misses a tool call or the answer. Up to 256 KiB: a
+/// picture event carries a JPEG of up to 160 KiB as base64.
 pub const AGENT_EVENTS: crate::bus::Topic<robotd_protocol::agent::AgentEvent> =
-    crate::bus::Topic::new("agent/events", Overflow::back_pressure(16));
+    crate::bus::Topic::new("agent/events", Overflow::back_pressure(16)).with_max_bytes(256 * 1024);
 
 /// Cancel an agent request (the running motion stops safely). Back-pressure: a cancel is never
 /// dropped.

@@ -10,6 +10,7 @@
 //! | `GET /api/events` | Server-Sent Events: `status` (the snapshot, twice a second), `agent`, `overlay`, `restart` as they happen |
 //! | `POST /api/chat` | `{"text": "…"}` → Server-Sent Events of that request: `request` (`{"request_id"}`) first, then its `agent` events (plan, tool calls and results, answer), closed after the answer, an error or a cancellation; 503 with the reason when no agent runs |
 //! | `POST /api/chat/{id}/cancel` | cancels it between tool calls (a motion under way finishes) |
+//! | `GET /api/chat/pictures/{id}` | a picture the agent looked at (the `url` of a `picture` event), the exact file the tool returned; 404 once it is not among the newest [`crate::pictures::KEPT`] |
 //!
 //! The e-stop and approvals are the safety API's (`/estop`, `/estop/release`, `/approvals`),
 //! on the same port behind the same guard.
@@ -76,6 +77,7 @@ pub fn routes(api: DashboardApi) -> Router {
         .route("/api/events", get(events))
         .route("/api/chat", post(chat))
         .route("/api/chat/{id}/cancel", post(cancel))
+        .route("/api/chat/pictures/{id}", get(picture))
         .with_state(api)
 }
 
@@ -204,10 +206,14 @@ async fn camera_mjpeg(State(api): State<DashboardApi>) -> Response {
         .into_response()
 }
 
+async fn picture(State(api): State<DashboardApi>, Path(id): Path<String>) -> Response {
+    crate::pictures::response(api.live.pictures(), &id)
+}
+
 /// `event` as an SSE event named by its type.
 fn sse_event(event: &LiveEvent) -> Event {
     let name = match event {
-        LiveEvent::Agent(_) => "agent",
+        LiveEvent::Agent(_) | LiveEvent::Picture(_) => "agent",
         LiveEvent::Overlay(_) => "overlay",
         LiveEvent::Restart(_) => "restart",
     };
@@ -326,7 +332,7 @@ fn request_events(
         .event("request")
         .data(json!({"request_id": id}).to_string());
     let mine = Box::pin(live_events(events).filter_map(move |event| {
-        let mine = matches!(&event, LiveEvent::Agent(e) if e.request_id == id);
+        let mine = event.request_id() == Some(id.as_str());
         futures::future::ready(mine.then_some(event))
     }));
     // Up to and including the request's terminal event; the stream (and the response) ends
@@ -336,7 +342,7 @@ fn request_events(
             return None;
         }
         let event = mine.next().await?;
-        let terminal = matches!(&event, LiveEvent::Agent(e) if e.event.is_terminal());
+        let terminal = event.is_terminal();
         Some((Ok::<_, Infallible>(sse_event(&event)), (mine, terminal)))
     });
     let stream = futures::stream::once(async move { Ok(first) }).chain(agent);

@@ -2,7 +2,8 @@
 //!
 //! `robotd serve` serves a page at `/` on its HTTP port: the live camera with the detections
 //! drawn, a top-down map of the workspace (sheet, objects, the tool), the objects table, a chat
-//! with the LLM agent showing its plan and each tool call as they happen, actor health and
+//! with the LLM agent showing its plan, each tool call as it happens and the pictures it
+//! looked at ([`pictures`]), actor health and
 //! restarts, recent speech, and an e-stop button that is always on screen. The page is one
 //! HTML file with its script inline (no build step, nothing fetched from elsewhere), and it is
 //! built only on the [`api`] that scripts can use as well.
@@ -19,6 +20,7 @@ pub mod config;
 pub mod live;
 pub mod overlay_ids;
 mod page;
+pub mod pictures;
 
 pub use api::{AgentLink, DashboardApi};
 pub use config::DashboardConfig;

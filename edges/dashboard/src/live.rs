@@ -16,7 +16,10 @@
 //!   served as JSON by `/api/status` and `/api/objects`;
 //! - a **broadcast** of events (agent events as they happen, overlays, restarts) for
 //!   `/api/events` and `/api/chat`. A viewer that falls behind loses events, never blocks.
+//!   The pictures the agent looked at are kept apart ([`crate::pictures`]): the events carry
+//!   their URL, not their bytes.
 
+use crate::pictures::{PictureEvent, Pictures};
 use bytes::Bytes;
 use robotd_protocol::agent::AgentEvent;
 use robotd_protocol::objects::DetectedObject;
@@ -59,10 +62,30 @@ pub struct CameraJpeg {
 pub enum LiveEvent {
     /// An event of an agent request (plan, tool call, tool result, answer, error, cancelled).
     Agent(AgentEvent),
+    /// A picture a tool returned to the agent, as a URL of [`crate::pictures`] (an `agent`
+    /// event of kind `picture`).
+    #[serde(rename = "agent")]
+    Picture(PictureEvent),
     /// A text shown over the video (`speak`, `set_user_task`, system messages).
     Overlay(Value),
     /// An actor restarted.
     Restart(Value),
+}
+
+impl LiveEvent {
+    /// The agent request this event is about, if it is an agent event.
+    pub fn request_id(&self) -> Option<&str> {
+        match self {
+            LiveEvent::Agent(e) => Some(&e.request_id),
+            LiveEvent::Picture(p) => Some(&p.request_id),
+            LiveEvent::Overlay(_) | LiveEvent::Restart(_) => None,
+        }
+    }
+
+    /// Whether it ends its agent request (answer, error, cancelled).
+    pub fn is_terminal(&self) -> bool {
+        matches!(self, LiveEvent::Agent(e) if e.event.is_terminal())
+    }
 }
 
 /// The snapshot the page polls.
@@ -121,6 +144,7 @@ pub struct Live {
     snapshot: Mutex<Snapshot>,
     rates: Mutex<VecDeque<RateSample>>,
     events: broadcast::Sender<LiveEvent>,
+    pictures: Pictures,
     camera: watch::Sender<Option<CameraJpeg>>,
     /// When a single frame was last asked for (`/api/camera.jpg`).
     frame_asked_at: Mutex<Option<Instant>>,
@@ -153,6 +177,11 @@ impl Live {
     /// Events from now on.
     pub fn events(&self) -> broadcast::Receiver<LiveEvent> {
         self.events.subscribe()
+    }
+
+    /// The pictures the agent looked at (the newest [`crate::pictures::KEPT`]).
+    pub fn pictures(&self) -> &Pictures {
+        &self.pictures
     }
 
     /// The newest camera frame, and changes from now on. Frames are encoded while a receiver
@@ -199,6 +228,7 @@ pub fn start(bus: Bus, camera_fps: f64, jpeg_quality: u8) -> std::io::Result<Arc
         snapshot: Mutex::default(),
         rates: Mutex::default(),
         events,
+        pictures: Pictures::default(),
         camera,
         frame_asked_at: Mutex::new(None),
         stop: AtomicBool::new(false),
@@ -311,7 +341,10 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
             let _ = live.events.send(LiveEvent::Restart(value));
         }
         while let Some(message) = agent.try_recv()? {
-            let _ = live.events.send(LiveEvent::Agent(message.body));
+            // A picture is kept here and goes to the page as a URL.
+            if let Some(event) = live.pictures.to_live(message.body) {
+                let _ = live.events.send(event);
+            }
         }
         if last_free_space.is_none_or(|t| t.elapsed() >= Duration::from_secs(2)) {
             last_free_space = Some(Instant::now());
