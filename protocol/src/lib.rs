@@ -63,6 +63,7 @@
 //! | [`objects`], [`workspace`] | detected objects and the workspace model's queries |
 //! | [`skills`] | pick, place, push and the other robot-control skills |
 //! | [`speech`], [`agent`], [`health`] | TTS and overlays, the LLM agent, supervision and e-stop |
+//! | [`stt`] | speech to text: audio in, transcripts out |
 //! | [`diagnostics`] | bus probes and benchmarks (`robotd doctor`, `robotd bench`) |
 
 pub mod agent;
@@ -80,6 +81,7 @@ pub mod pixels;
 pub mod safety;
 pub mod skills;
 pub mod speech;
+pub mod stt;
 pub mod units;
 pub mod validate;
 pub mod workspace;
@@ -114,6 +116,9 @@ pub const MESSAGE_TYPES: &[(&str, u16)] = &[
     entry::<speech::SpeakRequest>(),
     entry::<speech::SpeechEvent>(),
     entry::<speech::TextOverlay>(),
+    entry::<stt::TranscribeRequest>(),
+    entry::<stt::TranscribeReply>(),
+    entry::<stt::Transcript>(),
     entry::<agent::AgentRequest>(),
     entry::<agent::AgentEvent>(),
     entry::<agent::AgentCancel>(),

@@ -142,6 +142,20 @@ pub const AGENT_EVENTS: crate::bus::Topic<robotd_protocol::agent::AgentEvent> =
 pub const AGENT_CANCEL: crate::bus::Topic<robotd_protocol::agent::AgentCancel> =
     crate::bus::Topic::new("agent/cancel", Overflow::back_pressure(16));
 
+/// Speech to text (the STT actor, a Python actor on the bus: `python -m robotd.stt`): audio
+/// in (16 kHz mono 16-bit PCM, or a WAV/WebM/Ogg file's bytes, at most
+/// `robotd_protocol::stt::MAX_AUDIO_BYTES`), the transcript or what was wrong with the audio
+/// out.
+pub const STT_TRANSCRIBE: Service<
+    robotd_protocol::stt::TranscribeRequest,
+    robotd_protocol::stt::TranscribeReply,
+> = Service::new("stt/transcribe");
+
+/// Every transcript the STT actor made, as it makes it: what the robot heard, for the
+/// dashboard, the agent and recordings. Latest wins: a slow reader never holds up listening.
+pub const STT_TRANSCRIPTS: crate::bus::Topic<robotd_protocol::stt::Transcript> =
+    crate::bus::Topic::new("stt/transcripts", Overflow::latest_wins(16));
+
 /// Every entry above, in order: what `robotd catalog` prints and what an actor in another
 /// language declares (see [`crate::bus::describe`]).
 pub fn entries() -> Vec<Entry> {
@@ -172,6 +186,8 @@ pub fn entries() -> Vec<Entry> {
         AGENT_REQUEST.describe(),
         AGENT_EVENTS.describe(),
         AGENT_CANCEL.describe(),
+        STT_TRANSCRIBE.describe(),
+        STT_TRANSCRIPTS.describe(),
     ]
 }
 

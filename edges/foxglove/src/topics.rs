@@ -131,6 +131,7 @@ pub fn all() -> Vec<Box<dyn JsonTopic>> {
         typed(catalog::AGENT_EVENTS),
         typed(catalog::AGENT_CANCEL),
         typed(catalog::HEALTH_RESTARTS),
+        typed(catalog::STT_TRANSCRIPTS),
     ]
 }
 
@@ -147,7 +148,7 @@ mod tests {
     /// Catalogue entries deliberately not under `/bus/…`, with the reason. Anything else in the
     /// catalogue must be in [`all`]: a topic added there fails this test until the bridge
     /// knows it (or it is listed here with a reason).
-    const NOT_BRIDGED: [(&str, &str); 10] = [
+    const NOT_BRIDGED: [(&str, &str); 11] = [
         (
             "camera/frames",
             "frames in shared memory: their own channels, /camera (JPEG) and /camera/meta",
@@ -182,6 +183,10 @@ mod tests {
             "safety/release",
             "service: releasing the e-stop is a person's deliberate act, never replayed; the \
              result is on safety/estop",
+        ),
+        (
+            "stt/transcribe",
+            "service: audio in, and what was heard is on stt/transcripts",
         ),
     ];
 
@@ -478,6 +483,25 @@ mod tests {
                     backoff_ms: 100,
                     safe_state_ok: true,
                     budget_exhausted: false,
+                })
+                .unwrap()],
+            ),
+            (
+                "stt/transcripts",
+                vec![v(robotd_protocol::stt::Transcript {
+                    text: "Pick up the pencil.".into(),
+                    language: "en".into(),
+                    segments: vec![robotd_protocol::stt::Segment {
+                        start_s: 0.0,
+                        end_s: 1.5,
+                        text: "Pick up the pencil.".into(),
+                        confidence: 0.8,
+                    }],
+                    confidence: 0.8,
+                    audio_s: 1.6,
+                    processing_s: 0.4,
+                    model: "tiny.en".into(),
+                    source: "dashboard".into(),
                 })
                 .unwrap()],
             ),

@@ -93,3 +93,120 @@ class PixelDetections:
             "source": self.source,
             "objects": [o.to_dict() for o in self.objects],
         }
+
+
+# -- speech to text (``stt/transcribe``, ``stt/transcripts``; protocol/src/stt.rs) -----------
+
+#: Largest audio one ``stt.transcribe`` request may carry, bytes (``MAX_AUDIO_BYTES``).
+MAX_AUDIO_BYTES = 1_000_000
+#: The only sample rate raw PCM is accepted at, Hz (``PCM_SAMPLE_RATE_HZ``).
+PCM_SAMPLE_RATE_HZ = 16_000
+
+
+@dataclass
+class TranscribeRequest:
+    """``stt/transcribe`` request (``stt.transcribe`` v1): raw 16 kHz mono 16-bit PCM
+    (``format="pcm_s16le"``) or a WAV/WebM/Ogg file's bytes (``format="file"``)."""
+
+    audio: bytes
+    format: str = "file"
+    sample_rate_hz: int = 0
+    source: str = "python"
+
+    def to_dict(self) -> dict:
+        return {
+            "audio": bytes(self.audio),
+            "format": self.format,
+            "sample_rate_hz": int(self.sample_rate_hz),
+            "source": self.source,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TranscribeRequest":
+        return cls(
+            audio=d["audio"],
+            format=d["format"],
+            sample_rate_hz=int(d["sample_rate_hz"]),
+            source=d["source"],
+        )
+
+
+@dataclass
+class Segment:
+    """One stretch of speech of a :class:`Transcript` (seconds from the audio's start)."""
+
+    start_s: float
+    end_s: float
+    text: str
+    confidence: float
+
+    def to_dict(self) -> dict:
+        return {
+            "start_s": float(self.start_s),
+            "end_s": float(self.end_s),
+            "text": self.text,
+            "confidence": float(self.confidence),
+        }
+
+
+@dataclass
+class Transcript:
+    """``stt/transcripts`` (``stt.transcript`` v1), and the body of a transcribe reply."""
+
+    text: str
+    language: str
+    segments: List[Segment]
+    confidence: float
+    audio_s: float
+    processing_s: float
+    model: str
+    source: str
+
+    def to_dict(self) -> dict:
+        return {
+            "text": self.text,
+            "language": self.language,
+            "segments": [s.to_dict() for s in self.segments],
+            "confidence": float(self.confidence),
+            "audio_s": float(self.audio_s),
+            "processing_s": float(self.processing_s),
+            "model": self.model,
+            "source": self.source,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Transcript":
+        return cls(
+            text=d["text"],
+            language=d["language"],
+            segments=[Segment(**s) for s in d["segments"]],
+            confidence=float(d["confidence"]),
+            audio_s=float(d["audio_s"]),
+            processing_s=float(d["processing_s"]),
+            model=d["model"],
+            source=d["source"],
+        )
+
+
+#: The kinds of :class:`SttError` (``SttErrorKind``).
+STT_ERROR_KINDS = ("empty", "too_large", "too_long", "not_audio", "wrong_sample_rate", "failed")
+
+
+@dataclass
+class SttError(Exception):
+    """Why audio was not transcribed (``SttError``): ``kind`` of :data:`STT_ERROR_KINDS`."""
+
+    kind: str
+    message: str
+
+    def __str__(self) -> str:
+        return self.message
+
+    def reply(self) -> dict:
+        """The ``stt.reply`` body saying so."""
+        return {"kind": "error", "error": {"kind": self.kind, "message": self.message}}
+
+
+def transcript_reply(transcript: Transcript) -> dict:
+    """The ``stt.reply`` body carrying ``transcript``."""
+    return {"kind": "transcript", "transcript": transcript.to_dict()}
