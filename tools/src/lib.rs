@@ -32,11 +32,13 @@
 //!   problem listed in the contract's validation error text.
 //! - [`schema`]: the JSON Schemas derived from those types, and shared schema pieces.
 //! - [`definitions`]: the tools as clients see them (`tools/list`).
+//! - [`limits`]: every string argument's `maxLength`, and the check of it.
 //! - `skill`, `view`: what the tools share to ask the skills actor and the workspace model.
 
 pub mod args;
 mod camera;
 pub mod definitions;
+pub mod limits;
 pub mod picture;
 pub mod schema;
 mod skill;
@@ -71,6 +73,9 @@ pub const ARGUMENTS_NOT_AN_OBJECT: &str = "(arguments)";
 /// Only `emergency_stop`: a request to stop is never refused.
 pub const ALWAYS_ACTS: &[&str] = &["emergency_stop"];
 
+/// The workspace model's label limit by default (`workspace.max_label_chars`).
+pub const DEFAULT_MAX_LABEL_CHARS: usize = 100;
+
 /// Extra status for `get_system_status` (actor health, restarts, e-stop), as JSON.
 pub type StatusSource = Arc<dyn Fn() -> serde_json::Value + Send + Sync>;
 
@@ -92,6 +97,9 @@ pub struct ToolSettings {
     /// Largest JPEG `get_camera_image` returns, bytes: a bigger picture is re-encoded at a
     /// lower quality, then made smaller, until it fits.
     pub image_max_bytes: usize,
+    /// Longest label, characters (`workspace.max_label_chars`): the `maxLength` of the
+    /// arguments that name an object ([`limits::LABEL_FIELDS`]).
+    pub max_label_chars: usize,
 }
 
 impl std::fmt::Debug for ToolSettings {
@@ -114,6 +122,7 @@ impl ToolSettings {
             query_timeout: Duration::from_secs(20),
             query_clients: 8,
             image_max_bytes: picture::DEFAULT_MAX_BYTES,
+            max_label_chars: DEFAULT_MAX_LABEL_CHARS,
         }
     }
 }
@@ -330,9 +339,13 @@ impl Registry {
         // Run ids unique across processes sharing the skills actor.
         let run_base = (u64::from(std::process::id()) << 40)
             ^ (robotd_protocol::envelope::unix_now_ns() & 0xFF_FFFF_0000);
+        let mut tools = definitions::all();
+        for tool in &mut tools {
+            limits::apply_label_limit(&mut tool.input_schema, settings.max_label_chars);
+        }
         Ok(Self {
             inner: Arc::new(Inner {
-                tools: definitions::all(),
+                tools,
                 queries,
                 next_query: AtomicUsize::new(0),
                 skills: bus.client(&catalog::SKILLS_RUN)?,
@@ -380,8 +393,15 @@ impl Registry {
             name: name.to_owned(),
         })?;
         let args = arguments.unwrap_or_default();
+        // Strings over their schema's maxLength; a request to stop acts whatever it is sent.
+        let too_long = match self.tool(name) {
+            Some(info) if !ALWAYS_ACTS.contains(&name) => {
+                limits::too_long(&info.input_schema, &args)
+            }
+            _ => Vec::new(),
+        };
         let started = std::time::Instant::now();
-        let output = (tool.call)(self, &args, hooks).await;
+        let output = (tool.call)(self, &args, hooks, too_long).await;
         timings::record(name, started.elapsed(), !output.is_failure);
         Ok(output)
     }

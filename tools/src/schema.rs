@@ -7,6 +7,9 @@
 //!   null>}`, the shape of every tool's `structuredContent`.
 //! - The word schemas (`location`, `direction`, `point`) list the accepted words of the
 //!   protocol's enums; the argument structs attach them with `#[schemars(schema_with = …)]`.
+//! - Every string argument has a `maxLength` (the argument structs say it with
+//!   `#[schemars(length(max = …))]`, the word schemas [`MAX_WORD_CHARS`]); `crate::limits`
+//!   checks it.
 //! - [`ObjectJson`] describes the object JSON of the contract: robotd's
 //!   [`DetectedObject`](robotd_protocol::objects::DetectedObject) has no schema of its own, so
 //!   fields holding one borrow this one (`#[schemars(with = "ObjectJson")]`); a test proves
@@ -66,8 +69,12 @@ pub fn output_schema<T: JsonSchema>() -> Map<String, Value> {
     }
 }
 
+/// Longest string a word argument takes: its longest word and some room for the surrounding
+/// whitespace robotd ignores.
+pub const MAX_WORD_CHARS: usize = 32;
+
 fn words_schema(words: &[&str], description: &str) -> Schema {
-    let v = json!({"type": "string", "enum": words, "description": description});
+    let v = json!({"type": "string", "enum": words, "maxLength": MAX_WORD_CHARS, "description": description});
     Schema::try_from(v).unwrap_or_default()
 }
 
@@ -75,7 +82,7 @@ fn words_schema(words: &[&str], description: &str) -> Schema {
 pub fn location_schema(_: &mut SchemaGenerator) -> Schema {
     let v = json!({
         "anyOf": [
-            {"type": "string", "enum": Location::STRINGS},
+            {"type": "string", "enum": Location::STRINGS, "maxLength": MAX_WORD_CHARS},
             {"type": "null"}
         ],
         "default": null,

@@ -17,7 +17,7 @@ pub(crate) struct AddObjectName2ObjectLabels;
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
     /// The new label, e.g. "screwdriver" (stored lower-case).
-    #[schemars(length(min = 1))]
+    #[schemars(length(min = 1, max = 100))]
     #[serde(deserialize_with = "args::text")]
     object_name: String,
 }

@@ -40,6 +40,7 @@ fn max_width<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
     /// Workspace to look at, e.g. "niryo_ws"; the robot's current workspace when absent.
+    #[schemars(length(max = 100))]
     #[serde(deserialize_with = "args::opt_text")]
     workspace_id: Option<String>,
     /// Draw each detected object's box, id and label on the picture (default true).

@@ -20,6 +20,7 @@ pub(crate) struct Args {
     #[serde(deserialize_with = "args::point")]
     coordinate: Point2,
     /// Keep only objects whose label contains this text (case-insensitive).
+    #[schemars(length(max = 100))]
     #[serde(deserialize_with = "args::opt_text")]
     label: Option<String>,
 }

@@ -21,7 +21,7 @@ pub(crate) struct GetWorkspaceCoordinateFromPoint;
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
     /// Workspace id, e.g. "niryo_ws".
-    #[schemars(length(min = 1))]
+    #[schemars(length(min = 1, max = 100))]
     #[serde(deserialize_with = "args::text")]
     workspace_id: String,
     #[schemars(schema_with = "point_schema")]

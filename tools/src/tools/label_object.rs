@@ -24,11 +24,11 @@ pub(crate) struct LabelObject;
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
     /// The object's id, as the detection tools and get_camera_image give it, e.g. "obj-3".
-    #[schemars(length(min = 1))]
+    #[schemars(length(min = 1, max = 100))]
     #[serde(deserialize_with = "args::text")]
     object_id: String,
     /// Its name, e.g. "screwdriver" (stored lower-case; pick it by this name afterwards).
-    #[schemars(length(min = 1))]
+    #[schemars(length(min = 1, max = 100))]
     #[serde(deserialize_with = "args::text")]
     label: String,
 }

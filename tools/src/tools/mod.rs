@@ -170,7 +170,14 @@ pub(crate) struct Entry {
     /// The argument names the deserializer reads (for the tests).
     #[cfg_attr(not(test), allow(dead_code))]
     pub(crate) fields: fn() -> &'static [&'static str],
-    pub(crate) call: for<'a> fn(&'a Registry, &'a Map<String, Value>, CallHooks) -> CallFuture<'a>,
+    /// Runs a call; the arguments' strings over their `maxLength` come with it
+    /// ([`crate::limits::too_long`]).
+    pub(crate) call: for<'a> fn(
+        &'a Registry,
+        &'a Map<String, Value>,
+        CallHooks,
+        Vec<FieldError>,
+    ) -> CallFuture<'a>,
     /// Reads arguments as a call does, giving the argument struct's `Debug` (for the tests).
     #[cfg(test)]
     pub(crate) parse: ParseForTest,
@@ -194,12 +201,22 @@ impl Entry {
 }
 
 /// Reads the arguments of tool `T`, runs it and turns its outcome into a [`ToolOutput`].
+/// `too_long` (strings over their limit) are listed with the other problems of the arguments.
 fn call<'a, T: Tool>(
     registry: &'a Registry,
     arguments: &'a Map<String, Value>,
     hooks: CallHooks,
+    too_long: Vec<FieldError>,
 ) -> CallFuture<'a> {
-    let args = T::read(arguments);
+    let args = match (T::read(arguments), too_long.is_empty()) {
+        (args, true) => args,
+        (Ok(_), false) => Err(too_long),
+        (Err(problems), false) => Err(crate::limits::merge(
+            problems,
+            too_long,
+            crate::args::fields_of::<T::Args>(),
+        )),
+    };
     Box::pin(async move {
         let args = match args {
             Ok(args) => args,
@@ -243,9 +260,11 @@ pub(crate) fn pretty<T: Serialize>(value: &T) -> String {
 }
 
 /// The one-line validation text of `speak` and `add_object_name2object_labels` when their
-/// only argument is the problem: `❌ Validation Error: <field> must be a non-empty string`.
+/// only argument is the problem: `❌ Validation Error: <field> must be a non-empty string`
+/// (a text over its limit gets the usual list, which says so).
 pub(crate) fn only_field_invalid(tool: &str, field: &str, errors: &[FieldError]) -> String {
-    if errors.iter().all(|e| e.field == field) {
+    let too_long = |e: &FieldError| e.message.starts_with(crate::limits::STRING_TOO_LONG);
+    if errors.iter().all(|e| e.field == field && !too_long(e)) {
         format!("❌ Validation Error: {field} must be a non-empty string")
     } else {
         validation_text(tool, errors)

@@ -14,7 +14,7 @@ pub(crate) struct Move2ObservationPose;
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
     /// Workspace id, e.g. "niryo_ws".
-    #[schemars(length(min = 1))]
+    #[schemars(length(min = 1, max = 100))]
     #[serde(deserialize_with = "args::text")]
     workspace_id: String,
 }

@@ -15,7 +15,7 @@ pub(crate) struct PickObject;
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
     /// Label of the object to pick (case-insensitive exact match).
-    #[schemars(length(min = 1))]
+    #[schemars(length(min = 1, max = 100))]
     #[serde(deserialize_with = "args::text")]
     object_name: String,
     /// [x, y] of the object in metres.

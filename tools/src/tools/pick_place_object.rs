@@ -17,7 +17,7 @@ pub(crate) struct PickPlaceObject;
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
     /// Label of the object to pick, exactly as detected (case-insensitive), e.g. "pencil".
-    #[schemars(length(min = 1))]
+    #[schemars(length(min = 1, max = 100))]
     #[serde(deserialize_with = "args::text")]
     object_name: String,
     /// [x, y] of the object in metres (robot base frame: x forward, y left).

@@ -23,7 +23,7 @@ fn distance<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
     /// Label of the object to push (case-insensitive exact match).
-    #[schemars(length(min = 1))]
+    #[schemars(length(min = 1, max = 100))]
     #[serde(deserialize_with = "args::text")]
     object_name: String,
     /// [x, y] of the object in metres.

@@ -26,7 +26,7 @@ pub(crate) struct ReleaseEmergencyStop;
 pub(crate) struct Args {
     /// Must be exactly `release`: confirms that the cause of the stop was dealt with.
     #[serde(deserialize_with = "args::text")]
-    #[schemars(extend("const" = "release"))]
+    #[schemars(extend("const" = "release"), length(max = 32))]
     confirm: String,
     /// Who releases it and why (recorded).
     #[serde(default, deserialize_with = "args::opt_text")]

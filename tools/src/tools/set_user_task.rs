@@ -12,8 +12,8 @@ pub(crate) struct SetUserTask;
 /// The arguments of `set_user_task`.
 #[derive(Debug, Deserialize, JsonSchema)]
 pub(crate) struct Args {
-    /// The user's task, shown over the video.
-    #[schemars(length(min = 1))]
+    /// The user's task, shown over the video (at most 2000 characters).
+    #[schemars(length(min = 1, max = 2000))]
     #[serde(deserialize_with = "args::text")]
     task: String,
 }

@@ -186,9 +186,31 @@ fn fixture() -> Vec<Value> {
     serde_json::from_str(text).expect("the fixture is JSON")
 }
 
+/// `schema` without `maxLength`s (robotd added one to every string, issue 43) and the
+/// description that names the new one, to compare with what the fixture recorded before.
+fn without_max_lengths(schema: &Value) -> Value {
+    let mut schema = schema.clone();
+    fn strip(v: &mut Value) {
+        match v {
+            Value::Object(map) => {
+                map.remove("maxLength");
+                map.values_mut().for_each(strip);
+            }
+            Value::Array(items) => items.iter_mut().for_each(strip),
+            _ => {}
+        }
+    }
+    strip(&mut schema);
+    if let Some(task) = schema.pointer_mut("/properties/task/description") {
+        *task = json!("The user's task, shown over the video.");
+    }
+    schema
+}
+
 #[test]
 fn names_descriptions_and_input_schemas_are_unchanged() {
-    // The fixture holds the Python server's 20 tools; robotd's own follow them.
+    // The fixture holds the Python server's 20 tools; robotd's own follow them. The
+    // `maxLength`s of the strings are new (every string argument says its limit).
     let old = fixture();
     let new = crate::definitions::all();
     assert_eq!(old.len(), 20);
@@ -198,12 +220,61 @@ fn names_descriptions_and_input_schemas_are_unchanged() {
         assert_eq!(old["description"], new.description, "{}", new.name);
         assert_eq!(old["moves_arm"], new.moves_arm, "{}", new.name);
         assert_eq!(
-            old["inputSchema"],
-            Value::Object(new.input_schema.clone()),
+            without_max_lengths(&old["inputSchema"]),
+            without_max_lengths(&Value::Object(new.input_schema.clone())),
             "{}",
             new.name
         );
     }
+}
+
+/// The string schemas in a property's schema: itself, or its `anyOf` branches.
+fn string_branches(schema: &Value) -> Vec<&Value> {
+    let is_string = |s: &Value| {
+        s["type"] == "string"
+            || s["type"]
+                .as_array()
+                .is_some_and(|t| t.contains(&json!("string")))
+    };
+    match schema["anyOf"].as_array() {
+        Some(any) => any.iter().filter(|s| is_string(s)).collect(),
+        None => [schema].into_iter().filter(|s| is_string(s)).collect(),
+    }
+}
+
+#[test]
+fn every_string_argument_says_its_limit_and_a_longer_one_is_refused_for_it() {
+    let mut strings = 0;
+    for t in TOOLS {
+        let schema = (t.input_schema)();
+        for (name, property) in props(t) {
+            for branch in string_branches(&property) {
+                strings += 1;
+                let max = branch["maxLength"]
+                    .as_u64()
+                    .unwrap_or_else(|| panic!("{}.{name} has no maxLength: {property}", t.name));
+                let mut args = Map::new();
+                args.insert(name.clone(), json!("x".repeat(max as usize + 1)));
+                let problems = crate::limits::too_long(&schema, &args);
+                assert_eq!(
+                    problems
+                        .iter()
+                        .map(|e| e.field.as_str())
+                        .collect::<Vec<_>>(),
+                    [name.as_str()],
+                    "{}",
+                    t.name
+                );
+                args.insert(name.clone(), json!("x".repeat(max as usize)));
+                assert!(
+                    crate::limits::too_long(&schema, &args).is_empty(),
+                    "{}.{name}",
+                    t.name
+                );
+            }
+        }
+    }
+    assert!(strings >= 20, "only {strings} string arguments found");
 }
 
 /// The JSON types a schema allows (`None` = any).
