@@ -26,6 +26,13 @@ pub struct McpConfig {
     /// Most MCP sessions open at once, SSE and streamable HTTP together (1 … 10,000); a
     /// client opening one more gets 503.
     pub max_sessions: usize,
+    /// Most sessions one client (its address and token) holds at once (1 … 10,000; at most
+    /// `max_sessions` count). A client at its share that opens another closes its oldest
+    /// session that never made a call, or gets 503 when it has none.
+    pub max_sessions_per_client: usize,
+    /// A session that made no call (no request after `initialize`) for this long after it
+    /// opened is closed, seconds (1 … 86,400): an abandoned handshake gives its place back.
+    pub unused_session_timeout_s: u64,
     /// A streamable-HTTP session without a request for this long is closed, seconds
     /// (1 … 86,400). SSE sessions end when their stream closes.
     pub session_idle_timeout_s: u64,
@@ -52,6 +59,8 @@ impl Default for McpConfig {
             strict_errors: false,
             skill_timeout_s: 180,
             max_sessions: 100,
+            max_sessions_per_client: 80,
+            unused_session_timeout_s: 30,
             session_idle_timeout_s: 300,
             call_log_max_field_bytes: 16 * 1024,
             call_log_max_file_bytes: 64 * 1024 * 1024,
@@ -71,6 +80,18 @@ impl Section for McpConfig {
         );
         checks.range_u64("skill_timeout_s", self.skill_timeout_s, 1..=3600, " s");
         checks.range_u64("max_sessions", self.max_sessions as u64, 1..=10_000, "");
+        checks.range_u64(
+            "max_sessions_per_client",
+            self.max_sessions_per_client as u64,
+            1..=10_000,
+            "",
+        );
+        checks.range_u64(
+            "unused_session_timeout_s",
+            self.unused_session_timeout_s,
+            1..=86_400,
+            " s",
+        );
         checks.range_u64(
             "session_idle_timeout_s",
             self.session_idle_timeout_s,
@@ -148,6 +169,8 @@ impl McpConfig {
         crate::http::RouterOptions {
             max_body_bytes: self.max_body_bytes,
             max_sessions: self.max_sessions,
+            max_sessions_per_client: self.max_sessions_per_client,
+            unused_timeout: std::time::Duration::from_secs(self.unused_session_timeout_s),
             idle_timeout: std::time::Duration::from_secs(self.session_idle_timeout_s),
             direct_tool_calls: self.direct_tool_calls,
         }

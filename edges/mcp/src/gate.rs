@@ -22,9 +22,7 @@
 //!
 //! Every transport (legacy SSE, streamable HTTP, stdio) serves through this gate. The
 //! session's "initialized" state is shared ([`InitGate::initialized_flag`]) so the direct
-//! streamable-HTTP path (`crate::http::direct_call`) applies the same rule. A
-//! [`TOUCH_METHOD`] notification (the direct path's way of keeping rmcp's idle timer of the
-//! session running) is dropped here and never reaches the server.
+//! streamable-HTTP path (`crate::http::direct_call`) applies the same rule.
 
 use rmcp::model::{
     ClientJsonRpcMessage, ClientNotification, ClientRequest, EmptyResult, ErrorCode, ErrorData,
@@ -35,10 +33,6 @@ use rmcp::RoleServer;
 use std::future::Future;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-
-/// A notification robotd sends into a streamable-HTTP session itself, only to tell rmcp's
-/// session worker the session is in use; the gate drops it.
-pub const TOUCH_METHOD: &str = "notifications/robotd/session_in_use";
 
 /// Methods MCP defines for a client to call; a message naming one whose params rmcp could
 /// not read is a params error, not an unknown method.
@@ -175,13 +169,6 @@ where
 impl<T> InitGate<T> {
     /// What to do with `message`.
     fn verdict(&mut self, message: &ClientJsonRpcMessage) -> Verdict {
-        if let JsonRpcMessage::Notification(n) = message {
-            if let ClientNotification::CustomNotification(custom) = &n.notification {
-                if custom.method == TOUCH_METHOD {
-                    return Verdict::Drop;
-                }
-            }
-        }
         if !self.initialize_seen {
             return match message {
                 JsonRpcMessage::Request(r) => match &r.request {
@@ -377,14 +364,9 @@ mod tests {
     }
 
     #[test]
-    fn the_flag_follows_the_session_and_a_touch_never_reaches_the_server() {
+    fn the_flag_follows_the_session() {
         let mut gate = InitGate::new(());
         let flag = gate.initialized_flag();
-        let touch = serde_json::json!({"jsonrpc": "2.0", "method": TOUCH_METHOD});
-        assert_eq!(
-            answer(&mut gate, touch.clone()),
-            Some(serde_json::json!("dropped"))
-        );
         let init = serde_json::json!({"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {
             "protocolVersion": "2025-06-18", "capabilities": {}, "clientInfo": {"name": "t", "version": "1"}}});
         assert_eq!(answer(&mut gate, init), None);
@@ -396,10 +378,5 @@ mod tests {
             serde_json::json!({"jsonrpc": "2.0", "method": "notifications/initialized"});
         assert_eq!(answer(&mut gate, initialized), None);
         assert!(flag.load(Ordering::Acquire));
-        assert_eq!(
-            answer(&mut gate, touch),
-            Some(serde_json::json!("dropped")),
-            "dropped after initialization too"
-        );
     }
 }

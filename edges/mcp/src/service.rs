@@ -23,6 +23,7 @@ use rmcp::{ErrorData as McpError, RoleServer, ServerHandler};
 use robotd_protocol::safety::{Origin, OriginKind};
 use robotd_runtime::origin::with_origin;
 use robotd_tools::{CallError, CallHooks, Progress, Registry};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 use tokio_util::sync::CancellationToken;
@@ -206,7 +207,7 @@ impl ServerHandler for McpService {
             progress: None,
         };
         let params = CallToolRequestParams::new("get_camera_image").with_arguments(arguments);
-        let result = self.serve_call(params, call).await?;
+        let result = self.serve_call(params, call).await.result?;
         crate::resources::contents_of(&request.uri, result).map(Into::into)
     }
 
@@ -240,7 +241,8 @@ impl ServerHandler for McpService {
             by_client: context.ct.clone(),
             progress,
         };
-        self.serve_call(request, call).await.map(Into::into)
+        // rmcp itself sends no answer to a request its client cancelled.
+        self.serve_call(request, call).await.result.map(Into::into)
     }
 }
 
@@ -264,15 +266,27 @@ pub(crate) struct CallContext {
     pub(crate) progress: Option<Box<dyn Fn(Progress) + Send + Sync>>,
 }
 
+/// How a tool call ended.
+pub(crate) struct Served {
+    /// Its result, or a protocol error.
+    pub(crate) result: Result<CallToolResult, McpError>,
+    /// It was cancelled before it started: it waited (behind another client's motion, for an
+    /// approval) and reported no step. The MCP spec asks that such a request get no answer.
+    pub(crate) cancelled_before_start: bool,
+}
+
 impl McpService {
     /// Runs one `tools/call` and writes it to the call log. Both rmcp's handler
     /// ([`ServerHandler::call_tool`]) and the direct streamable-HTTP path
     /// (`crate::http::direct_call`) end here, so a call is the same call either way.
+    ///
+    /// A call has started once its tool reported a step: a skill reports one before it moves
+    /// anything, so a cancelled call that reported none never moved the arm.
     pub(crate) async fn serve_call(
         &self,
         request: CallToolRequestParams,
         call: CallContext,
-    ) -> Result<CallToolResult, McpError> {
+    ) -> Served {
         // Once the calls stop for a second, the memory a burst of them used goes back.
         robotd_runtime::heap::release_soon();
         let CallContext {
@@ -293,8 +307,16 @@ impl McpService {
         // Fires when this future is dropped before its end (its caller went away): the call's
         // motion stops as for any cancellation.
         let dropped_early = cancel.clone().drop_guard();
+        let started = Arc::new(AtomicBool::new(false));
+        let step = started.clone();
+        let progress = Box::new(move |p: Progress| {
+            step.store(true, Ordering::Release);
+            if let Some(report) = &progress {
+                report(p);
+            }
+        });
         let hooks = CallHooks {
-            progress,
+            progress: Some(progress),
             cancel: cancel.clone(),
         };
         let origin = Origin::new(OriginKind::Mcp)
@@ -306,7 +328,7 @@ impl McpService {
             .in_scope(robotd_runtime::telemetry::current_trace_context)
             .traceparent
             .and_then(|tp| tp.split('-').nth(1).map(str::to_owned));
-        let started = Instant::now();
+        let started_at = Instant::now();
         let call = with_origin(
             origin,
             self.registry
@@ -315,8 +337,12 @@ impl McpService {
         );
         let outcome = until_done(call, cancelled, &cancel).await;
         dropped_early.disarm();
-        let elapsed = started.elapsed();
-        match outcome {
+        let elapsed = started_at.elapsed();
+        let cancelled_before_start = cancel.is_cancelled() && !started.load(Ordering::Acquire);
+        if cancelled_before_start {
+            tracing::info!(tool = %name, "MCP call cancelled before it started: no answer");
+        }
+        let result = match outcome {
             Ok(output) => {
                 let status = if output.is_failure { "failed" } else { "ok" };
                 span.record("status", status);
@@ -354,6 +380,10 @@ impl McpService {
                     None,
                 ))
             }
+        };
+        Served {
+            result,
+            cancelled_before_start,
         }
     }
 }

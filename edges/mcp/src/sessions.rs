@@ -9,27 +9,30 @@
 //!   `POST /mcp` on its own response stream; dropping that stream early is a cancel).
 //!
 //! [`CallScopes`] keeps one cancellation token per open session and per running request;
-//! the MCP service cancels a tool call when any of them fires. [`ClosingSessions`] wraps rmcp's
-//! in-memory session manager to fire them for streamable HTTP; the SSE transport fires its
-//! session's token when its event stream is dropped.
+//! the MCP service cancels a tool call when any of them fires. A `notifications/cancelled`
+//! that arrives before the request it names was seen (the client sent both at once) is kept,
+//! and the request starts cancelled. [`ClosingSessions`] wraps rmcp's in-memory session
+//! manager to fire them for streamable HTTP and gives the session's place back
+//! (`crate::http::places`), which also decides when an idle or unused session is closed; the
+//! SSE transport fires its session's token when its event stream is dropped.
 
-use crate::gate::{InitGate, TOUCH_METHOD};
+use crate::gate::InitGate;
+use crate::http::places::SessionPlaces;
 use crate::owner::SessionOwner;
 use futures::Stream;
-use rmcp::model::{
-    ClientJsonRpcMessage, ClientNotification, CustomNotification, JsonRpcMessage,
-    ServerJsonRpcMessage,
-};
+use rmcp::model::{ClientJsonRpcMessage, JsonRpcMessage, ServerJsonRpcMessage};
 use rmcp::transport::streamable_http_server::session::local::LocalSessionManager;
 use rmcp::transport::streamable_http_server::session::ServerSseMessage;
 use rmcp::transport::streamable_http_server::{SessionId, SessionManager};
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll};
-use std::time::{Duration, Instant};
 use tokio_util::sync::CancellationToken;
+
+/// Most cancellations of requests not seen yet kept per session (the oldest are forgotten).
+const MAX_EARLY_CANCELS: usize = 64;
 
 /// Cancellation tokens of open sessions and running requests.
 #[derive(Debug, Default)]
@@ -37,6 +40,8 @@ pub struct CallScopes {
     sessions: Mutex<HashMap<String, CancellationToken>>,
     requests: Mutex<HashMap<(String, String), CancellationToken>>,
     owners: Mutex<HashMap<String, SessionOwner>>,
+    /// Per session, the requests cancelled before they were seen, oldest first.
+    early_cancels: Mutex<HashMap<String, VecDeque<String>>>,
 }
 
 impl CallScopes {
@@ -76,6 +81,7 @@ impl CallScopes {
     pub fn close_session(&self, id: &str) {
         robotd_runtime::heap::release_soon();
         lock(&self.owners).remove(id);
+        lock(&self.early_cancels).remove(id);
         if let Some(token) = lock(&self.sessions).remove(id) {
             token.cancel();
         }
@@ -89,12 +95,43 @@ impl CallScopes {
         });
     }
 
-    /// The token of `request` in `session`, cancelled when its connection drops early.
+    /// The token of `request` in `session`, cancelled when its connection drops early; born
+    /// cancelled when the client cancelled it before it was seen ([`Self::cancel_request`]).
     pub fn request(&self, session: &str, request: &str) -> CancellationToken {
-        lock(&self.requests)
+        let token = lock(&self.requests)
             .entry((session.to_owned(), request.to_owned()))
             .or_default()
-            .clone()
+            .clone();
+        let mut early = lock(&self.early_cancels);
+        if let Some(cancelled) = early.get_mut(session) {
+            if let Some(at) = cancelled.iter().position(|r| r == request) {
+                cancelled.remove(at);
+                token.cancel();
+            }
+        }
+        token
+    }
+
+    /// The client cancelled `request` of `session` (`notifications/cancelled`): cancels it, or,
+    /// when it was not seen yet (a cancellation can overtake its request), makes it start
+    /// cancelled. Only for open sessions; at most [`MAX_EARLY_CANCELS`] are kept per session.
+    /// True when a running request was cancelled.
+    pub fn cancel_request(&self, session: &str, request: &str) -> bool {
+        let key = (session.to_owned(), request.to_owned());
+        if let Some(token) = lock(&self.requests).get(&key) {
+            token.cancel();
+            return true;
+        }
+        if !lock(&self.sessions).contains_key(session) {
+            return false;
+        }
+        let mut early = lock(&self.early_cancels);
+        let cancelled = early.entry(session.to_owned()).or_default();
+        if cancelled.len() >= MAX_EARLY_CANCELS {
+            cancelled.pop_front();
+        }
+        cancelled.push_back(request.to_owned());
+        false
     }
 
     /// `request` was answered (or abandoned, with `cancel`): forget its token.
@@ -118,38 +155,49 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 /// rmcp's in-memory session manager, firing [`CallScopes`] when a session closes or a
-/// request's response stream is dropped before its answer.
+/// request's response stream is dropped before its answer, and giving the session's place
+/// back.
 pub struct ClosingSessions {
     inner: LocalSessionManager,
     scopes: Arc<CallScopes>,
+    places: Arc<SessionPlaces>,
     /// The streamable-HTTP sessions this manager opened (`scopes` also holds SSE sessions).
     opened: Mutex<HashMap<String, OpenSession>>,
-    idle_timeout: Duration,
 }
 
 /// What the direct call path needs to know of an open streamable-HTTP session.
 struct OpenSession {
     /// Set by the session's [`InitGate`] at `notifications/initialized`.
     initialized: Arc<AtomicBool>,
-    /// When the direct path last told rmcp's worker the session is in use.
-    touched: Instant,
 }
 
 impl ClosingSessions {
-    /// Sessions tracked in `scopes`, closed after `idle_timeout` without a request.
-    pub fn new(scopes: Arc<CallScopes>, idle_timeout: Duration) -> Self {
+    /// Sessions tracked in `scopes`, holding `places`. rmcp's own idle timer is off: `places`
+    /// says when a session expires, and the `/mcp` checks close it then.
+    pub(crate) fn new(scopes: Arc<CallScopes>, places: Arc<SessionPlaces>) -> Self {
         let mut inner = LocalSessionManager::default();
-        inner.session_config.keep_alive = Some(idle_timeout);
+        inner.session_config.keep_alive = None;
         Self {
             inner,
             scopes,
+            places,
             opened: Mutex::default(),
-            idle_timeout,
+        }
+    }
+
+    /// Closes session `id` if this manager still holds it (it expired, or its client opened
+    /// another at its share).
+    pub(crate) async fn close_if_open(&self, id: &str) {
+        if lock(&self.opened).contains_key(id) {
+            tracing::debug!(session = %id, "MCP session closed by robotd: cancelling its calls");
+            if let Err(error) = self.close_session(&SessionId::from(id)).await {
+                tracing::debug!(session = %id, %error, "MCP session already gone");
+            }
         }
     }
 
     /// Whether session `id` is open and initialized, so a `tools/call` in it may be answered
-    /// without rmcp's session worker. False for a session rmcp already ended (idle).
+    /// without rmcp's session worker. False for a session rmcp already ended.
     pub(crate) async fn takes_direct_calls(&self, id: &str) -> bool {
         let initialized = lock(&self.opened)
             .get(id)
@@ -162,36 +210,9 @@ impl ClosingSessions {
                 .unwrap_or(false)
     }
 
-    /// A direct call was served in session `id`: keeps rmcp's idle timer of the session from
-    /// closing it, as a request through rmcp would. rmcp's worker restarts its timer at any
-    /// message, so this sends it a [`TOUCH_METHOD`] notification (dropped by the session's
-    /// gate), at most once per eighth of the idle timeout.
-    pub(crate) async fn keep_open(&self, id: &str) {
-        let now = Instant::now();
-        let due = match lock(&self.opened).get_mut(id) {
-            Some(session) if now.duration_since(session.touched) >= self.idle_timeout / 8 => {
-                session.touched = now;
-                true
-            }
-            _ => false,
-        };
-        if due {
-            let touch = ClientJsonRpcMessage::notification(ClientNotification::CustomNotification(
-                CustomNotification::new(TOUCH_METHOD, None),
-            ));
-            if let Err(error) = self.inner.accept_message(&SessionId::from(id), touch).await {
-                tracing::debug!(session = %id, %error, "MCP session not kept open: it ended");
-            }
-        }
-    }
-
-    /// Sessions open now (rmcp's count: idle ones it closed are gone).
-    pub async fn open_sessions(&self) -> usize {
-        self.inner.sessions.read().await.len()
-    }
-
-    /// Closes the tokens of this manager's sessions that rmcp ended without a `DELETE`
-    /// (idle timeout). SSE sessions in the same scopes are not this manager's to judge.
+    /// Closes the tokens and places of this manager's sessions that rmcp ended without a
+    /// `DELETE` (a worker that failed). SSE sessions in the same scopes are not this manager's
+    /// to judge.
     async fn forget_ended(&self) -> Result<(), <LocalSessionManager as SessionManager>::Error> {
         let opened: Vec<String> = lock(&self.opened).keys().cloned().collect();
         for id in opened {
@@ -202,6 +223,7 @@ impl ClosingSessions {
             {
                 lock(&self.opened).remove(&id);
                 self.scopes.close_session(&id);
+                self.places.release(&id);
             }
         }
         Ok(())
@@ -220,7 +242,6 @@ impl SessionManager for ClosingSessions {
         let gate = InitGate::new(transport);
         let session = OpenSession {
             initialized: gate.initialized_flag(),
-            touched: Instant::now(),
         };
         lock(&self.opened).insert(id.to_string(), session);
         Ok((id, gate))
@@ -242,6 +263,7 @@ impl SessionManager for ClosingSessions {
         tracing::debug!(session = %id, "MCP session closed by the client: cancelling its calls");
         lock(&self.opened).remove(id.as_ref());
         self.scopes.close_session(id);
+        self.places.release(id);
         self.inner.close_session(id).await
     }
 
@@ -254,10 +276,11 @@ impl SessionManager for ClosingSessions {
             JsonRpcMessage::Request(r) => Some(r.id.to_string()),
             _ => None,
         };
-        if let Some(request) = &request {
-            // Created before the request reaches the handler, which looks it up.
-            self.scopes.request(id, request);
-        }
+        // Created before the request reaches the handler, which looks it up.
+        let cancelled = request.as_ref().map(|request| {
+            let token = self.scopes.request(id, request);
+            Box::pin(token.cancelled_owned()) as Cancelled
+        });
         let inner = self.inner.create_stream(id, message).await?;
         Ok(AnswerStream {
             inner: Box::pin(inner),
@@ -265,6 +288,7 @@ impl SessionManager for ClosingSessions {
             session: id.to_string(),
             request,
             answered: false,
+            cancelled: cancelled.map(std::sync::Mutex::new),
         })
     }
 
@@ -294,14 +318,21 @@ impl SessionManager for ClosingSessions {
 
 type BoxedSse = Pin<Box<dyn Stream<Item = ServerSseMessage> + Send + Sync>>;
 
+/// Resolves when a request is cancelled.
+type Cancelled = Pin<Box<dyn std::future::Future<Output = ()> + Send>>;
+
 /// The response stream of one request: dropped before the answer went through, it cancels
-/// the request.
+/// the request. Once the request is cancelled (`notifications/cancelled`, or its session
+/// closed) the stream ends unanswered: rmcp sends no answer to a cancelled request, and the
+/// client's POST would otherwise wait for one until the session ends.
 struct AnswerStream {
     inner: BoxedSse,
     scopes: Arc<CallScopes>,
     session: String,
     request: Option<String>,
     answered: bool,
+    /// The request's cancellation (a mutex only to make the stream `Sync`, as rmcp asks).
+    cancelled: Option<std::sync::Mutex<Cancelled>>,
 }
 
 impl Stream for AnswerStream {
@@ -321,7 +352,20 @@ impl Stream for AnswerStream {
                 }
             }
             Poll::Ready(None) => self.answered = true,
-            Poll::Pending => {}
+            Poll::Pending => {
+                let cancelled = self.cancelled.as_mut().is_some_and(|c| {
+                    c.get_mut()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .as_mut()
+                        .poll(cx)
+                        .is_ready()
+                });
+                if cancelled && !self.answered {
+                    tracing::debug!(session = %self.session, request = ?self.request, "MCP request cancelled: its stream ends unanswered");
+                    self.answered = true;
+                    return Poll::Ready(None);
+                }
+            }
         }
         polled
     }

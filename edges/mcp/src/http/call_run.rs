@@ -5,7 +5,9 @@
 //! ([`Outgoing`]) and the [`RequestScope`] that cancels the call when the caller goes away.
 //! The caller polls the run on its own task ([`CallRun::poll_here`]); dropping the run hands
 //! it over to a task of its own, which finishes it and sends its answer, so a call whose
-//! client went away still ends (cancelled, its motion stopped) and is logged.
+//! client went away still ends (cancelled, its motion stopped) and is logged. A call cancelled
+//! before it started has no answer (`None`): the MCP spec asks that a cancelled request get
+//! none, and this one did nothing to report.
 
 use super::direct_call::DirectCall;
 use crate::service::{progress_param, CallContext, McpService};
@@ -29,8 +31,9 @@ use tokio_util::sync::CancellationToken;
 pub(super) enum Outgoing {
     /// A `notifications/progress` for the client.
     Progress(ServerJsonRpcMessage),
-    /// The call's response; nothing follows.
-    Answer(ServerJsonRpcMessage),
+    /// The call's response (`None`: cancelled before it started, not answered); nothing
+    /// follows.
+    Answer(Option<ServerJsonRpcMessage>),
 }
 
 /// A direct call on its way: its messages arrive on `incoming`, and `scope` cancels it when
@@ -40,8 +43,8 @@ pub(super) struct Started {
     pub(super) scope: RequestScope,
 }
 
-/// The future of a direct call that yields its JSON-RPC response.
-type CallFuture = Pin<Box<dyn Future<Output = ServerJsonRpcMessage> + Send>>;
+/// The future of a direct call that yields its JSON-RPC response (`None`: not to be answered).
+type CallFuture = Pin<Box<dyn Future<Output = Option<ServerJsonRpcMessage>> + Send>>;
 
 /// A direct call that runs on its caller's task until it is handed over. Dropped unfinished
 /// (handed over, or its caller went away), it goes on on a task of its own and sends its
@@ -55,7 +58,7 @@ pub(super) struct CallRun {
 
 impl CallRun {
     /// Runs the call on the caller's task; `Ready` with its response once it ended.
-    pub(super) fn poll_here(&mut self, cx: &mut Context<'_>) -> Poll<ServerJsonRpcMessage> {
+    pub(super) fn poll_here(&mut self, cx: &mut Context<'_>) -> Poll<Option<ServerJsonRpcMessage>> {
         let Some(future) = self.future.as_mut() else {
             return Poll::Pending;
         };
@@ -68,7 +71,7 @@ impl CallRun {
 impl CallRun {
     /// Sends the answer of a call that ended here after the progress it reported, so the
     /// caller reads them in order from its messages.
-    pub(super) fn queue_answer(&self, answer: ServerJsonRpcMessage) {
+    pub(super) fn queue_answer(&self, answer: Option<ServerJsonRpcMessage>) {
         let _ = self.answers.send(Outgoing::Answer(answer));
     }
 }
@@ -137,7 +140,11 @@ pub(super) fn prepare(
         let outcome = AssertUnwindSafe(service.serve_call(params, context))
             .catch_unwind()
             .await;
-        response_to(id, outcome)
+        match outcome {
+            Ok(served) if served.cancelled_before_start => None,
+            Ok(served) => Some(response_to(id, Ok(served.result))),
+            Err(panic) => Some(response_to(id, Err(panic))),
+        }
     });
     let run = CallRun {
         future: Some(future),
@@ -187,10 +194,11 @@ pub(super) struct RequestScope {
 }
 
 impl RequestScope {
-    /// The message to send the client for `outgoing`; an answer marks the call answered.
-    pub(super) fn pass_on(&mut self, outgoing: Outgoing) -> ServerJsonRpcMessage {
+    /// The message to send the client for `outgoing`; an answer marks the call answered
+    /// (`None` for a call cancelled before it started: nothing to send, and nothing follows).
+    pub(super) fn pass_on(&mut self, outgoing: Outgoing) -> Option<ServerJsonRpcMessage> {
         match outgoing {
-            Outgoing::Progress(message) => message,
+            Outgoing::Progress(message) => Some(message),
             Outgoing::Answer(message) => {
                 self.answered = true;
                 message
@@ -232,7 +240,10 @@ mod tests {
             future: Some(Box::pin(async move {
                 let _ = released.await;
                 let error = ErrorData::internal_error("the end", None);
-                ServerJsonRpcMessage::error(error, Some(RequestId::Number(3)))
+                Some(ServerJsonRpcMessage::error(
+                    error,
+                    Some(RequestId::Number(3)),
+                ))
             })),
             answers,
         };
@@ -241,7 +252,7 @@ mod tests {
         drop(run);
         release.send(()).expect("the call still runs");
         match incoming.recv().await {
-            Some(Outgoing::Answer(answer)) => {
+            Some(Outgoing::Answer(Some(answer))) => {
                 assert!(serde_json::to_string(&answer).unwrap().contains("the end"))
             }
             _ => panic!("the dropped call did not answer"),

@@ -25,12 +25,15 @@
 //! - **the session order**: only a session whose gate ([`crate::gate`]) saw
 //!   `notifications/initialized` and that rmcp still holds takes direct calls
 //!   ([`ClosingSessions::takes_direct_calls`]);
-//! - **the idle timeout**: a direct call restarts rmcp's idle timer of its session
-//!   ([`ClosingSessions::keep_open`]);
+//! - **the idle timeout**: a direct call counts as activity of its session like any request
+//!   (the `/mcp` checks and `/messages/` tell [`super::places`]);
 //! - **cancellation**: a `notifications/cancelled` naming the call, the session closing and
 //!   the client's connection dropping each cancel it ([`cancel_named`], [`CallScopes`]); a
 //!   call dropped by its request's task goes on on a task of its own, so a dropped connection
-//!   stops the motion and the call still ends and is logged;
+//!   stops the motion and the call still ends and is logged. A call cancelled before it
+//!   started (it waited behind another client's motion) gets no answer, as the MCP spec asks
+//!   of a cancelled request: on streamable HTTP its event stream ends without one, on legacy
+//!   SSE nothing goes onto the stream ([`super::call_run`]);
 //! - **rmcp's checks**: a request with anything rmcp would look at more closely (an `Accept`
 //!   with weights, a protocol-version header of the 2026-07-28 revision or unknown, `_meta`
 //!   beyond a progress token, input responses) is left to rmcp, which answers it as before.
@@ -154,7 +157,8 @@ fn plain_headers(headers: &HeaderMap) -> bool {
 }
 
 /// A `notifications/cancelled` in `session` cancels the call it names, whichever path runs
-/// it (rmcp cancels its own calls too; a call sees the first of the two).
+/// it (rmcp cancels its own calls too; a call sees the first of the two). A call not seen yet
+/// (its request is still on its way) starts cancelled ([`CallScopes::cancel_request`]).
 pub(super) fn cancel_named(scopes: &CallScopes, session: &str, message: &ClientJsonRpcMessage) {
     if let JsonRpcMessage::Notification(n) = message {
         if let ClientNotification::CancelledNotification(cancelled) = &n.notification {
@@ -166,9 +170,8 @@ pub(super) fn cancel_named(scopes: &CallScopes, session: &str, message: &ClientJ
             else {
                 return;
             };
-            if let Some(token) = scopes.find_request(session, &request) {
+            if scopes.cancel_request(session, &request) {
                 tracing::info!(%session, %request, "MCP client cancelled its call");
-                token.cancel();
             }
         }
     }
@@ -206,7 +209,10 @@ pub(super) async fn run_onto_stream(
     // Handed over, when it still runs.
     drop(run);
     loop {
-        let message = scope.pass_on(next);
+        // A call cancelled before it started: nothing goes onto the stream.
+        let Some(message) = scope.pass_on(next) else {
+            return;
+        };
         let written = queue(&mut *to_client.lock().await, message).await;
         if written.is_err() || scope.answered() {
             return;
@@ -226,7 +232,6 @@ impl DirectCalls {
     /// hand-over between tasks (on two CPUs each costs a wake-up of the other one). From the
     /// first progress or [`STREAM_AFTER`] on, it goes on on a task of its own.
     pub(super) async fn answer(&self, session: &str, call: DirectCall) -> Response {
-        self.sessions.keep_open(session).await;
         let (mut run, started) = prepare(&self.service, &self.scopes, session, call);
         let Started {
             mut incoming,
@@ -238,7 +243,12 @@ impl DirectCalls {
             answer = std::future::poll_fn(|cx| run.poll_here(cx)) => match incoming.try_recv() {
                 Err(_) => {
                     scope.mark_answered();
-                    return json_body(&answer);
+                    return match answer {
+                        Some(answer) => json_body(&answer),
+                        // Cancelled before it started: an event stream without an answer.
+                        None => Sse::new(futures::stream::empty::<Result<Event, Infallible>>())
+                            .into_response(),
+                    };
                 }
                 // It reported progress as it ended: an event stream, the progress first.
                 Ok(progress) => {
@@ -262,7 +272,8 @@ impl DirectCalls {
                     Some(first) => first,
                     None => incoming.recv().await?,
                 };
-                let message = scope.pass_on(message);
+                // None for a call cancelled before it started: the stream ends unanswered.
+                let message = scope.pass_on(message)?;
                 Some((event(&message), (None, incoming, scope)))
             },
         );

@@ -2,14 +2,19 @@
 //! at `/mcp`, with `streamable` checks in front) on one port.
 //!
 //! Each session is bound to the client that opened it ([`crate::owner`]) and served through
-//! [`crate::gate`] (no request before `notifications/initialized`). At most
-//! [`RouterOptions::max_sessions`] sessions are open at once over both transports (503
-//! beyond); a streamable-HTTP session idle for [`RouterOptions::idle_timeout`] is closed and
-//! its calls cancelled. The port's guard (token, Host, Origin, body size) is the HTTP edge's:
-//! `robotd_http::guard`, around every route.
+//! [`crate::gate`] (no request before `notifications/initialized`). The sessions of both
+//! transports share [`RouterOptions::max_sessions`] places, one client at most
+//! [`RouterOptions::max_sessions_per_client`] of them; a session that made no call ends after
+//! [`RouterOptions::unused_timeout`], a streamable-HTTP session idle for
+//! [`RouterOptions::idle_timeout`] too, its calls cancelled; a refused session gets 503 with
+//! the time until a place frees by itself (`places`). The JSON-RPC envelope of every posted
+//! message is checked on both transports (`envelope`). The port's guard (token, Host, Origin,
+//! body size) is the HTTP edge's: `robotd_http::guard`, around every route.
 
 mod call_run;
 mod direct_call;
+mod envelope;
+pub(crate) mod places;
 mod sse;
 mod sse_transport;
 mod streamable;
@@ -22,6 +27,7 @@ use axum::middleware;
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::Router;
+use places::{PlaceLimits, SessionPlaces};
 use rmcp::transport::streamable_http_server::{StreamableHttpServerConfig, StreamableHttpService};
 use std::sync::Arc;
 use std::time::Duration;
@@ -34,6 +40,10 @@ pub struct RouterOptions {
     pub max_body_bytes: usize,
     /// Most sessions open at once, SSE and streamable HTTP together.
     pub max_sessions: usize,
+    /// Most sessions one client (address and token) holds at once.
+    pub max_sessions_per_client: usize,
+    /// A session that made no call is closed this long after it opened.
+    pub unused_timeout: Duration,
     /// A streamable-HTTP session without a request for this long is closed.
     pub idle_timeout: Duration,
     /// Run streamable-HTTP tool calls without rmcp's session pipeline (`direct_call`).
@@ -45,45 +55,49 @@ impl Default for RouterOptions {
         Self {
             max_body_bytes: 1024 * 1024,
             max_sessions: 100,
+            max_sessions_per_client: 80,
+            unused_timeout: Duration::from_secs(30),
             idle_timeout: Duration::from_secs(300),
             direct_tool_calls: true,
         }
     }
 }
 
-/// The limit on open sessions, counted over both transports.
-#[derive(Clone)]
-struct SessionCap {
-    max: usize,
-    streamable: Arc<ClosingSessions>,
-    sse: sse::SessionMap,
-}
-
-impl SessionCap {
-    /// The 503 answer when no further session may open. Sessions opening at the same moment
-    /// are counted as they appear, so a burst may pass the limit by the burst's size.
-    async fn refusal(&self) -> Option<Response> {
-        let sse = self.sse.lock().unwrap_or_else(|e| e.into_inner()).len();
-        let open = self.streamable.open_sessions().await + sse;
-        (open >= self.max).then(|| {
-            tracing::warn!(
-                open,
-                max = self.max,
-                "new MCP session refused: the limit is reached"
-            );
-            (
-                StatusCode::SERVICE_UNAVAILABLE,
-                [(header::RETRY_AFTER, "5")],
-                format!(
-                    "Service Unavailable: {open} MCP sessions are open, the limit is {} \
-                     (mcp.max_sessions). Close a session (DELETE /mcp, or close the SSE \
-                     stream) or wait for idle ones to expire (mcp.session_idle_timeout_s)",
-                    self.max
-                ),
-            )
-                .into_response()
-        })
+/// The 503 answer to a session `refusal`: what limit, and `Retry-After` when a place frees
+/// by itself.
+fn refusal_response(refusal: &places::Refusal) -> Response {
+    let places::Refusal {
+        setting,
+        held,
+        limit,
+        ..
+    } = refusal;
+    tracing::warn!(
+        held,
+        limit,
+        setting,
+        "new MCP session refused: the limit is reached"
+    );
+    let whose = if *setting == "mcp.max_sessions" {
+        "MCP sessions are open"
+    } else {
+        "MCP sessions are open for this client (its address and token)"
+    };
+    let when = match refusal.retry_after_s() {
+        Some(s) => format!("the first of them ends by itself in {s} s (Retry-After)"),
+        None => "none of them ends by itself: each ends when its client closes it".to_owned(),
+    };
+    let body = format!(
+        "Service Unavailable: {held} {whose}, the limit is {limit} ({setting}); {when}. Close a \
+         session (DELETE /mcp, or close the SSE stream) to free a place at once"
+    );
+    let mut response = (StatusCode::SERVICE_UNAVAILABLE, body).into_response();
+    if let Some(s) = refusal.retry_after_s() {
+        response
+            .headers_mut()
+            .insert(header::RETRY_AFTER, header::HeaderValue::from(s));
     }
+    response
 }
 
 /// The MCP routes (`/sse`, `/messages/`, `/mcp`) with `options`. `shutdown` ends every
@@ -96,12 +110,13 @@ pub fn router(service: McpService, options: RouterOptions, shutdown: Cancellatio
         .with_max_request_body_bytes(options.max_body_bytes)
         .with_cancellation_token(shutdown.child_token());
     let streamable_service = service.for_transport("streamable_http");
-    let sessions = Arc::new(ClosingSessions::new(service.scopes(), options.idle_timeout));
-    let cap = SessionCap {
-        max: options.max_sessions,
-        streamable: sessions.clone(),
-        sse: sse::SessionMap::default(),
-    };
+    let places = SessionPlaces::new(PlaceLimits {
+        max_sessions: options.max_sessions,
+        per_client: options.max_sessions_per_client,
+        unused_timeout: options.unused_timeout,
+        idle_timeout: options.idle_timeout,
+    });
+    let sessions = Arc::new(ClosingSessions::new(service.scopes(), places.clone()));
     let streamable = StreamableHttpService::new(
         move || Ok(streamable_service.clone()),
         sessions.clone(),
@@ -115,14 +130,15 @@ pub fn router(service: McpService, options: RouterOptions, shutdown: Cancellatio
     let checks = streamable::StreamableChecks {
         scopes: service.scopes(),
         max_body_bytes: options.max_body_bytes,
-        cap: cap.clone(),
+        places: places.clone(),
+        sessions: sessions.clone(),
         direct,
     };
     let state = sse::SseState {
         service,
-        sessions: cap.sse.clone(),
+        sessions: sse::SessionMap::default(),
         shutdown,
-        cap,
+        places,
         direct: options.direct_tool_calls,
     };
     let streamable =

@@ -7,7 +7,12 @@
 //! initialized session skips rmcp's service loop ([`super::direct_call`]): it runs on a task
 //! of its own, which writes its progress and answer onto the session's stream. Closing the
 //! stream ends the session and cancels its calls (a motion in flight stops); a keep-alive
-//! comment every second makes a vanished client noticed within about two seconds.
+//! comment every second makes a vanished client noticed within about two seconds. Opening a
+//! stream takes a session place ([`super::places`]; 503 with `Retry-After` when there is
+//! none); robotd ends the stream when the session never made a call within
+//! `mcp.unused_session_timeout_s`, or when its client opened another at its share. A post
+//! whose JSON-RPC envelope is wrong is answered 400 with a JSON-RPC error saying what is wrong
+//! ([`super::envelope`]).
 //!
 //! Every queue of a session is bounded, so a client that stops reading its stream holds a
 //! bounded amount of memory and then gets 503: the stream's queue (64 answers), the direct
@@ -15,8 +20,9 @@
 //! [`super::sse_transport`]) and the posted messages waiting for rmcp (64).
 
 use super::direct_call::{self, cancel_named, DirectCall};
+use super::envelope::BadMessage;
+use super::places::{SessionPlaces, Transport};
 use super::sse_transport::{queue, SseTransport};
-use super::SessionCap;
 use crate::gate::gated;
 use crate::owner::SessionOwner;
 use crate::service::McpService;
@@ -72,7 +78,7 @@ pub(super) struct SseState {
     pub(super) service: McpService,
     pub(super) sessions: SessionMap,
     pub(super) shutdown: CancellationToken,
-    pub(super) cap: SessionCap,
+    pub(super) places: Arc<SessionPlaces>,
     /// Run tool calls of initialized sessions without rmcp's service loop.
     pub(super) direct: bool,
 }
@@ -82,6 +88,7 @@ struct SessionStream {
     id: String,
     sessions: SessionMap,
     scopes: Arc<CallScopes>,
+    places: Arc<SessionPlaces>,
     inner: Pin<Box<dyn Stream<Item = Result<Event, std::convert::Infallible>> + Send>>,
 }
 
@@ -96,6 +103,7 @@ impl Drop for SessionStream {
     fn drop(&mut self) {
         // The client went away: whatever its calls started must stop.
         self.scopes.close_session(&self.id);
+        self.places.release(&self.id);
         self.sessions
             .lock()
             .unwrap_or_else(|e| e.into_inner())
@@ -113,16 +121,20 @@ fn new_session_id() -> String {
 
 /// `GET /sse`: opens a session and streams its messages.
 pub(super) async fn open_sse(State(state): State<SseState>, request: Request) -> Response {
-    if let Some(full) = state.cap.refusal().await {
-        return full;
-    }
-    let id = new_session_id();
     let owner = SessionOwner::of(
         request.headers(),
         request.uri().query(),
         request.extensions(),
     );
+    let ticket = match state.places.admit(owner) {
+        Ok(ticket) => ticket,
+        Err(refusal) => return super::refusal_response(&refusal),
+    };
+    let id = new_session_id();
     state.service.scopes().bind_owner(&id, owner);
+    ticket.open(&id, Transport::Sse);
+    // Ends the stream when the session's place expires or its client gives it up.
+    let closed = state.places.closed(&id);
     let (to_server, from_client) = mpsc::channel::<ClientJsonRpcMessage>(64);
     let (to_client, from_server) = mpsc::channel::<ServerJsonRpcMessage>(64);
     let to_client: SharedSender<_> = Arc::new(tokio::sync::Mutex::new(to_client));
@@ -161,11 +173,13 @@ pub(super) async fn open_sse(State(state): State<SseState>, request: Request) ->
             .unwrap_or_else(|e| format!("{{\"error\":\"unserialisable message: {e}\"}}"));
         Ok(Event::default().event("message").data(data))
     });
+    let events = futures::stream::once(async move { Ok(endpoint) }).chain(messages);
     let stream = SessionStream {
         id,
         sessions: state.sessions.clone(),
         scopes: state.service.scopes(),
-        inner: Box::pin(futures::stream::once(async move { Ok(endpoint) }).chain(messages)),
+        places: state.places.clone(),
+        inner: Box::pin(events.take_until(closed)),
     };
     Sse::new(stream)
         // A comment every second: the server only learns that a client went away when a
@@ -226,13 +240,12 @@ pub(super) async fn post_message(
     let message: ClientJsonRpcMessage = match serde_json::from_slice(&body) {
         Ok(m) => m,
         Err(error) => {
-            return (
-                StatusCode::BAD_REQUEST,
-                format!("Could not parse message: {error}"),
-            )
-                .into_response()
+            return BadMessage::of(&body, &error, StatusCode::BAD_REQUEST).into_response()
         }
     };
+    state
+        .places
+        .touch(&id, super::streamable::is_call(&message));
     let scopes = state.service.scopes();
     cancel_named(&scopes, &id, &message);
     // Past MAX_DIRECT_IN_FLIGHT (a client that stops reading its stream), calls take rmcp's
