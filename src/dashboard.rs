@@ -30,6 +30,7 @@ pub fn routes<A>(
         },
         Err(reason) => AgentLink::Off(reason.clone()),
     };
+    let agent = Arc::new(agent);
     let health = runtime.health_source.clone();
     let fence = runtime.safety_api()?.safety.fence().clone();
     let geofence = serde_json::json!({
@@ -44,11 +45,21 @@ pub fn routes<A>(
         health: Arc::new(move || health()),
         workspaces: serde_json::to_value(&runtime.workspaces)?,
         geofence,
-        agent: Arc::new(agent),
+        agent: agent.clone(),
         tool_calls: Arc::new(|| {
             let calls = robotd_tools::timings::recent(std::time::Duration::from_secs(300));
             serde_json::to_value(calls).unwrap_or_default()
         }),
     };
-    Ok((robotd_dashboard::router(api), live))
+    let voice = robotd_dashboard::voice::VoiceApi {
+        stt: Arc::new(runtime.bus.client(&robotd_runtime::catalog::STT_TRANSCRIBE)?),
+        estop: Arc::new(Mutex::new(
+            runtime.bus.publisher(&robotd_runtime::catalog::SAFETY_ESTOP)?,
+        )),
+        agent,
+        live: live.clone(),
+        config: config.voice.clone(),
+    };
+    let routes = robotd_dashboard::router(api).merge(robotd_dashboard::voice::routes(voice));
+    Ok((routes, live))
 }

@@ -35,6 +35,7 @@
 //! `config/default.toml`.
 
 pub use robotd_agent::AgentSection;
+pub use robotd_dashboard::voice::VoiceConfig;
 pub use robotd_dashboard::DashboardConfig;
 pub use robotd_driver::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
 pub use robotd_foxglove::{FoxgloveConfig, RecordConfig};
@@ -88,6 +89,9 @@ robotd_runtime::compose_config! {
         /// `[dashboard]`: the web page at `/` and its API.
         #[serde(default)]
         dashboard: DashboardConfig,
+        /// `[voice]`: spoken commands (`POST /api/voice`): stop words, limits.
+        #[serde(default)]
+        voice: VoiceConfig,
         /// `[foxglove]`: the live view for the Foxglove app.
         #[serde(default)]
         foxglove: FoxgloveConfig,

@@ -21,6 +21,7 @@ pub mod live;
 pub mod overlay_ids;
 mod page;
 pub mod pictures;
+pub mod voice;
 
 pub use api::{AgentLink, DashboardApi};
 pub use config::DashboardConfig;
