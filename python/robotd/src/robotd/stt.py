@@ -58,8 +58,8 @@ MAX_FILE_RATE_HZ = 192_000
 #: "left next to the red cube" rather than "left on the red queue" for a robot command.
 DEFAULT_PROMPT = (
     "Spoken commands to a robot arm on a table: pick up the pencil and place it left next to "
-    "the red cube, put the blue square right next to the green cylinder, place the pen above "
-    "the red object, push the box, what objects do you see, stop."
+    "the red cube, put the blue square right next to the green cylinder, place the pen inside "
+    "the tray, open the gripper, go to the observation pose, what objects do you see, stop."
 )
 
 #: Longest audio transcribed by default, seconds (``--max-seconds``).
