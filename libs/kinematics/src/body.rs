@@ -22,7 +22,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 /// One shape of a link, in the link's frame.
 #[derive(Debug, Clone)]
 pub(crate) struct LinkShape {
-    link: String,
+    link: std::sync::Arc<str>,
     /// Shape centre and axes in the link frame.
     origin: Isometry3<f64>,
     half_extents: Vector3<f64>,
@@ -32,7 +32,7 @@ pub(crate) struct LinkShape {
 #[derive(Debug, Clone, PartialEq)]
 pub struct BodyBox {
     /// The URDF link the box belongs to (`forearm_link`, `wrist_link`, …).
-    pub link: String,
+    pub link: std::sync::Arc<str>,
     /// Box centre and axes in the base frame.
     pub pose: Isometry3<f64>,
     /// Half the box's size along its own x, y and z axes, metres.
@@ -118,7 +118,7 @@ pub(crate) fn link_shapes(robot: &urdf_rs::Robot, tcp_link: &str) -> Vec<LinkSha
             };
             let (xyz, rpy) = (&origin.xyz, &origin.rpy);
             shapes.push(LinkShape {
-                link: link.name.clone(),
+                link: link.name.as_str().into(),
                 origin: Isometry3::from_parts(
                     Translation3::new(xyz[0], xyz[1], xyz[2]),
                     UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
@@ -134,29 +134,40 @@ impl Kinematics {
     /// The boxes of the arm's body for joints `q`, base to tool, in the base frame (see the
     /// [module documentation](self)).
     pub fn body(&self, q: &[f64]) -> Result<Vec<BodyBox>, KinematicsError> {
+        Ok(self.tool_and_body(q)?.1)
+    }
+
+    /// The tool centre point's pose and the body's boxes for joints `q`, from one pass
+    /// through the chain (what a path check needs at every sample).
+    pub fn tool_and_body(
+        &self,
+        q: &[f64],
+    ) -> Result<(Isometry3<f64>, Vec<BodyBox>), KinematicsError> {
         self.check_joints(q)?;
         let chains = self.lock();
         chains.tcp.set_joint_positions_unchecked(q);
         let poses = chains.tcp.update_transforms();
+        let tool = poses.last().copied().unwrap_or_else(Isometry3::identity);
         let mut joints_from_base = 0;
         let mut boxes = Vec::with_capacity(self.body.len());
         for (node, pose) in chains.tcp.iter().zip(poses) {
             if node.joint().is_movable() {
                 joints_from_base += 1;
             }
-            let Some(link) = node.link().as_ref().map(|l| l.name.clone()) else {
+            let link = node.link();
+            let Some(link) = link.as_ref() else {
                 continue;
             };
-            for shape in self.body.iter().filter(|s| s.link == link) {
+            for shape in self.body.iter().filter(|s| *s.link == *link.name) {
                 boxes.push(BodyBox {
-                    link: link.clone(),
+                    link: shape.link.clone(),
                     pose: pose * shape.origin,
                     half_extents: shape.half_extents,
                     joints_from_base,
                 });
             }
         }
-        Ok(boxes)
+        Ok((tool, boxes))
     }
 }
 
@@ -171,7 +182,7 @@ mod tests {
             let kinematics = Kinematics::new(model);
             let body = kinematics.body(&kinematics.home_joints()).unwrap();
             let links: std::collections::BTreeSet<&str> =
-                body.iter().map(|b| b.link.as_str()).collect();
+                body.iter().map(|b| &*b.link).collect();
             assert!(links.len() >= 7, "{model:?}: {links:?}");
             assert!(
                 body.iter().any(|b| b.joints_from_base >= 5),

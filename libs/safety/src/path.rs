@@ -109,9 +109,13 @@ pub fn check_motion(
         }
     };
     let allowed_at = |q: &[f64]| -> Result<Vector3<f64>, Violation> {
-        let p = tcp(q)?;
+        let (tool, links) = kinematics.tool_and_body(q).map_err(|e| Violation {
+            limit: "kinematics",
+            reason: format!("the arm's links for a planned joint target are unknown: {e}"),
+        })?;
+        let p = tool.translation.vector;
         allowed(&p)?;
-        fence.check_body(&body(q)?, start_depth)?;
+        fence.check_body(&links, start_depth)?;
         Ok(p)
     };
     // The target first, so a refusal names it rather than the first point on the way there.
@@ -311,7 +315,7 @@ mod tests {
             .body(&target)
             .unwrap()
             .into_iter()
-            .find(|b| b.link == "forearm_link")
+            .find(|b| &*b.link == "forearm_link")
             .unwrap();
         let c = forearm.pose.translation.vector;
         let tcp = kin.tool_pose(&target).unwrap().translation.vector;
