@@ -24,6 +24,7 @@ mod say;
 mod serve;
 
 use anyhow::{Context, Result};
+use bench::cli::BenchCommand;
 use clap::{Args, Parser, Subcommand};
 use robotd_config::{Config, LoadOptions};
 use robotd_runtime::telemetry::{self, Mode};
@@ -195,69 +196,6 @@ struct DoctorArgs {
     clean: bool,
 }
 
-#[derive(Debug, Subcommand)]
-enum BenchCommand {
-    /// Round trips and frame throughput through the bus, beside raw iceoryx2.
-    Bus(BenchBusArgs),
-    /// The simulator: camera rendering, inverse kinematics, camera frame to the bus.
-    Sim(BenchSimArgs),
-    /// Perception: detector speed on one core, accuracy on random simulated scenes, and a
-    /// camera frame to objects in the workspace model through the bus.
-    Perception(BenchPerceptionArgs),
-    /// MCP latency over SSE and streamable HTTP, calls/s with 8 and 64 clients, the
-    /// service's memory (starts its own `robotd serve`).
-    Mcp(BenchMcpArgs),
-    /// Camera frames to Redis (JPEG q85, XADD) beside the bus's own frame rate, and the
-    /// running Redis edge (starts its own redis-server unless --redis names one).
-    Redis(BenchRedisArgs),
-    /// What the motion policy adds to a motion command, beside planning the same command.
-    Safety(BenchSafetyArgs),
-    /// Round trips of a Rust client to a running robotd's system/ping (the Rust side of
-    /// scripts/bench/python_bus.py).
-    Ping(BenchPingArgs),
-    /// The service for N minutes under a realistic mix (MCP clients coming and going, motions,
-    /// the agent, Redis down and up, actor faults and kills), sampled every 5 s; exit 1 when
-    /// memory, descriptors or threads grow, a fault is not recovered, a call is lost or runs
-    /// twice, or the robot stays stuck.
-    Soak(BenchSoakArgs),
-    /// JPEG encoding of a 640×480 camera frame: robotd's encoder beside the `image` crate's,
-    /// and a copy of the frame as the floor.
-    Jpeg(BenchJpegArgs),
-    /// The niryo driver against the fake Ned2 on loopback: a command round trip beside a raw
-    /// TCP echo of the same bytes, camera images through TCP and decoding.
-    Niryo(BenchNiryoArgs),
-    /// The widowx driver against the fake servo bus on a pty: a sync read of the nine servos
-    /// beside a raw pty echo of the same bytes, the 100 Hz control loop, a servo fault's
-    /// recovery.
-    Widowx(BenchWidowxArgs),
-}
-
-#[derive(Debug, Args)]
-struct BenchWidowxArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// Round trips per variant.
-    #[arg(long, default_value_t = 2000)]
-    round_trips: usize,
-}
-
-#[derive(Debug, Args)]
-struct BenchNiryoArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// Round trips per variant.
-    #[arg(long, default_value_t = 2000)]
-    round_trips: usize,
-    /// Camera images fetched.
-    #[arg(long, default_value_t = 100)]
-    images: usize,
-    /// Random scenes for perception through JPEG.
-    #[arg(long, default_value_t = 60)]
-    scenes: usize,
-}
-
 #[derive(Debug, Args)]
 struct RecordArgs {
     /// The file to write (never overwritten).
@@ -282,128 +220,6 @@ struct ReplayArgs {
     /// possible.
     #[arg(long, default_value_t = 1.0)]
     speed: f64,
-}
-
-#[derive(Debug, Args)]
-struct BenchJpegArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// Frames encoded per variant.
-    #[arg(long, default_value_t = 300)]
-    frames: usize,
-}
-
-#[derive(Debug, Args)]
-struct BenchSoakArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// How long to run, minutes (2 … 10080).
-    #[arg(long, default_value_t = 3.0)]
-    minutes: f64,
-}
-
-#[derive(Debug, Args)]
-struct BenchPingArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// The running robotd's bus namespace.
-    #[arg(long, default_value = "robotd")]
-    namespace: String,
-    /// Round trips measured.
-    #[arg(long, default_value_t = 5_000)]
-    round_trips: usize,
-}
-
-#[derive(Debug, Args)]
-struct BenchSafetyArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// Motion commands per variant.
-    #[arg(long, default_value_t = 2000)]
-    commands: usize,
-}
-
-#[derive(Debug, Args)]
-struct BenchRedisArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// Frames through the bus and to Redis.
-    #[arg(long, default_value_t = 300)]
-    frames: usize,
-}
-
-#[derive(Debug, Args)]
-struct BenchMcpArgs {
-    #[arg(long)]
-    json: bool,
-    /// Sequential calls per latency measurement.
-    #[arg(long, default_value_t = 1000)]
-    calls: usize,
-    /// Seconds of each throughput run.
-    #[arg(long, default_value_t = 3.0)]
-    seconds: f64,
-    /// Run the service and the benchmark pinned to CPU 0, without the cross-CPU wake-ups
-    /// (slow on VMs) in every figure.
-    #[arg(long)]
-    one_core: bool,
-}
-
-#[derive(Debug, Args)]
-struct BenchPerceptionArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// Random scenes for speed and accuracy.
-    #[arg(long, default_value_t = 60)]
-    scenes: usize,
-    /// Frames sent through the bus for the frame-to-objects latency.
-    #[arg(long, default_value_t = 100)]
-    bus_frames: usize,
-    /// Instead: N randomized frames (sheet designs, light, lens, camera pose, distractors),
-    /// scored against ground truth.
-    #[arg(long, value_name = "N")]
-    randomized: Option<usize>,
-    /// Seed of the randomized frames.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// With --randomized: write the frames that went wrong to this folder as PNG files.
-    #[arg(long, value_name = "DIR")]
-    dump: Option<std::path::PathBuf>,
-    /// With --randomized: run only this frame (a seed the report or a dumped file names);
-    /// may be given several times.
-    #[arg(long = "frame-seed", value_name = "SEED")]
-    frame_seeds: Vec<u64>,
-}
-
-#[derive(Debug, Args)]
-struct BenchSimArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// Frames rendered per variant.
-    #[arg(long, default_value_t = 300)]
-    frames: usize,
-}
-
-#[derive(Debug, Args)]
-struct BenchBusArgs {
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-    /// Measured round trips per variant.
-    #[arg(long, default_value_t = 20_000)]
-    round_trips: usize,
-    /// Frames per variant.
-    #[arg(long, default_value_t = 20_000)]
-    frames: usize,
-    /// Restarts measured.
-    #[arg(long, default_value_t = 500)]
-    restarts: usize,
 }
 
 fn load_config(args: &ConfigArgs) -> Result<Config> {
@@ -766,7 +582,7 @@ fn run() -> Result<std::process::ExitCode> {
         Command::Bench {
             what: BenchCommand::Safety(args),
         } => {
-            let figures = bench::safety::run(args.commands.max(1))?;
+            let figures = bench::safety::run(args.commands.max(1), args.stops.max(1))?;
             print_figures(args.json, &figures, figures.table())
         }
         Command::Bench {

@@ -259,6 +259,7 @@ impl Runtime {
         let robot_type = self.hardware.arm_context.kinematics.model().robot_type();
         let mut settings = ToolSettings::new(robot_type, self.workspaces.clone());
         settings.skill_timeout = std::time::Duration::from_secs(config.mcp.skill_timeout_s);
+        settings.max_label_chars = config.workspace.max_label_chars as usize;
         let health = self.health_source.clone();
         let safety = self.hardware.safety.clone();
         settings.status = Arc::new(move || {

@@ -5,6 +5,7 @@
 //! everything crosses a real process boundary. The bus benchmark (raw iceoryx2 beside
 //! robotd's bus) and the statistics live in the `bench/` crate (robotd-bench).
 
+pub mod cli;
 pub mod jpeg;
 pub mod mcp;
 pub mod mcp_raw;
@@ -17,6 +18,7 @@ pub mod redis;
 pub mod safety;
 pub mod sim;
 pub mod soak;
+pub mod stopping;
 pub mod tcp_echo;
 pub mod widowx;
 

@@ -5,7 +5,9 @@
 //! (inverse kinematics, and for straight paths the dense waypoints) — the bare command's own
 //! cost — then the policy's admission (e-stop, rate limit, audit record) with the audit log
 //! off and on (writing to a temporary file), and the plan check (geofence at every sampled
-//! tool position, joint margins, speed caps). Nothing moves: the simulated arm stays at rest.
+//! tool position and every link's box, joint margins, speed caps). Nothing moves: the
+//! simulated arm stays at rest. Then e-stops: how fast the halt reaches the simulated arm's
+//! driver, and the stopping time and distance of each driver ([`super::stopping`]).
 
 use super::Latency;
 use anyhow::{Context, Result};
@@ -50,6 +52,8 @@ pub struct SafetyFigures {
     pub control_tick_us: f64,
     /// E-stops measured.
     pub estop_trials: usize,
+    /// Stopping time and distance per driver (see [`super::stopping`]).
+    pub stopping: Vec<super::stopping::Stopping>,
 }
 
 impl SafetyFigures {
@@ -83,12 +87,14 @@ impl SafetyFigures {
             self.estop_to_standstill_max_us,
             self.control_tick_us
         );
+        out += &super::stopping::table(&self.stopping);
         out
     }
 }
 
-/// Runs the measurement over `commands` random targets.
-pub fn run(commands: usize) -> Result<SafetyFigures> {
+/// Runs the measurement over `commands` random targets, and `stops` stops per driver for the
+/// stopping figures.
+pub fn run(commands: usize, stops: usize) -> Result<SafetyFigures> {
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -205,13 +211,14 @@ pub fn run(commands: usize) -> Result<SafetyFigures> {
         .context("flushing the benchmark's audit log")?;
     // The e-stop measurement polls the simulator from one worker while the arm runs on the
     // others.
-    let (stops, control_tick) = tokio::runtime::Builder::new_multi_thread()
+    let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(3)
         .enable_all()
         .build()
-        .context("starting the tokio runtime")?
-        .block_on(estop_latencies(30))?;
-    let (mut standstill, mut halt): (Vec<Duration>, Vec<Duration>) = stops.into_iter().unzip();
+        .context("starting the tokio runtime")?;
+    let (estops, control_tick) = runtime.block_on(estop_latencies(30))?;
+    let stopping = runtime.block_on(super::stopping::measure_all(stops))?;
+    let (mut standstill, mut halt): (Vec<Duration>, Vec<Duration>) = estops.into_iter().unzip();
     let max_us = |d: &[Duration]| d.iter().map(|d| d.as_secs_f64() * 1e6).fold(0.0, f64::max);
     let estop_to_standstill_max_us = max_us(&standstill);
     let estop_to_halt_max_us = max_us(&halt);
@@ -230,6 +237,7 @@ pub fn run(commands: usize) -> Result<SafetyFigures> {
         check_joint: Latency::of(e),
         check_linear: Latency::of(f),
         commands: done,
+        stopping,
     })
 }
 
