@@ -183,3 +183,44 @@ fn bench_jpeg_json_reports_every_figure() {
     let old = figures["image_crate_q85_ms_p50"].as_f64().unwrap();
     assert!(ours < old, "jpeg-encoder {ours} ms, image {old} ms");
 }
+
+#[test]
+fn bench_safety_json_reports_stopping_per_driver() {
+    let figures = bench_figures(&[
+        "bench",
+        "safety",
+        "--json",
+        "--commands",
+        "20",
+        "--stops",
+        "1",
+    ]);
+    assert_all_positive(&figures, &["commands", "estop_trials"]);
+    let stops = figures["stopping"].as_array().expect("stopping figures");
+    let drivers: Vec<&str> = stops.iter().filter_map(|s| s["driver"].as_str()).collect();
+    assert_eq!(
+        drivers,
+        [
+            "sim",
+            "fake Ned2 (TCP)",
+            "fake Ned2 (TCP)",
+            "fake Ned2 (TCP)",
+            "fake WidowX (DYNAMIXEL)"
+        ],
+        "{figures}"
+    );
+    for stop in stops {
+        // The arm was moving when the e-stop came, and stood still within the 5 s the
+        // benchmark allows; a swing took time.
+        assert!(stop["speed_at_stop_m_s"].as_f64().unwrap() > 0.05, "{stop}");
+        assert!(stop["time_ms_max"].as_f64().unwrap() < 5000.0, "{stop}");
+        assert!(stop["swing_s"].as_f64().unwrap() > 0.05, "{stop}");
+        assert_eq!(stop["joint_rad_max"].as_array().unwrap().len(), 6, "{stop}");
+    }
+    // The Ned2 stops only between segments: it travels after the e-stop.
+    assert!(
+        stops[2]["distance_mm_max"].as_f64().unwrap() > 0.5,
+        "{}",
+        stops[2]
+    );
+}
