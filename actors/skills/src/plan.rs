@@ -85,10 +85,9 @@ fn open_reach(settings: &SkillsSettings) -> f64 {
     settings.gripper_max_width_m / 2.0 + settings.finger_thickness_m
 }
 
-/// How close below `above_z` an object's top may come and still count as in the way, metres:
-/// the camera measures heights to a few millimetres, and a finger that touches a top is a
-/// collision.
-const TOP_MARGIN_M: f64 = 0.002;
+/// How far below `above_z` an object's top may be and still count as in the way, metres: a
+/// finger that comes down onto a top is a collision, even by a fraction of a millimetre.
+const TOP_MARGIN_M: f64 = 0.0005;
 
 /// The first of `others` whose footprint meets `area` and whose top reaches `above_z` (within
 /// [`TOP_MARGIN_M`]).
