@@ -5,7 +5,11 @@
 //! truth); the e-stop button stops a motion under way. Screenshots of the key states are
 //! kept in `target/test-artifacts/`.
 
+#[path = "common/browser.rs"]
+mod browser;
 mod common;
+
+use browser::Browser;
 
 use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_protocol::diagnostics::SimWorldRequest;
@@ -13,168 +17,8 @@ use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_runtime::catalog::{ARM_STATE, SIM_WORLD};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-/// A WebDriver session of one headless chromium.
-struct Browser {
-    http: reqwest::Client,
-    base: String,
-    driver: common::Running,
-}
-
-impl Drop for Browser {
-    fn drop(&mut self) {
-        // chromium is chromedriver's child: stop it first, or a failed test leaves it running.
-        let _ = Command::new("pkill")
-            .args(["-TERM", "-P", &self.driver.pid().to_string()])
-            .status();
-    }
-}
-
-impl Browser {
-    async fn start() -> Browser {
-        let port = common::free_port();
-        let child = Command::new("chromedriver")
-            .arg(format!("--port={port}"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("chromedriver (apt install chromium-driver; ./scripts/test.sh does)");
-        let driver = common::Running::new(child, "chromedriver");
-        robotd_runtime::telemetry::install_tls_provider();
-        let http = reqwest::Client::new();
-        let root = format!("http://127.0.0.1:{port}");
-        let deadline = Instant::now() + Duration::from_secs(20);
-        while http.get(format!("{root}/status")).send().await.is_err() {
-            assert!(Instant::now() < deadline, "chromedriver did not start");
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
-        let capabilities = json!({"capabilities": {"alwaysMatch": {
-            "browserName": "chrome",
-            "goog:chromeOptions": {
-                "binary": "/usr/bin/chromium",
-                "args": ["--headless=new", "--no-sandbox", "--disable-gpu",
-                         "--disable-dev-shm-usage", "--window-size=1280,1000"]
-            }
-        }}});
-        let reply: Value = http
-            .post(format!("{root}/session"))
-            .json(&capabilities)
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        let session = reply["value"]["sessionId"]
-            .as_str()
-            .unwrap_or_else(|| panic!("no WebDriver session: {reply}"));
-        Browser {
-            base: format!("{root}/session/{session}"),
-            http,
-            driver,
-        }
-    }
-
-    async fn command(&self, path: &str, body: Value) -> Value {
-        let reply: Value = self
-            .http
-            .post(format!("{}{path}", self.base))
-            .json(&body)
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        if reply["value"]["error"].is_string() {
-            panic!("WebDriver {path}: {reply}");
-        }
-        reply["value"].clone()
-    }
-
-    async fn open(&self, url: &str) {
-        self.command("/url", json!({ "url": url })).await;
-    }
-
-    /// Runs `script` (a function body) in the page and returns its value.
-    async fn eval(&self, script: &str) -> Value {
-        self.command("/execute/sync", json!({"script": script, "args": []}))
-            .await
-    }
-
-    /// Waits until `script` returns something truthy; returns it.
-    async fn wait_for(&self, what: &str, script: &str, within: Duration) -> Value {
-        let deadline = Instant::now() + within;
-        loop {
-            let value = self.eval(script).await;
-            let truthy = !matches!(&value, Value::Null | Value::Bool(false))
-                && value != json!(0)
-                && value != json!("");
-            if truthy {
-                return value;
-            }
-            assert!(Instant::now() < deadline, "the page never showed {what}");
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
-    }
-
-    async fn element(&self, css: &str) -> String {
-        let found = self
-            .command("/element", json!({"using": "css selector", "value": css}))
-            .await;
-        found
-            .as_object()
-            .and_then(|o| o.values().next())
-            .and_then(Value::as_str)
-            .unwrap_or_else(|| panic!("no element {css}: {found}"))
-            .to_owned()
-    }
-
-    async fn click(&self, css: &str) {
-        let id = self.element(css).await;
-        self.command(&format!("/element/{id}/click"), json!({}))
-            .await;
-    }
-
-    async fn type_into(&self, css: &str, text: &str) {
-        let id = self.element(css).await;
-        self.command(&format!("/element/{id}/value"), json!({ "text": text }))
-            .await;
-    }
-
-    async fn accept_dialog(&self) {
-        self.command("/alert/accept", json!({})).await;
-    }
-
-    /// Saves a screenshot as `target/test-artifacts/<name>.png`.
-    async fn screenshot(&self, name: &str) -> PathBuf {
-        use base64::Engine;
-        let reply: Value = self
-            .http
-            .get(format!("{}/screenshot", self.base))
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        let png = base64::engine::general_purpose::STANDARD
-            .decode(reply["value"].as_str().unwrap())
-            .unwrap();
-        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/test-artifacts");
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join(format!("{name}.png"));
-        std::fs::write(&path, png).unwrap();
-        path
-    }
-
-    async fn close(&self) {
-        let _ = self.http.delete(&self.base).send().await;
-    }
-}
 
 fn start_robotd(
     namespace: &str,

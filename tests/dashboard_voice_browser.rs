@@ -6,136 +6,20 @@
 //! LLM is asked with those words, and the robot does what was said: the pencil moves (checked
 //! against the simulator's ground truth).
 
+#[path = "common/browser.rs"]
+mod browser;
 mod common;
 
 #[path = "common/stt.rs"]
 mod stt;
 
+use browser::Browser;
 use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_protocol::diagnostics::SimWorldRequest;
 use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_runtime::catalog::SIM_WORLD;
-use serde_json::{json, Value};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
-
-/// One headless chromium with a fake microphone playing `wav`, over WebDriver.
-struct Browser {
-    http: reqwest::Client,
-    base: String,
-    driver: common::Running,
-}
-
-impl Drop for Browser {
-    fn drop(&mut self) {
-        // chromium is chromedriver's child: stop it first.
-        let _ = Command::new("pkill")
-            .args(["-TERM", "-P", &self.driver.pid().to_string()])
-            .status();
-    }
-}
-
-impl Browser {
-    async fn start(wav: &std::path::Path) -> Browser {
-        let port = common::free_port();
-        let child = Command::new("chromedriver")
-            .arg(format!("--port={port}"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("chromedriver (apt install chromium-driver; ./scripts/test.sh does)");
-        let driver = common::Running::new(child, "chromedriver");
-        robotd_runtime::telemetry::install_tls_provider();
-        let http = reqwest::Client::new();
-        let root = format!("http://127.0.0.1:{port}");
-        let deadline = Instant::now() + Duration::from_secs(20);
-        while http.get(format!("{root}/status")).send().await.is_err() {
-            assert!(Instant::now() < deadline, "chromedriver did not start");
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
-        let capabilities = json!({"capabilities": {"alwaysMatch": {
-            "browserName": "chrome",
-            "goog:chromeOptions": {
-                "binary": "/usr/bin/chromium",
-                "args": ["--headless=new", "--no-sandbox", "--disable-gpu",
-                         "--disable-dev-shm-usage", "--window-size=1280,1000",
-                         "--use-fake-device-for-media-stream", "--use-fake-ui-for-media-stream",
-                         "--autoplay-policy=no-user-gesture-required",
-                         format!("--use-file-for-fake-audio-capture={}%noloop", wav.display())]
-            }
-        }}});
-        let reply: Value = http
-            .post(format!("{root}/session"))
-            .json(&capabilities)
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        let session = reply["value"]["sessionId"]
-            .as_str()
-            .unwrap_or_else(|| panic!("no WebDriver session: {reply}"));
-        Browser {
-            base: format!("{root}/session/{session}"),
-            http,
-            driver,
-        }
-    }
-
-    async fn command(&self, path: &str, body: Value) -> Value {
-        let reply: Value = self
-            .http
-            .post(format!("{}{path}", self.base))
-            .json(&body)
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        if reply["value"]["error"].is_string() {
-            panic!("WebDriver {path}: {reply}");
-        }
-        reply["value"].clone()
-    }
-
-    async fn eval(&self, script: &str) -> Value {
-        self.command("/execute/sync", json!({"script": script, "args": []}))
-            .await
-    }
-
-    /// Waits until `script` returns something truthy; returns it.
-    async fn wait_for(&self, what: &str, script: &str, within: Duration) -> Value {
-        let deadline = Instant::now() + within;
-        loop {
-            let value = self.eval(script).await;
-            if !matches!(&value, Value::Null | Value::Bool(false)) && value != json!("") {
-                return value;
-            }
-            assert!(Instant::now() < deadline, "the page never showed {what}");
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
-    }
-
-    async fn click(&self, css: &str) {
-        let found = self
-            .command("/element", json!({"using": "css selector", "value": css}))
-            .await;
-        let id = found
-            .as_object()
-            .and_then(|o| o.values().next())
-            .and_then(Value::as_str)
-            .unwrap_or_else(|| panic!("no element {css}: {found}"))
-            .to_owned();
-        self.command(&format!("/element/{id}/click"), json!({}))
-            .await;
-    }
-
-    async fn close(&self) {
-        let _ = self.http.delete(&self.base).send().await;
-    }
-}
+use serde_json::json;
+use std::time::Duration;
 
 async fn pencil_in_the_world(bus: &Bus) -> [f64; 2] {
     let world = bus
@@ -192,7 +76,16 @@ fn push_to_talk_in_chromium_moves_the_pencil() {
         let bus = Bus::open(BusOptions::new(&namespace, "voice-browser-test")).unwrap();
         let before = pencil_in_the_world(&bus).await;
 
-        let browser = Browser::start(wav.path()).await;
+        let browser = Browser::start_with(&[
+            "--use-fake-device-for-media-stream".into(),
+            "--use-fake-ui-for-media-stream".into(),
+            "--autoplay-policy=no-user-gesture-required".into(),
+            format!(
+                "--use-file-for-fake-audio-capture={}%noloop",
+                wav.path().display()
+            ),
+        ])
+        .await;
         browser
             .command("/url", json!({"url": format!("http://127.0.0.1:{port}/")}))
             .await;

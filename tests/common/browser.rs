@@ -28,6 +28,11 @@ impl Drop for Browser {
 impl Browser {
     /// Starts chromedriver on a free port and a headless chromium session (1280×1000).
     pub async fn start() -> Browser {
+        Browser::start_with(&[]).await
+    }
+
+    /// The same, with more chromium switches (a fake microphone, say).
+    pub async fn start_with(extra_args: &[String]) -> Browser {
         let port = common::free_port();
         let child = Command::new("chromedriver")
             .arg(format!("--port={port}"))
@@ -44,13 +49,19 @@ impl Browser {
             assert!(Instant::now() < deadline, "chromedriver did not start");
             tokio::time::sleep(Duration::from_millis(100)).await;
         }
+        let mut args: Vec<String> = [
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--window-size=1280,1000",
+        ]
+        .map(String::from)
+        .to_vec();
+        args.extend_from_slice(extra_args);
         let capabilities = json!({"capabilities": {"alwaysMatch": {
             "browserName": "chrome",
-            "goog:chromeOptions": {
-                "binary": "/usr/bin/chromium",
-                "args": ["--headless=new", "--no-sandbox", "--disable-gpu",
-                         "--disable-dev-shm-usage", "--window-size=1280,1000"]
-            }
+            "goog:chromeOptions": {"binary": "/usr/bin/chromium", "args": args}
         }}});
         let reply: Value = http
             .post(format!("{root}/session"))
@@ -135,6 +146,11 @@ impl Browser {
             .and_then(Value::as_str)
             .unwrap_or_else(|| panic!("no element {css}: {found}"))
             .to_owned()
+    }
+
+    /// Accepts the page's open `confirm()`/`alert()` dialog.
+    pub async fn accept_dialog(&self) {
+        self.command("/alert/accept", json!({})).await;
     }
 
     /// Clicks the first element matching `css`.
