@@ -9,6 +9,7 @@
 use super::bus::pin_current_thread;
 use anyhow::{Context, Result};
 use robotd_perception::eval::quantile;
+use robotd_perception::eval::randomized::breakdown::Breakdown;
 use robotd_perception::eval::randomized::{self, RandomizedFigures};
 use serde::Serialize;
 
@@ -49,6 +50,9 @@ pub struct RandomizedReport {
     pub by_distractor: Vec<(String, usize, usize)>,
     /// Seeds of frames with a wrong workspace (to look at).
     pub wrong_seeds: Vec<u64>,
+    /// Where frames with the sheet in view lost it (cause per design; what became of each
+    /// true marker), and the found rates by blur, smallest marker radius and camera tilt.
+    pub losses: Breakdown,
 }
 
 impl RandomizedReport {
@@ -76,6 +80,7 @@ impl RandomizedReport {
             by_design: figures.by_design,
             by_distractor: figures.by_distractor,
             wrong_seeds: figures.wrong_seeds,
+            losses: figures.breakdown,
         }
     }
 
@@ -116,6 +121,7 @@ impl RandomizedReport {
         for (name, frames, fps) in &self.by_distractor {
             out.push_str(&format!("  {name:<34} {frames:>6} {fps:>6}\n"));
         }
+        out.push_str(&self.losses.table());
         if !self.wrong_seeds.is_empty() {
             out.push_str(&format!(
                 "frames with a wrong workspace (seeds): {:?}\n",

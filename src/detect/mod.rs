@@ -140,11 +140,11 @@ pub fn run(args: &DetectArgs, config: &Config) -> Result<std::process::ExitCode>
         pipeline = pipeline.with_guessed_intrinsics();
     }
     let t0 = Instant::now();
-    let markers = pipeline.find_markers(&frame);
-    let located = if args.warped {
-        None
+    let (markers, located) = if args.warped {
+        (pipeline.find_markers(&frame), None)
     } else {
-        Some(pipeline.plane_from_markers(&frame, &markers, &workspace))
+        let (markers, located) = pipeline.locate_with_markers(&frame, &workspace);
+        (markers, Some(located))
     };
     let mut sheet: Option<(Pipeline, TablePlane)> = None;
     let mut corners: Option<[MarkerObservation; 4]> = None;

@@ -7,7 +7,7 @@
 //! label, colour and confidence — plus how long each step took.
 
 use robotd_perception::labels::LabelTable;
-use robotd_perception::markers::MarkerObservation;
+use robotd_perception::markers::{MarkerEvidence, MarkerObservation};
 use robotd_protocol::objects::DetectedObject;
 use robotd_protocol::workspace::WorkspaceInfo;
 use serde::Serialize;
@@ -56,6 +56,9 @@ pub struct MarkerReport {
     pub corner: Option<String>,
     /// Whether it is the reference (origin) marker.
     pub reference: bool,
+    /// The blur (Gaussian σ, pixels) its profile showed when it was found by its blurred
+    /// profile, its rings too merged to see one by one; `null` when its rings were seen.
+    pub blur_px: Option<f64>,
 }
 
 /// One object.
@@ -105,12 +108,15 @@ impl Report {
         out += &format!("markers: {} seen\n", self.markers.len());
         for m in &self.markers {
             out += &format!(
-                "  ({:7.1}, {:7.1}) r {:5.1} px, {} rings{}{}\n",
+                "  ({:7.1}, {:7.1}) r {:5.1} px, {} rings{}{}{}\n",
                 m.centre_px[0],
                 m.centre_px[1],
                 m.radius_px,
                 m.rings,
                 if m.white_centre { ", white centre" } else { "" },
+                m.blur_px.map_or(String::new(), |b| format!(
+                    ", seen by its blurred profile (blur {b:.1} px)"
+                )),
                 match (&m.corner, m.reference) {
                     (Some(c), true) => format!("  -> {c} (reference)"),
                     (Some(c), false) => format!("  -> {c}"),
@@ -183,6 +189,10 @@ pub fn marker_reports(
                 white_centre: m.white_centre,
                 reference: corner.as_deref() == Some("upper_left"),
                 corner,
+                blur_px: match m.evidence {
+                    MarkerEvidence::Rings => None,
+                    MarkerEvidence::Profile { blur_px, .. } => Some(blur_px),
+                },
             }
         })
         .collect()

@@ -239,8 +239,9 @@ fn randomized_frames_never_give_a_wrong_workspace() {
         "frames with a wrong workspace: {:?}",
         figures.wrong_seeds
     );
-    // The measure is not vacuous: sheets are found and objects seen.
-    assert!(figures.found_rate() > 0.35, "{figures:?}");
+    // The measure is not vacuous: sheets are found and objects seen. Blurred and small
+    // printed markers count since the second look (it finds 76 % of these 136 frames).
+    assert!(figures.found_rate() > 0.65, "{figures:?}");
     assert!(figures.objects > 100, "{figures:?}");
     assert!(figures.recall() >= 0.97, "recall {}", figures.recall());
     assert!(

@@ -4,10 +4,14 @@
 //! where each pixel lies on the table. robotd does both itself on the CPU:
 //!
 //! - [`markers`] finds the workspace sheet's ring markers in the frame (each checked for its
-//!   concentric rings by [`rings`]) and the fours of them that can make a sheet;
+//!   concentric rings by [`rings`]) and the fours of them that can make a sheet; when they
+//!   give no sheet, [`blurred_markers`] looks again for markers too blurred or too small for
+//!   their rings to show ([`disc_scan`] proposes, [`ring_fit`] fits the designs' blurred
+//!   profiles of [`ring_model`]);
 //! - [`sheet`] proves a sheet through the homography four markers give: a pinhole camera can
 //!   see the configured rectangle so, the markers are one size on the table, the white
-//!   centre is between them. A workspace is found only when all of that holds;
+//!   centre is between them (and, with a marker only like its design, the border shows). A
+//!   workspace is found only when all of that holds;
 //! - [`plane`] fits the table plane's homography to them, recovers where the camera is, and
 //!   maps a pixel to the table — or to the height of an object's top face (parallax);
 //! - [`background`] measures the sheet itself in each frame (its paper's colour, where its
@@ -45,9 +49,11 @@
 //! ```
 
 pub mod background;
+pub mod blurred_markers;
 pub mod camera;
 pub mod components;
 pub mod detector;
+pub mod disc_scan;
 pub mod external;
 pub mod footprint;
 pub mod groups;
@@ -56,6 +62,8 @@ pub mod markers;
 pub mod pipeline;
 pub mod plane;
 pub mod rect;
+pub mod ring_fit;
+pub mod ring_model;
 pub mod rings;
 pub mod shade;
 pub mod sheet;

@@ -22,7 +22,7 @@
 //! ([`crate::sheet`]); [`SheetCheck`] names the check a four failed.
 
 use crate::components::{union_root, Blob, Components};
-use crate::rings::{ring_profile, RingProfile};
+use crate::rings::{ring_check, RingProfile, RingReject};
 use crate::shade::LocalMean;
 
 /// Class of dark pixels in the class map.
@@ -56,14 +56,67 @@ pub struct MarkerObservation {
     /// signature (the simulator's 0.7, Niryo's printed markers 0.85), the same for the four
     /// markers of one sheet.
     pub ring_fraction: f64,
+    /// How it was seen.
+    pub evidence: MarkerEvidence,
+}
+
+/// How a marker was seen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MarkerEvidence {
+    /// Its rings came out dark and its gaps light, pixel by pixel ([`crate::rings`]).
+    Rings,
+    /// Its blurred radial profile is its design's ([`crate::ring_fit`]).
+    Profile {
+        /// The blur (Gaussian σ, pixels) the profile showed.
+        blur_px: f64,
+        /// Whether no disc of one grey inside a ring of another explains it as well (the rings
+        /// still show through the blur). When not, the sheet it makes must show its border
+        /// too ([`crate::sheet`]).
+        distinct: bool,
+    },
+}
+
+/// What became of one marker candidate of the last search ([`MarkerFinder::candidates`]):
+/// for finding out why a marker was missed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CandidateTrace {
+    /// The box of its dark blobs: `[u_min, u_max, v_min, v_max]`, pixels.
+    pub box_px: [u32; 4],
+    /// What became of it.
+    pub outcome: CandidateOutcome,
+}
+
+/// What became of a marker candidate, in the order of the checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum CandidateOutcome {
+    /// Its dark blobs joined with more (a dark frame or pad, a cable) into something larger
+    /// than a marker can be.
+    TooLarge,
+    /// One blob only, too small or too elongated to be a marker.
+    NotRingLike,
+    /// Its ink and paper differ too little.
+    LowContrast,
+    /// The ring check ([`crate::rings`]) failed.
+    Ring(RingReject),
+    /// A marker already found at the same place.
+    Duplicate,
+    /// A marker.
+    Marker,
 }
 
 /// Reusable buffers of the marker search.
 #[derive(Debug, Default)]
 pub struct MarkerFinder {
     classes: Vec<u8>,
-    shade: LocalMean,
+    pub(crate) shade: LocalMean,
     components: Components,
+    pub(crate) trace: Vec<CandidateTrace>,
+    pub(crate) scan: crate::disc_scan::DiscScan,
+    /// The blurred-profile fits of the last [`MarkerFinder::find_blurred_markers`] call.
+    pub(crate) fits: Vec<(
+        crate::disc_scan::DiscCandidate,
+        Option<crate::ring_fit::ModelFit>,
+    )>,
 }
 
 impl MarkerFinder {
@@ -90,6 +143,11 @@ impl MarkerFinder {
         }
     }
 
+    /// What became of every candidate of the last [`MarkerFinder::find_markers`] call.
+    pub fn candidates(&self) -> &[CandidateTrace] {
+        &self.trace
+    }
+
     /// Every marker in an RGB8 image of `width` × `height` pixels.
     pub fn find_markers(
         &mut self,
@@ -98,6 +156,7 @@ impl MarkerFinder {
         height: usize,
     ) -> Vec<MarkerObservation> {
         let n = width * height;
+        self.trace.clear();
         if rgb.len() < n * 3 || n == 0 {
             return Vec::new();
         }
@@ -120,26 +179,52 @@ impl MarkerFinder {
 
         // Blobs whose boxes come within a few pixels are one candidate: the rings of one
         // marker, even when blur and compression break a thin ring into arcs.
-        let clusters = cluster_blobs(&blobs, CLUSTER_GAP_PX, max_side);
+        let clusters = cluster_blobs(&blobs, CLUSTER_GAP_PX);
         let mut markers: Vec<MarkerObservation> = Vec::new();
         for cluster in clusters {
             let (w, h) = (
                 cluster.u_max - cluster.u_min + 1,
                 cluster.v_max - cluster.v_min + 1,
             );
+            let mut trace = |outcome| {
+                self.trace.push(CandidateTrace {
+                    box_px: [cluster.u_min, cluster.u_max, cluster.v_min, cluster.v_max],
+                    outcome,
+                })
+            };
+            if w > max_side || h > max_side {
+                trace(CandidateOutcome::TooLarge);
+                continue;
+            }
             let size = 0.5 * f64::from(w + h);
             if cluster.blobs < 2 || size < 6.0 || w > 3 * h || h > 3 * w {
+                trace(CandidateOutcome::NotRingLike);
                 continue;
             }
             let radius = size / 2.0;
             let seed = [cluster.u_sum / cluster.area, cluster.v_sum / cluster.area];
-            let Some((profile, paper)) = self.ring_check(width, height, seed, radius) else {
-                continue;
+            let (profile, paper) = match self.ring_check(width, height, seed, radius) {
+                Ok(found) => found,
+                Err(outcome) => {
+                    self.trace.push(CandidateTrace {
+                        box_px: [cluster.u_min, cluster.u_max, cluster.v_min, cluster.v_max],
+                        outcome,
+                    });
+                    continue;
+                }
             };
             // One marker may be seeded twice (a ring and its inside in two clusters).
             let duplicate = markers.iter().any(|m| {
                 (m.centre_px[0] - profile.centre[0]).hypot(m.centre_px[1] - profile.centre[1])
                     < 0.5 * m.radius_px.max(radius)
+            });
+            self.trace.push(CandidateTrace {
+                box_px: [cluster.u_min, cluster.u_max, cluster.v_min, cluster.v_max],
+                outcome: if duplicate {
+                    CandidateOutcome::Duplicate
+                } else {
+                    CandidateOutcome::Marker
+                },
             });
             if duplicate {
                 continue;
@@ -152,6 +237,7 @@ impl MarkerFinder {
                 ring_changes: profile.changes,
                 paper_grey: paper,
                 ring_fraction: profile.ring_inner_fraction,
+                evidence: MarkerEvidence::Rings,
             });
         }
         markers
@@ -160,14 +246,14 @@ impl MarkerFinder {
     /// The ring structure around `seed` (radius about `radius` pixels), judged on the grey
     /// levels with a threshold of the candidate's own: halfway between its ink (10th
     /// percentile) and its paper (90th), so thin rings that blur has turned grey still count.
-    /// With the paper's grey level; `None` when it is no ring marker.
+    /// With the paper's grey level; the reason when it is no ring marker.
     fn ring_check(
         &self,
         width: usize,
         height: usize,
         seed: [f64; 2],
         radius: f64,
-    ) -> Option<(RingProfile, u8)> {
+    ) -> Result<(RingProfile, u8), CandidateOutcome> {
         let mut greys: Vec<u8> = Vec::with_capacity(256);
         for k in 0..16 {
             let a = k as f64 * std::f64::consts::TAU / 16.0;
@@ -184,13 +270,13 @@ impl MarkerFinder {
             }
         }
         if greys.len() < 32 {
-            return None;
+            return Err(CandidateOutcome::Ring(RingReject::Unusable));
         }
         greys.sort_unstable();
         let ink = greys[greys.len() / 10];
         let paper = greys[greys.len() * 9 / 10];
         if paper < ink.saturating_add(MIN_RING_CONTRAST) {
-            return None;
+            return Err(CandidateOutcome::LowContrast);
         }
         let threshold = (u16::from(ink) + u16::from(paper)) / 2;
         let shade = &self.shade;
@@ -198,7 +284,9 @@ impl MarkerFinder {
             (u >= 0 && v >= 0 && (u as usize) < width && (v as usize) < height)
                 .then(|| u16::from(shade.grey(u as usize, v as usize)) < threshold)
         };
-        ring_profile(&dark, seed, radius).map(|p| (p, paper))
+        ring_check(&dark, seed, radius)
+            .map(|p| (p, paper))
+            .map_err(CandidateOutcome::Ring)
     }
 }
 
@@ -220,9 +308,8 @@ struct Cluster {
     blobs: usize,
 }
 
-/// Groups blobs whose boxes come within `gap` pixels of each other; groups larger than
-/// `max_side` are dropped (a dark frame, a cable).
-fn cluster_blobs(blobs: &[Blob], gap: u32, max_side: u32) -> Vec<Cluster> {
+/// Groups blobs whose boxes come within `gap` pixels of each other.
+fn cluster_blobs(blobs: &[Blob], gap: u32) -> Vec<Cluster> {
     let n = blobs.len();
     let mut parent: Vec<usize> = (0..n).collect();
     let mut by_u: Vec<usize> = (0..n).collect();
@@ -265,11 +352,7 @@ fn cluster_blobs(blobs: &[Blob], gap: u32, max_side: u32) -> Vec<Cluster> {
         c.v_sum += b.v_mean * area;
         c.blobs += 1;
     }
-    clusters
-        .into_iter()
-        .flatten()
-        .filter(|c| c.u_max - c.u_min < max_side && c.v_max - c.v_min < max_side)
-        .collect()
+    clusters.into_iter().flatten().collect()
 }
 
 /// Half-side of the neighbourhood "dark" is judged against: a good deal larger than a marker
@@ -317,6 +400,9 @@ pub enum SheetCheck {
     TableSizes,
     /// Through the homography, the sheet's white centre is not there.
     Appearance,
+    /// A marker is only like its design (blur merged its rings), and the sheet does not show
+    /// its border (or its markers' sizes on the table differ).
+    Border,
     /// The sheet would put the camera far from where the arm's kinematics say it is: it is
     /// another sheet than the configured workspace.
     NotThisWorkspace,
@@ -340,6 +426,10 @@ impl std::fmt::Display for SheetCheck {
             }
             Self::TableSizes => "seen through the sheet's geometry, their sizes disagree",
             Self::Appearance => "the sheet's white centre is not between them",
+            Self::Border => {
+                "one of them is too blurred to be told from a round object, and the sheet's \
+                 border between them does not show"
+            }
             Self::NotThisWorkspace => {
                 "they make a sheet, but not the configured workspace: seen through it, the \
                  camera would be far from where the arm holds it (another sheet in view?)"

@@ -8,7 +8,9 @@
 
 use crate::camera::Camera;
 use crate::detector::{DetectError, Detector, FrameView, SheetView};
-use crate::markers::{sheet_candidates, MarkerFinder, MarkerObservation, SheetCheck};
+use crate::markers::{
+    sheet_candidates, CandidateTrace, MarkerFinder, MarkerObservation, SheetCheck,
+};
 use crate::plane::TablePlane;
 use crate::sheet::{verify_sheet, Intrinsics as SheetIntrinsics};
 use robotd_protocol::camera::CameraIntrinsics;
@@ -205,15 +207,61 @@ impl Pipeline {
         frame: &FrameView<'_>,
         workspace: &WorkspaceInfo,
     ) -> Result<TablePlane, SheetStatus> {
-        let markers = self.find_markers(frame);
-        self.plane_from_markers(frame, &markers, workspace)
+        self.locate_with_markers(frame, workspace)
+            .1
             .map(|(plane, _)| plane)
+    }
+
+    /// Every workspace marker found in `frame`, and the sheet of `workspace` they make (as
+    /// [`Pipeline::plane_from_markers`] gives it). When the markers whose rings show give no
+    /// sheet, a second look finds those too blurred or too small for their rings to show, by
+    /// their blurred profile ([`crate::blurred_markers`]), and the sheet is sought again among
+    /// all of them.
+    #[allow(clippy::type_complexity)]
+    pub fn locate_with_markers(
+        &mut self,
+        frame: &FrameView<'_>,
+        workspace: &WorkspaceInfo,
+    ) -> (
+        Vec<MarkerObservation>,
+        Result<(TablePlane, [MarkerObservation; 4]), SheetStatus>,
+    ) {
+        let mut markers = self.find_markers(frame);
+        self.markers.fits.clear();
+        let first = self.plane_from_markers(frame, &markers, workspace);
+        if first.is_ok() {
+            return (markers, first);
+        }
+        let blurred = self.markers.find_blurred_markers(&markers);
+        if blurred.is_empty() {
+            return (markers, first);
+        }
+        markers.extend(blurred);
+        let second = self.plane_from_markers(frame, &markers, workspace);
+        (markers, second)
+    }
+
+    /// The blurred-profile fits of the last frame's second look for markers (empty when the
+    /// first look found the sheet).
+    pub fn blurred_fits(
+        &self,
+    ) -> &[(
+        crate::disc_scan::DiscCandidate,
+        Option<crate::ring_fit::ModelFit>,
+    )] {
+        self.markers.blurred_fits()
     }
 
     /// Every workspace marker in `frame`.
     pub fn find_markers(&mut self, frame: &FrameView<'_>) -> Vec<MarkerObservation> {
         self.markers
             .find_markers(frame.rgb, frame.width, frame.height)
+    }
+
+    /// What became of every marker candidate of the last marker search (to find out why a
+    /// marker was missed).
+    pub fn marker_candidates(&self) -> &[CandidateTrace] {
+        self.markers.candidates()
     }
 
     /// Says that the intrinsics given to [`Pipeline::new`] are a guess (a photo from an unknown

@@ -68,6 +68,19 @@ pub struct RingProfile {
     pub outer_radius_px: f64,
 }
 
+/// Why a candidate is not a ring marker: the first of [`ring_profile`]'s checks it failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum RingReject {
+    /// Too small to look at, or reaching out of the image.
+    Unusable,
+    /// Too few rays crossed an outer ring with a second dark element inside it.
+    TooFewRings,
+    /// The outer edges do not lie on an ellipse around the centre.
+    NotAnEllipse,
+    /// The rays disagree on the outer ring's width.
+    RingWidth,
+}
+
 /// What one ray saw.
 #[derive(Debug, Clone, Copy)]
 struct Ray {
@@ -211,8 +224,17 @@ pub fn ring_profile(
     centre: [f64; 2],
     radius_px: f64,
 ) -> Option<RingProfile> {
+    ring_check(dark, centre, radius_px).ok()
+}
+
+/// [`ring_profile`], saying which check a candidate failed.
+pub fn ring_check(
+    dark: &impl Fn(i64, i64) -> Option<bool>,
+    centre: [f64; 2],
+    radius_px: f64,
+) -> Result<RingProfile, RingReject> {
     if !(radius_px.is_finite() && radius_px >= 3.0) {
-        return None;
+        return Err(RingReject::Unusable);
     }
     let mut centre = centre;
     let mut rays = cast(dark, centre, radius_px);
@@ -228,7 +250,7 @@ pub fn ring_profile(
     }
     let good: Vec<Ray> = rays.into_iter().flatten().collect();
     if good.len() < MIN_GOOD_RAYS {
-        return None;
+        return Err(RingReject::TooFewRings);
     }
     let outer: Vec<f64> = good.iter().map(|r| r.outer).collect();
     let angles: Vec<f64> = good.iter().map(|r| r.angle).collect();
@@ -237,8 +259,9 @@ pub fn ring_profile(
         .fold((f64::MAX, 0f64), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
     // Edges are found to about a pixel: small markers get that much slack.
     let tolerance = MAX_ELLIPSE_MISFIT.max(1.0 / radius_px);
-    if hi > MAX_ELLIPSE_RATIO * lo || ellipse_misfit(&angles, &outer)? > tolerance {
-        return None;
+    let misfit = ellipse_misfit(&angles, &outer).ok_or(RingReject::NotAnEllipse)?;
+    if hi > MAX_ELLIPSE_RATIO * lo || misfit > tolerance {
+        return Err(RingReject::NotAnEllipse);
     }
     // The outer ring's width agrees on most rays (a faint inner ring that blur merged with
     // the gap may move it on a few).
@@ -251,7 +274,7 @@ pub fn ring_profile(
         .filter(|f| (*f - typical).abs() <= MAX_RING_SPREAD)
         .count();
     if agreeing < MIN_GOOD_RAYS || !(0.3..0.97).contains(&typical) {
-        return None;
+        return Err(RingReject::RingWidth);
     }
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
@@ -262,7 +285,7 @@ pub fn ring_profile(
         v[v.len() / 2].min(255) as u8
     };
     let dark_centres = good.iter().filter(|r| r.centre_dark).count();
-    Some(RingProfile {
+    Ok(RingProfile {
         centre,
         changes: median_count(good.iter().map(|r| r.changes).collect()),
         dark_runs: median_count(good.iter().map(|r| r.dark_runs).collect()),
@@ -275,7 +298,7 @@ pub fn ring_profile(
 /// How far (root mean square of the relative radius error) the points at `radii` along
 /// `angles` from a centre are from the best ellipse centred there: `1/r² = a·cos² + b·sin² +
 /// c·cos·sin`, fitted by least squares. `None` when the fit is degenerate.
-fn ellipse_misfit(angles: &[f64], radii: &[f64]) -> Option<f64> {
+pub(crate) fn ellipse_misfit(angles: &[f64], radii: &[f64]) -> Option<f64> {
     use nalgebra::{Matrix3, Vector3};
     let mut normal = Matrix3::<f64>::zeros();
     let mut rhs = Vector3::<f64>::zeros();

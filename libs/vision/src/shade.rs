@@ -16,6 +16,8 @@
 //! assert_eq!(shade.grey(2, 2), 20);
 //! assert!((shade.mean(2, 2, 2) - (24.0 * 200.0 + 20.0) / 25.0).abs() < 1e-9);
 //! assert!(shade.darker_than(2, 2, 2, 62) && !shade.darker_than(0, 0, 2, 62));
+//! // Between pixel centres the grey level is interpolated.
+//! assert_eq!(shade.grey_at(1.5, 2.0), Some(110.0));
 //! ```
 
 /// Grey levels of a frame and their summed-area table.
@@ -59,6 +61,28 @@ impl LocalMean {
         self.grey[v * self.width + u]
     }
 
+    /// The grey level at `(u, v)` between pixel centres (bilinear; pixel `(i, j)`'s centre is
+    /// at `(i, j)`), `None` outside the frame.
+    pub fn grey_at(&self, u: f64, v: f64) -> Option<f64> {
+        if !(u >= 0.0 && v >= 0.0) {
+            return None;
+        }
+        let (i, j) = (u.floor() as usize, v.floor() as usize);
+        if i + 1 >= self.width || j + 1 >= self.height {
+            return None;
+        }
+        let (fu, fv) = (u - i as f64, v - j as f64);
+        let at = |i: usize, j: usize| f64::from(self.grey[j * self.width + i]);
+        let top = at(i, j) + fu * (at(i + 1, j) - at(i, j));
+        let bottom = at(i, j + 1) + fu * (at(i + 1, j + 1) - at(i, j + 1));
+        Some(top + fv * (bottom - top))
+    }
+
+    /// The frame's size, pixels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
     /// The sum of grey levels and the pixel count of the square of half-side `half` around
     /// `(u, v)`, clipped to the frame.
     pub fn sum(&self, u: usize, v: usize, half: usize) -> (u64, u64) {
@@ -70,6 +94,23 @@ impl LocalMean {
             .wrapping_sub(self.integral[v0 * stride + u1])
             .wrapping_sub(self.integral[v1 * stride + u0]);
         (u64::from(sum), ((v1 - v0) * (u1 - u0)) as u64)
+    }
+
+    /// The mean grey level of the square of half-side `half` around `(u, v)`, which must lie
+    /// wholly inside the frame (not clipped: for scans that keep off the edges).
+    #[inline]
+    pub fn interior_mean(&self, u: usize, v: usize, half: usize) -> f64 {
+        if half == 0 {
+            return f64::from(self.grey[v * self.width + u]);
+        }
+        let stride = self.width + 1;
+        let (u0, u1, v0, v1) = (u - half, u + half + 1, v - half, v + half + 1);
+        let sum = self.integral[v1 * stride + u1]
+            .wrapping_add(self.integral[v0 * stride + u0])
+            .wrapping_sub(self.integral[v0 * stride + u1])
+            .wrapping_sub(self.integral[v1 * stride + u0]);
+        let side = 2 * half + 1;
+        f64::from(sum) / (side * side) as f64
     }
 
     /// The mean grey level of the square of half-side `half` around `(u, v)`.

@@ -17,10 +17,16 @@
 //! 3. **The sheet's white centre is between them.** Every design has plain white paper in the
 //!    middle: most of a grid of points there (objects cover some) must be about as light and
 //!    as grey as the paper around the markers.
+//! 4. **When a marker is only like its design** (found by its blurred profile, which a disc of
+//!    one grey inside a ring of another explains as well: [`MarkerEvidence::Profile`]), the
+//!    sheet must show more of itself: the four markers' sizes on the table agree closely, and
+//!    the border between neighbouring markers is the design's — white paper on the
+//!    simulator's sheet; on a printed sheet either the Ned2 sheet's black frame or the classic
+//!    sheet's grey stripes, the same on at least three sides.
 
 use crate::camera::Camera;
 use crate::detector::FrameView;
-use crate::markers::{MarkerObservation, SheetCheck};
+use crate::markers::{MarkerEvidence, MarkerObservation, SheetCheck};
 use crate::plane::TablePlane;
 
 /// Largest pinhole misfit of a real sheet seen by a camera of known intrinsics: marker
@@ -102,7 +108,107 @@ pub fn verify_sheet(
     if paper_share(camera, frame, plane, four, world) < MIN_PAPER_SHARE {
         return Err(SheetCheck::Appearance);
     }
+    let only_alike = four.iter().any(|m| {
+        matches!(
+            m.evidence,
+            MarkerEvidence::Profile {
+                distinct: false,
+                ..
+            }
+        )
+    });
+    if only_alike
+        && (hi > MAX_TABLE_SIZE_RATIO_ALIKE * lo
+            || !border_matches(camera, frame, plane, four, world))
+    {
+        return Err(SheetCheck::Border);
+    }
     Ok(())
+}
+
+/// With a marker only like its design, the four markers' sizes on the table may differ by
+/// this factor at most.
+const MAX_TABLE_SIZE_RATIO_ALIKE: f64 = 1.3;
+/// Points sampled along each side between neighbouring markers (about five per stripe of the
+/// classic sheet).
+const BORDER_SAMPLES: usize = 60;
+/// Stripes: the side's light and dark samples (90th and 10th percentiles) differ by this
+/// share of the paper's level at least...
+const STRIPE_CONTRAST: f64 = 0.07;
+/// ...and alternate this many times at least.
+const MIN_STRIPE_CROSSINGS: usize = 8;
+/// They cover this part of the side (clear of the markers and their light discs).
+const BORDER_SPAN: (f64, f64) = (0.15, 0.85);
+/// A side shows its design when this share of its samples does.
+const BORDER_SHARE: f64 = 0.7;
+
+/// The sheet's border between neighbouring markers, through the homography: white paper for
+/// the simulator's design (its markers' outer ring at 0.7 of their radius), the black frame
+/// or the grey stripes for a printed one, the same on three sides of four at least (an object
+/// may lie on one).
+fn border_matches(
+    camera: &Camera,
+    frame: &FrameView<'_>,
+    plane: &TablePlane,
+    four: &[MarkerObservation; 4],
+    world: &[[f64; 2]; 4],
+) -> bool {
+    let printed = four.iter().all(|m| m.ring_fraction > 0.775);
+    // Around the edge: upper-left, upper-right, lower-right, lower-left.
+    let sides = [(0, 1), (1, 3), (3, 2), (2, 0)];
+    let mut kinds = [0usize; 3]; // paper, black, striped
+    for (a, b) in sides {
+        let paper = 0.5 * (f64::from(four[a].paper_grey) + f64::from(four[b].paper_grey));
+        let mut greys = Vec::with_capacity(BORDER_SAMPLES);
+        for i in 0..BORDER_SAMPLES {
+            let t = BORDER_SPAN.0
+                + (BORDER_SPAN.1 - BORDER_SPAN.0) * i as f64 / (BORDER_SAMPLES - 1) as f64;
+            let (x, y) = (
+                world[a][0] + t * (world[b][0] - world[a][0]),
+                world[a][1] + t * (world[b][1] - world[a][1]),
+            );
+            let raw = camera.raw_of(plane.table_to_pixel(x, y));
+            let (u, v) = (raw[0].round(), raw[1].round());
+            if !(u >= 0.0 && v >= 0.0 && u < frame.width as f64 && v < frame.height as f64) {
+                continue;
+            }
+            let at = (v as usize * frame.width + u as usize) * 3;
+            if let Some(p) = frame.rgb.get(at..at + 3) {
+                greys.push(
+                    (f64::from(p[0]) * 77.0 + f64::from(p[1]) * 150.0 + f64::from(p[2]) * 29.0)
+                        / 256.0,
+                );
+            }
+        }
+        if greys.len() < BORDER_SAMPLES / 2 {
+            continue;
+        }
+        let share = |f: &dyn Fn(f64) -> bool| {
+            greys.iter().filter(|g| f(**g)).count() as f64 / greys.len() as f64
+        };
+        let mut sorted = greys.clone();
+        sorted.sort_by(f64::total_cmp);
+        let (low, high) = (sorted[sorted.len() / 10], sorted[sorted.len() * 9 / 10]);
+        let middle = 0.5 * (low + high);
+        let crossings = greys
+            .windows(2)
+            .filter(|w| (w[0] < middle) != (w[1] < middle))
+            .count();
+        // The classic sheet's stripes cross the side every 13 mm or so, grey on white: light
+        // and dark alternate many times (a light gradient or a shadow crosses once or twice).
+        if high - low >= STRIPE_CONTRAST * paper && crossings >= MIN_STRIPE_CROSSINGS {
+            kinds[2] += 1;
+        } else if share(&|g| g >= 0.6 * paper) >= BORDER_SHARE {
+            kinds[0] += 1;
+        } else if share(&|g| g <= 0.45 * paper) >= BORDER_SHARE {
+            kinds[1] += 1;
+        }
+    }
+    if printed {
+        kinds[1] >= 3 || kinds[2] >= 3
+    } else {
+        kinds[0] >= 3
+    }
 }
 
 /// The share of a grid of points in the middle of the sheet that look like its paper: at

@@ -58,6 +58,10 @@ pub(super) struct Case {
     pub(super) jpeg_quality: u8,
     pub(super) truth: Vec<SimObject>,
     pub(super) design_index: usize,
+    /// The markers' outer radius on the table, metres.
+    pub(super) marker_radius_m: f64,
+    /// The camera's tilt from straight down, degrees.
+    pub(super) tilt_deg: f64,
     pub(super) sheet_expected: bool,
     pub(super) covered: bool,
     pub(super) distractors: Vec<Distractor>,
@@ -401,9 +405,11 @@ pub(super) fn make_case(
     // The camera: above the sheet, tilted up to 30° in any direction, turned any way.
     let mut camera = Isometry3::identity();
     let mut in_view = false;
+    let mut tilt_deg = 0.0;
     for _ in 0..40 {
         let height = rng.random_range(0.24..0.42);
         let tilt: f64 = rng.random_range(0f64..30.0).to_radians();
+        tilt_deg = tilt.to_degrees();
         let azimuth: f64 = rng.random_range(0.0..std::f64::consts::TAU);
         let target = Point3::new(
             cx + rng.random_range(-0.015..0.015),
@@ -482,6 +488,8 @@ pub(super) fn make_case(
         jpeg_quality: rng.random_range(40..=95),
         truth,
         design_index,
+        marker_radius_m: r,
+        tilt_deg,
         sheet_expected: in_view && !covered && !painted,
         covered: covered || painted,
         distractors,

@@ -21,12 +21,14 @@
 //! Each frame is scored: was the workspace found; was it **wrong** (any corner more than
 //! 1 cm from where it really is); object recall and precision; position error.
 
+pub mod breakdown;
 mod case;
 
 use super::{score, LabError};
 use crate::detector::{ColourDetector, ColourDetectorSettings, FrameView};
 use crate::labels::LabelTable;
 use crate::pipeline::Pipeline;
+use breakdown::{Breakdown, TrueMarker};
 use case::{corner_points, make_case, DISTRACTORS};
 use nalgebra::Point3;
 use rand::rngs::SmallRng;
@@ -77,6 +79,9 @@ pub struct RandomizedFigures {
     pub by_distractor: Vec<(String, usize, usize)>,
     /// Seeds of the frames with a wrong workspace, to look at.
     pub wrong_seeds: Vec<u64>,
+    /// Where the frames with the sheet in view lost it, and the found rates by blur, marker
+    /// size and tilt.
+    pub breakdown: Breakdown,
 }
 
 impl RandomizedFigures {
@@ -225,6 +230,43 @@ pub fn run_frames(
         figures.frames += 1;
 
         let found = lens.pipeline.last_sheet().map(|(plane, _)| plane.clone());
+        let camera_from_world = case.camera.inverse();
+        let true_corner_error = |plane: &crate::plane::TablePlane| {
+            corner_points(&workspace)
+                .iter()
+                .map(|&[x, y]| {
+                    let Some(px) = lens
+                        .intrinsics
+                        .project(&camera_from_world, &Point3::new(x, y, 0.0))
+                    else {
+                        return f64::INFINITY;
+                    };
+                    let seen = plane.pixel_to_table([px.x, px.y]);
+                    (seen[0] - x).hypot(seen[1] - y)
+                })
+                .fold(0f64, f64::max)
+        };
+        if case.sheet_expected {
+            let truth = true_markers(
+                &lens.intrinsics,
+                &camera_from_world,
+                &corner_points(&workspace),
+                case.marker_radius_m,
+            );
+            let right = found
+                .as_ref()
+                .is_some_and(|p| true_corner_error(p) <= WRONG_CORNER_M);
+            figures.breakdown.record(
+                case.design_index,
+                case.photo.blur_px,
+                case.tilt_deg,
+                &truth,
+                lens.pipeline.marker_candidates(),
+                lens.pipeline.blurred_fits(),
+                &status,
+                right,
+            );
+        }
         let mut problems: Vec<String> = Vec::new();
         let save = |problems: &[String]| {
             if let (Some(dir), false) = (dump, problems.is_empty()) {
@@ -295,20 +337,7 @@ pub fn run_frames(
             continue;
         };
         // Where the found plane puts the true corners' pixels.
-        let camera_from_world = case.camera.inverse();
-        let corner_error = corner_points(&workspace)
-            .iter()
-            .map(|&[x, y]| {
-                let Some(px) = lens
-                    .intrinsics
-                    .project(&camera_from_world, &Point3::new(x, y, 0.0))
-                else {
-                    return f64::INFINITY;
-                };
-                let seen = plane.pixel_to_table([px.x, px.y]);
-                (seen[0] - x).hypot(seen[1] - y)
-            })
-            .fold(0f64, f64::max);
+        let corner_error = true_corner_error(&plane);
         if corner_error > WRONG_CORNER_M {
             figures.wrong_workspaces += 1;
             figures.wrong_seeds.push(frame_seed);
@@ -353,6 +382,39 @@ pub fn run_frames(
         save(&problems);
     }
     Ok(figures)
+}
+
+/// Where the four markers really are in the (distorted) image and how large they look.
+fn true_markers(
+    intrinsics: &Intrinsics,
+    camera_from_world: &nalgebra::Isometry3<f64>,
+    corners: &[[f64; 2]; 4],
+    radius_m: f64,
+) -> [TrueMarker; 4] {
+    let raw = |x: f64, y: f64| {
+        intrinsics
+            .project(camera_from_world, &Point3::new(x, y, 0.0))
+            .map(|p| intrinsics.distort(p))
+    };
+    corners.map(|[x, y]| {
+        let Some(c) = raw(x, y) else {
+            return TrueMarker {
+                centre_px: [f64::NAN; 2],
+                radius_px: 0.0,
+            };
+        };
+        let radii: Vec<f64> = (0..8)
+            .filter_map(|k| {
+                let a = f64::from(k) * std::f64::consts::FRAC_PI_4;
+                raw(x + radius_m * a.cos(), y + radius_m * a.sin())
+                    .map(|p| (p.x - c.x).hypot(p.y - c.y))
+            })
+            .collect();
+        TrueMarker {
+            centre_px: [c.x, c.y],
+            radius_px: radii.iter().sum::<f64>() / radii.len().max(1) as f64,
+        }
+    })
 }
 
 /// A word for why no sheet was found, for file names.
