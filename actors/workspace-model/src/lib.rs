@@ -6,11 +6,16 @@
 //!
 //! - subscribes to `perception/detections` and keeps, per workspace, the objects on the table
 //!   with ids that stay stable while they are tracked ([`tracker`]); only steady views (the arm
-//!   stood still) of a configured workspace count;
+//!   stood still) of a configured workspace count. An object keeps one name however the
+//!   detector relabels it between views (the label most of its recent views gave), and a new
+//!   object of the built-in detector is reported only once [`CONFIRM_VIEWS`] views agree (or a
+//!   skill placed it), so a one-view phantom never reaches a reply;
 //! - serves `workspace/query` ([`WorkspaceQuery`]): each [`WorkspaceRequest`] of the tools
 //!   ([`queries`], [`free_space`], [`labels`]), optionally "from a view taken after time t" —
-//!   such a query waits (bounded) for that view while other queries are answered meanwhile,
-//!   and fails with [`WorkspaceError::NoFreshDetection`] when none comes;
+//!   such a query waits (bounded) for that view while other queries are answered meanwhile
+//!   (when that view left new objects unconfirmed, for the next one too, so a look-then-pick
+//!   finds an object the camera has just seen; at the time limit it is answered from the view
+//!   it has), and fails with [`WorkspaceError::NoFreshDetection`] when no view comes;
 //! - follows what the skills do: [`WorkspaceRequest::ObjectPicked`] (the object is held, off
 //!   the table) and [`WorkspaceRequest::ObjectPlaced`] (back on the table where it was put,
 //!   until the camera confirms it or, not finding it, forgets it);
@@ -62,7 +67,7 @@ pub mod queries;
 pub mod tracker;
 
 pub use memory::{MemorySettings, SceneMemory};
-pub use tracker::{IgnoredView, ASSOCIATION_GATE_M};
+pub use tracker::{IgnoredView, ASSOCIATION_GATE_M, CONFIRM_VIEWS};
 
 use robotd_protocol::objects::Detections;
 use robotd_protocol::validate::Validate;
@@ -207,6 +212,8 @@ struct Ports {
 /// A query waiting for a view newer than `after_ns`.
 struct Waiter {
     after_ns: u64,
+    /// Views newer than `after_ns` applied so far (0 or 1: at the second it is answered).
+    views: u32,
     deadline: Instant,
     request: WorkspaceRequest,
     pending: PendingReply,
@@ -215,20 +222,28 @@ struct Waiter {
 async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, stop: Arc<Notify>) {
     let mut waiters: Vec<Waiter> = Vec::new();
     let mut last_warning = String::new();
+    // Capture time of the view applied before the newest one.
+    let mut previous_view_ns = 0u64;
     loop {
         let next_deadline = waiters.iter().map(|w| w.deadline).min();
         tokio::select! {
             _ = stop.notified() => break,
             received = ports.detections.recv() => match received {
-                Ok(message) => match memory.apply(&message.body) {
+                Ok(message) => match apply(&mut memory, &message.body, &mut previous_view_ns) {
                     Ok(tracked) => {
                         if let Err(error) = ports.objects.publish(&tracked) {
                             tracing::debug!(%error, "workspace model: publishing objects failed");
                         }
-                        // Answer the queries this view was waited for.
+                        // Answer the queries this view was waited for: at the first view after
+                        // their time, or the second when the first left candidates.
                         let view = memory.last_view_ns();
-                        let (ready, waiting): (Vec<Waiter>, Vec<Waiter>) =
-                            waiters.drain(..).partition(|w| view > w.after_ns);
+                        let settling = memory.has_candidates();
+                        for w in waiters.iter_mut().filter(|w| view > w.after_ns) {
+                            w.views += 1;
+                        }
+                        let (ready, waiting): (Vec<Waiter>, Vec<Waiter>) = waiters
+                            .drain(..)
+                            .partition(|w| w.views >= if settling { 2 } else { 1 });
                         waiters = waiting;
                         for w in ready {
                             let reply = serve(&mut memory, &ports.labels, &w.request);
@@ -249,8 +264,14 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
                         respond(&mut ports.server, pending, error.into());
                         continue;
                     }
+                    let views_after = |after: u64| {
+                        u32::from(memory.last_view_ns() > after) + u32::from(previous_view_ns > after)
+                    };
                     match query.fresh_after_unix_ns {
-                        Some(after) if memory.last_view_ns() <= after => {
+                        Some(after)
+                            if views_after(after) == 0
+                                || (views_after(after) == 1 && memory.has_candidates()) =>
+                        {
                             let wait = if query.max_wait_ms == 0 {
                                 default_wait
                             } else {
@@ -258,6 +279,7 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
                             };
                             waiters.push(Waiter {
                                 after_ns: after,
+                                views: views_after(after),
                                 deadline: Instant::now() + wait,
                                 request: query.request,
                                 pending,
@@ -280,6 +302,12 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
                     waiters.drain(..).partition(|w| w.deadline <= now);
                 waiters = waiting;
                 for w in expired {
+                    if w.views > 0 {
+                        // A fresh view came but did not settle: answer from it.
+                        let reply = serve(&mut memory, &ports.labels, &w.request);
+                        respond(&mut ports.server, w.pending, reply);
+                        continue;
+                    }
                     let error = WorkspaceError::NoFreshDetection {
                         reason: no_fresh_view_reason(&memory, w.after_ns),
                     };
@@ -299,6 +327,20 @@ async fn run(mut ports: Ports, mut memory: SceneMemory, default_wait: Duration, 
         // keep the ports open a moment for the clients to collect these last answers.
         tokio::time::sleep(SHUTDOWN_GRACE).await;
     }
+}
+
+/// Applies one view, remembering the capture time of the view before it.
+fn apply(
+    memory: &mut SceneMemory,
+    detections: &Detections,
+    previous_view_ns: &mut u64,
+) -> Result<TrackedObjects, IgnoredView> {
+    let before = memory.last_view_ns();
+    let tracked = memory.apply(detections)?;
+    if memory.last_view_ns() > before {
+        *previous_view_ns = before;
+    }
+    Ok(tracked)
 }
 
 /// How long the actor keeps its ports open after answering waiting queries at shutdown.

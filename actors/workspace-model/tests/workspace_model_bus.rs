@@ -1,8 +1,9 @@
 //! The workspace model on a real bus: ids stay stable over 100 noisy frames, missing objects
 //! expire, picks and places are followed, unknown workspaces and bad queries get clear errors,
 //! label additions are published, and fresh-view queries wait for a steady view (answered at
-//! once when there is one, timing out with the reason when none comes) while other queries are
-//! answered meanwhile.
+//! once when there is one, timing out with the reason when none comes; waiting for one more
+//! view when the first showed a new object that a second view must confirm) while other
+//! queries are answered meanwhile.
 
 use robotd_protocol::envelope::unix_now_ns;
 use robotd_protocol::geometry::{Point2, Point3, Pose, RobotModel};
@@ -149,8 +150,18 @@ async fn fresh_queries_wait_for_a_steady_view_or_time_out() {
         "answered from a view taken during a motion"
     );
 
+    // The first steady view shows a cube never seen before: one more view must agree before it
+    // is reported, so the query waits for that one too.
     view.frame_id = 2;
     view.steady = true;
+    view.timestamp_unix_ns = unix_now_ns();
+    detections.publish(&view).unwrap();
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    assert!(
+        !waiting.is_finished(),
+        "answered before a second view could confirm the new cube"
+    );
+    view.frame_id = 3;
     view.timestamp_unix_ns = unix_now_ns();
     detections.publish(&view).unwrap();
     let reply = tokio::time::timeout(Duration::from_secs(5), waiting)
@@ -170,7 +181,7 @@ async fn fresh_queries_wait_for_a_steady_view_or_time_out() {
             .await
             .unwrap()
             .unwrap();
-        if msg.body.frame_id == 2 {
+        if msg.body.frame_id == 3 {
             break msg.body;
         }
     };
@@ -294,6 +305,8 @@ async fn ids_stay_stable_over_100_frames_and_missing_objects_expire() {
             object("blue square", 0.22, 0.05, 0.045),
         ]
     };
+    // New objects are reported once a second view agrees.
+    assert!(rig.view("niryo_ws", scene()).await.objects.is_empty());
     let first = rig.view("niryo_ws", scene()).await;
     let expected = pairs(&[
         ("obj-1", "red cube"),
@@ -338,6 +351,7 @@ async fn ids_stay_stable_over_100_frames_and_missing_objects_expire() {
     );
     assert_eq!(rig.objects().await.len(), 2);
     // Put back: a new id, never the old one.
+    rig.view("niryo_ws", scene()).await;
     let tracked = rig.view("niryo_ws", scene()).await;
     assert!(tracked
         .objects
@@ -351,6 +365,7 @@ async fn picks_and_places_are_followed_until_the_camera_confirms() {
     let mut rig = Rig::start("pickplace", vec![niryo()]).await;
     let cube = || object("red cube", 0.30, 0.05, 0.03);
     let pencil = || object("pencil", 0.20, -0.05, 0.012);
+    rig.view("niryo_ws", vec![cube(), pencil()]).await;
     rig.view("niryo_ws", vec![cube(), pencil()]).await;
 
     let picked = rig
@@ -558,6 +573,47 @@ async fn a_fresh_query_is_answered_at_once_when_memory_is_fresh_enough() {
     let mut rig = Rig::start("fresh-now", vec![niryo()]).await;
     let before = unix_now_ns();
     rig.view("niryo_ws", vec![cube(0.3, 0.05)]).await;
+    // One view after `before` left a candidate. When no second view comes within the wait,
+    // the query is answered from the view it has (the cube not yet reported), not refused.
+    let reply = rig
+        .client
+        .request(
+            &WorkspaceQuery {
+                request: all(),
+                fresh_after_unix_ns: Some(before),
+                max_wait_ms: 200,
+            },
+            TIMEOUT,
+        )
+        .await
+        .unwrap();
+    assert_eq!(reply, WorkspaceReply::Objects { objects: vec![] });
+    // With a longer wait, the query waits for the next view and gets the cube.
+    let waiting = {
+        let client = rig.bus.client(&WORKSPACE_QUERY).unwrap();
+        tokio::spawn(async move {
+            client
+                .request(
+                    &WorkspaceQuery {
+                        request: all(),
+                        fresh_after_unix_ns: Some(before),
+                        max_wait_ms: 3000,
+                    },
+                    TIMEOUT,
+                )
+                .await
+                .unwrap()
+        })
+    };
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    assert!(!waiting.is_finished(), "answered with the cube unconfirmed");
+    rig.view("niryo_ws", vec![cube(0.3, 0.05)]).await;
+    let reply = tokio::time::timeout(TIMEOUT, waiting)
+        .await
+        .unwrap()
+        .unwrap();
+    assert!(matches!(reply, WorkspaceReply::Objects { ref objects } if objects.len() == 1));
+    // Two views after `before`, nothing unsettled: answered at once.
     let started = Instant::now();
     let reply = rig
         .client

@@ -36,15 +36,17 @@
 //! let mut memory = SceneMemory::new(vec![ws], &[], &["pencil".into()], MemorySettings::default());
 //! let mut pencil = DetectedObject { label: "pencil".into(), ..Default::default() };
 //! pencil.position.center_of_mass = Point3::new(0.2, 0.0, 0.005);
-//! let view = Detections {
-//!     frame_id: 1,
+//! let view = |t| Detections {
+//!     frame_id: t,
 //!     workspace_id: "niryo_ws".into(),
-//!     timestamp_unix_ns: 1,
+//!     timestamp_unix_ns: t,
 //!     source: "robotd".into(),
 //!     steady: true,
-//!     objects: vec![pencil],
+//!     objects: vec![pencil.clone()],
 //! };
-//! assert_eq!(memory.apply(&view).unwrap().objects[0].id, "obj-1");
+//! // A new object is reported once a second view agrees.
+//! assert!(memory.apply(&view(1)).unwrap().objects.is_empty());
+//! assert_eq!(memory.apply(&view(2)).unwrap().objects[0].id, "obj-1");
 //! let reply = memory.answer(&WorkspaceRequest::GetObjectNear {
 //!     coordinate: Point2::new(0.21, 0.0),
 //!     label: Some("PEN".into()),
@@ -118,6 +120,13 @@ impl SceneMemory {
     /// Capture time of the latest steady view applied, ns since the Unix epoch (0: none yet).
     pub fn last_view_ns(&self) -> u64 {
         self.tracker.last_view_ns()
+    }
+
+    /// Whether the current workspace has candidates (objects seen in one view, not yet
+    /// reported): one more view settles what is on its table.
+    pub fn has_candidates(&self) -> bool {
+        self.current_workspace()
+            .is_some_and(|ws| self.tracker.has_candidates(&ws.id))
     }
 
     /// The workspace the object questions are about: the one last seen, else the first.

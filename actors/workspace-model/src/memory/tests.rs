@@ -49,6 +49,15 @@ fn view(frame_id: u64, objects: Vec<DetectedObject>) -> Detections {
     }
 }
 
+/// Two steady views showing `objects`, 500 ns apart, the second at `frame_id`'s time: new
+/// objects are reported once two views agree. Returns what the second reports.
+fn settle(m: &mut SceneMemory, frame_id: u64, objects: Vec<DetectedObject>) -> TrackedObjects {
+    let mut first = view(frame_id, objects.clone());
+    first.timestamp_unix_ns -= 500;
+    m.apply(&first).unwrap();
+    m.apply(&view(frame_id, objects)).unwrap()
+}
+
 /// A red cube (far left), a pencil (near right), a blue square (near left) and a green
 /// cylinder (far right); sizes 0.0009, 0.00144, 0.002025, 0.001024 m².
 fn scene() -> Vec<DetectedObject> {
@@ -67,7 +76,7 @@ fn memory() -> SceneMemory {
         &["red cube".into(), "pencil".into()],
         MemorySettings::default(),
     );
-    m.apply(&view(1, scene())).unwrap();
+    settle(&mut m, 1, scene());
     m
 }
 
@@ -331,7 +340,10 @@ fn ids_are_stable_and_missing_objects_expire() {
     assert_eq!(t.objects.len(), 3);
     let mut with_new = without_pencil;
     with_new.push(object("pencil", 0.20, -0.05, 0.012, 0.12));
-    let t = m.apply(&view(303, with_new)).unwrap();
+    // Reported once a second view agrees.
+    let t = m.apply(&view(303, with_new.clone())).unwrap();
+    assert_eq!(t.objects.len(), 3);
+    let t = m.apply(&view(304, with_new)).unwrap();
     assert!(t
         .objects
         .iter()
@@ -404,7 +416,7 @@ fn free_space(m: &mut SceneMemory) -> (f64, Point2) {
 #[test]
 fn free_space_counts_the_objects_on_the_table_of_the_current_workspace() {
     let mut m = SceneMemory::new(workspaces(), &[], &[], MemorySettings::default());
-    m.apply(&view(1, vec![cube_in_the_middle()])).unwrap();
+    settle(&mut m, 1, vec![cube_in_the_middle()]);
     // Worked out in free_space::tests::one_cube_in_the_middle_leaves_the_near_strip.
     let (area, center) = free_space(&mut m);
     assert!((area - 0.01089936).abs() < 1e-9, "{area}");
@@ -432,6 +444,8 @@ fn object_questions_follow_the_workspace_in_view() {
     let mut m = memory();
     let mut gazebo = view(2, vec![object("pencil", 0.2, 0.0, 0.01, 0.1)]);
     gazebo.workspace_id = "gazebo_1".into();
+    m.apply(&gazebo).unwrap();
+    gazebo.timestamp_unix_ns += 500;
     let t = m.apply(&gazebo).unwrap();
     assert_eq!(t.workspace_id, "gazebo_1");
     assert_eq!(m.current_workspace().unwrap().id, "gazebo_1");
@@ -482,7 +496,7 @@ fn a_placed_object_moves_to_the_workspace_it_was_put_in() {
     let mut all = workspaces();
     all.push(far);
     let mut m = SceneMemory::new(all, &[], &[], MemorySettings::default());
-    m.apply(&view(1, scene())).unwrap();
+    settle(&mut m, 1, scene());
     // Placed 1 cm outside niryo_ws (within the margin): stays there.
     let placed = m.answer(&WorkspaceRequest::ObjectPlaced {
         object_id: "obj-2".into(),
@@ -536,7 +550,7 @@ fn a_named_object_answers_to_its_name_and_the_name_follows_the_label_rules() {
         },
     );
     let unknown = object("unknown object", 0.25, 0.0, 0.03, 0.02);
-    m.apply(&view(1, vec![unknown.clone()])).unwrap();
+    settle(&mut m, 1, vec![unknown.clone()]);
     let name = |id: &str, label: &str| WorkspaceRequest::LabelObject {
         object_id: id.into(),
         label: label.into(),
