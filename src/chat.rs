@@ -187,7 +187,7 @@ fn print_out(text: &str) {
 }
 
 /// Shows one event the way a person follows the agent's work.
-fn show(event: &AgentEventKind) {
+pub(crate) fn show(event: &AgentEventKind) {
     match event {
         AgentEventKind::Plan { text } => print_out(&format!("Plan: {text}\n")),
         AgentEventKind::ToolCall {

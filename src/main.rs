@@ -18,10 +18,12 @@ mod fake_widowx;
 mod foxglove;
 mod health_board;
 mod health_parts;
+mod listen;
 mod notify;
 mod recording;
 mod say;
 mod serve;
+mod stt_health;
 
 use anyhow::{Context, Result};
 use bench::cli::BenchCommand;
@@ -89,6 +91,9 @@ enum Command {
     Call(CallArgs),
     /// Talk to the robot in plain words through an LLM (in process, or `--mcp URL`).
     Chat(chat::ChatArgs),
+    /// Say a command: record the microphone until silence, transcribe it with the running
+    /// robotd's STT actor and hand it to its agent (`--print-only`: just print it).
+    Listen(listen::ListenArgs),
     /// Engage the emergency stop of the running robotd (or release it with --release).
     Estop(EstopArgs),
     /// Record the running robotd's bus (camera, arm, objects, every topic) into an MCAP file
@@ -419,6 +424,7 @@ fn run() -> Result<std::process::ExitCode> {
             eprintln!("robotd: {done}");
             Ok(std::process::ExitCode::SUCCESS)
         }
+        Command::Listen(args) => listen::run(&load_config(&cli.config)?, &args),
         Command::Estop(args) => {
             let config = load_config(&cli.config)?;
             let reason = args.reason.join(" ");
@@ -487,6 +493,7 @@ fn run() -> Result<std::process::ExitCode> {
                     }),
                 replay: (config.robot.driver == robotd_config::RobotDriver::Replay)
                     .then(|| config.robot.replay.clone()),
+                stt: doctor::stt_command(&config),
             })?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report.to_json())?);

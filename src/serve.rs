@@ -54,6 +54,7 @@ pub struct Runtime {
     speech: Speech,
     skills: Skills,
     processes: Vec<SupervisedProcess>,
+    stt: Arc<crate::stt_health::SttHealth>,
     /// The one tool registry of this instance (MCP and the agent share it: each registry's
     /// bus publishers cost megabytes of iceoryx2 bookkeeping, see BENCHMARKS.md).
     registry: Mutex<Option<Registry>>,
@@ -168,6 +169,9 @@ impl Runtime {
             workspaces.clone(),
             hardware.safety.clone(),
         )?;
+        // Subscribed before the STT actor starts: its first status says its model loaded.
+        let stt_configured = crate::doctor::stt_command(config).is_some();
+        let stt = crate::stt_health::SttHealth::start(&bus, stt_configured)?;
         let processes = start_process_actors(config, &bus, &health, &restarts).await?;
         // Everything that consumes the robot's data is up: a replayed recording may begin.
         hardware.start_playback();
@@ -178,6 +182,7 @@ impl Runtime {
         let perception_stats = perception.as_ref().map(Perception::stats);
         let robot_link = hardware.arm_context.driver.clone();
         let disk_places = crate::disk::places(config);
+        let stt_health = stt.clone();
         let health_source: HealthSource = Arc::new(move || {
             let mut report = report_health.report(&report_config, &robot, started);
             // A real robot can be down while its actors run: say why.
@@ -204,6 +209,7 @@ impl Runtime {
                 report["status"] = "degraded".into();
             }
             report["disk"] = disk;
+            report["stt"] = stt_health.report();
             report["redis"] = match &redis_status {
                 Some(status) => status.to_json(),
                 None => serde_json::json!({"state": "off"}),
@@ -222,6 +228,7 @@ impl Runtime {
             speech,
             skills,
             processes,
+            stt,
             registry: Mutex::new(None),
         })
     }
@@ -285,6 +292,7 @@ impl Runtime {
                 tracing::warn!(%error, "stopping an actor process");
             }
         }
+        self.stt.stop();
         self.skills.shutdown().await;
         if let Some(redis) = self.redis {
             redis.shutdown().await;

@@ -119,6 +119,7 @@ pub const MESSAGE_TYPES: &[(&str, u16)] = &[
     entry::<stt::TranscribeRequest>(),
     entry::<stt::TranscribeReply>(),
     entry::<stt::Transcript>(),
+    entry::<stt::SttStatus>(),
     entry::<agent::AgentRequest>(),
     entry::<agent::AgentEvent>(),
     entry::<agent::AgentCancel>(),

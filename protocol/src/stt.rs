@@ -5,7 +5,8 @@
 //! PCM, or the bytes of a WAV, WebM or Ogg file — and the reply is a [`TranscribeReply`]: the
 //! [`Transcript`] (text, language, per-segment times, a confidence) or an [`SttError`] that
 //! says what was wrong with the audio. Every transcript is also published on
-//! `stt/transcripts`, so the dashboard, the agent and recordings see what was heard.
+//! `stt/transcripts`, so the dashboard, the agent and recordings see what was heard, and how
+//! the actor is doing (model, counts, last error) on `stt/status` ([`SttStatus`]).
 //!
 //! ```
 //! use robotd_protocol::stt::{AudioFormat, TranscribeRequest, MAX_AUDIO_BYTES};
@@ -204,6 +205,42 @@ pub enum TranscribeReply {
 
 impl Message for TranscribeReply {
     const TYPE: &'static str = "stt.reply";
+}
+
+/// How the STT actor is doing (`stt/status`): published when its model is loaded and after
+/// every request, so `/health` and `/metrics` show what it loaded and how it listens. The
+/// counts are the running process's: they start again at 0 when the actor restarts (a new
+/// `pid`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct SttStatus {
+    /// The actor's process id.
+    pub pid: u32,
+    /// The model that listens (a faster-whisper name or a directory's name, `"tiny.en"`).
+    pub model: String,
+    /// Where it was loaded from (the model directory, or the faster-whisper name).
+    pub model_path: String,
+    /// Whether the model is loaded and the service open.
+    pub model_loaded: bool,
+    /// Time it took to load the model (and warm it up), seconds.
+    pub load_s: f64,
+    /// Beam size of the decoding (1: greedy).
+    pub beam_size: u32,
+    /// Requests transcribed.
+    pub utterances: u64,
+    /// Requests refused or failed (bad audio, a model failure).
+    pub errors: u64,
+    /// Seconds of audio transcribed.
+    pub audio_s: f64,
+    /// Seconds spent transcribing them (decoding included).
+    pub processing_s: f64,
+    /// Processing time over audio length of the last transcribed request (0 before the first).
+    pub last_real_time_factor: f64,
+    /// The last refusal or failure, for a person (`None` while there was none).
+    pub last_error: Option<String>,
+}
+
+impl Message for SttStatus {
+    const TYPE: &'static str = "stt.status";
 }
 
 #[cfg(test)]

@@ -156,6 +156,11 @@ pub const STT_TRANSCRIBE: Service<
 pub const STT_TRANSCRIPTS: crate::bus::Topic<robotd_protocol::stt::Transcript> =
     crate::bus::Topic::new("stt/transcripts", Overflow::latest_wins(16));
 
+/// How the STT actor is doing: its model, what it has transcribed, its last error (published
+/// when the model is loaded and after every request; `/health` and `/metrics` read it).
+pub const STT_STATUS: crate::bus::Topic<robotd_protocol::stt::SttStatus> =
+    crate::bus::Topic::new("stt/status", Overflow::latest_wins(4));
+
 /// Every entry above, in order: what `robotd catalog` prints and what an actor in another
 /// language declares (see [`crate::bus::describe`]).
 pub fn entries() -> Vec<Entry> {
@@ -188,6 +193,7 @@ pub fn entries() -> Vec<Entry> {
         AGENT_CANCEL.describe(),
         STT_TRANSCRIBE.describe(),
         STT_TRANSCRIPTS.describe(),
+        STT_STATUS.describe(),
     ]
 }
 

@@ -15,6 +15,12 @@
 //! | `robotd_actor_up` | gauge (1 = running, 0 = down) | `actor` |
 //! | `robotd_actor_budget_exhausted_total` | counter | `actor` |
 //! | `robotd_tool_calls_total` | counter | `transport` (`sse`, `streamable_http`, `stdio`), `status` (`ok`, `failed`, `protocol_error`) |
+//! | `robotd_stt_model_loaded` | gauge (1 = the STT actor's model is loaded) | – |
+//! | `robotd_stt_utterances_total` | counter (requests transcribed) | – |
+//! | `robotd_stt_errors_total` | counter (requests refused or failed) | – |
+//! | `robotd_stt_audio_seconds_total` | counter (seconds of audio transcribed) | – |
+//! | `robotd_stt_processing_seconds_total` | counter (seconds spent transcribing) | – |
+//! | `robotd_stt_real_time_factor` | gauge (processing ÷ audio time of the last utterance) | – |
 //!
 //! Recording is cheap enough for every bus message: after the first message on a topic, a
 //! call is a shared read lock, one hash lookup by `&str` (no allocation) and an atomic add
@@ -42,6 +48,7 @@ use prometheus_client::metrics::histogram::Histogram;
 use prometheus_client::registry::{Registry, Unit};
 use std::collections::HashMap;
 use std::fmt;
+use std::sync::atomic::AtomicU64;
 use std::sync::{Arc, OnceLock, PoisonError, RwLock};
 
 /// The `Content-Type` of [`Metrics::render`]'s output (OpenMetrics text 1.0.0), for the HTTP
@@ -114,6 +121,7 @@ struct Inner {
     redis_up: Gauge,
     redis_entries: Family<TopicReasonLabels, Counter>,
     tool_calls: Family<TopicReasonLabels, Counter>,
+    stt: SttMetrics,
     topics: RwLock<HashMap<Arc<str>, Arc<TopicHandles>>>,
 }
 
@@ -199,6 +207,7 @@ impl Metrics {
             "Tool calls served to MCP clients, by transport and status (each call counted once, when answered)",
             tool_calls.clone(),
         );
+        let stt = SttMetrics::register(&mut registry);
         Self {
             inner: Arc::new(Inner {
                 registry,
@@ -211,6 +220,7 @@ impl Metrics {
                 redis_up,
                 redis_entries,
                 tool_calls,
+                stt,
                 topics: RwLock::new(HashMap::new()),
             }),
         }
@@ -367,6 +377,32 @@ impl Metrics {
             .inc();
     }
 
+    /// Sets whether the STT actor's model is loaded.
+    pub fn stt_model_loaded(&self, loaded: bool) {
+        self.inner.stt.model_loaded.set(i64::from(loaded));
+    }
+
+    /// Counts what the STT actor did since its last report: `utterances` transcribed,
+    /// `errors` refused or failed, `audio_s` seconds of audio taking `processing_s` seconds.
+    pub fn stt_served(&self, utterances: u64, errors: u64, audio_s: f64, processing_s: f64) {
+        let stt = &self.inner.stt;
+        stt.utterances.inc_by(utterances);
+        stt.errors.inc_by(errors);
+        if audio_s.is_finite() && audio_s > 0.0 {
+            stt.audio_seconds.inc_by(audio_s);
+        }
+        if processing_s.is_finite() && processing_s > 0.0 {
+            stt.processing_seconds.inc_by(processing_s);
+        }
+    }
+
+    /// Sets the real-time factor of the STT actor's last utterance (processing ÷ audio time).
+    pub fn stt_real_time_factor(&self, factor: f64) {
+        if factor.is_finite() && factor >= 0.0 {
+            self.inner.stt.real_time_factor.set(factor);
+        }
+    }
+
     /// Every series in the OpenMetrics text format (ends with `# EOF`), to be served with
     /// [`CONTENT_TYPE`].
     pub fn render(&self) -> String {
@@ -376,6 +412,62 @@ impl Metrics {
             tracing::error!(%error, "cannot encode the metrics registry");
         }
         text
+    }
+}
+
+/// The speech-to-text actor's series (it reports them on `stt/status`; robotd serves them).
+struct SttMetrics {
+    model_loaded: Gauge,
+    utterances: Counter,
+    errors: Counter,
+    audio_seconds: Counter<f64, AtomicU64>,
+    processing_seconds: Counter<f64, AtomicU64>,
+    real_time_factor: Gauge<f64, AtomicU64>,
+}
+
+impl SttMetrics {
+    fn register(registry: &mut Registry) -> Self {
+        let stt = Self {
+            model_loaded: Gauge::default(),
+            utterances: Counter::default(),
+            errors: Counter::default(),
+            audio_seconds: Counter::default(),
+            processing_seconds: Counter::default(),
+            real_time_factor: Gauge::default(),
+        };
+        registry.register(
+            "stt_model_loaded",
+            "Whether the STT actor's model is loaded and it serves (1) or not (0)",
+            stt.model_loaded.clone(),
+        );
+        registry.register(
+            "stt_utterances",
+            "Requests the STT actor transcribed",
+            stt.utterances.clone(),
+        );
+        registry.register(
+            "stt_errors",
+            "Requests the STT actor refused (bad audio) or failed on",
+            stt.errors.clone(),
+        );
+        registry.register_with_unit(
+            "stt_audio",
+            "Seconds of audio the STT actor transcribed",
+            Unit::Seconds,
+            stt.audio_seconds.clone(),
+        );
+        registry.register_with_unit(
+            "stt_processing",
+            "Seconds the STT actor spent transcribing (decoding included)",
+            Unit::Seconds,
+            stt.processing_seconds.clone(),
+        );
+        registry.register(
+            "stt_real_time_factor",
+            "Processing time over audio length of the STT actor's last utterance",
+            stt.real_time_factor.clone(),
+        );
+        stt
     }
 }
 
@@ -493,6 +585,32 @@ mod tests {
         let http = r#"robotd_tool_calls_total{transport="streamable_http",status="failed"}"#;
         assert_eq!(value(&text, sse), Some(2.0), "{text}");
         assert_eq!(value(&text, http), Some(1.0), "{text}");
+    }
+
+    #[test]
+    fn stt_series_add_up_what_the_actor_reports() {
+        let metrics = Metrics::new();
+        let text = metrics.render();
+        assert_eq!(
+            value(&text, "robotd_stt_utterances_total"),
+            Some(0.0),
+            "{text}"
+        );
+        metrics.stt_model_loaded(true);
+        metrics.stt_served(2, 0, 6.5, 1.5);
+        metrics.stt_served(1, 1, 3.0, f64::NAN);
+        metrics.stt_real_time_factor(0.25);
+        metrics.stt_real_time_factor(-1.0); // ignored
+        let text = metrics.render();
+        assert_eq!(value(&text, "robotd_stt_model_loaded"), Some(1.0), "{text}");
+        assert_eq!(value(&text, "robotd_stt_utterances_total"), Some(3.0));
+        assert_eq!(value(&text, "robotd_stt_errors_total"), Some(1.0));
+        assert_eq!(value(&text, "robotd_stt_audio_seconds_total"), Some(9.5));
+        assert_eq!(
+            value(&text, "robotd_stt_processing_seconds_total"),
+            Some(1.5)
+        );
+        assert_eq!(value(&text, "robotd_stt_real_time_factor"), Some(0.25));
     }
 
     #[test]

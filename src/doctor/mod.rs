@@ -49,6 +49,7 @@
 //! | [`niryo`] | `niryo` | with the niryo driver: the Ned2 answers (connect, handshake, hardware status) |
 //! | [`camera`] | `camera` | with a V4L2 camera configured: the device opens and gives the intrinsics' size in MJPG or YUYV |
 //! | [`widowx`] | `widowx` | with the widowx driver: the serial port opens, the nine servos answer with the right models, no latched hardware error |
+//! | [`stt`] | `stt` | with `[actors.stt]`: the speech-to-text model is there and loads (the actor's own `--check`, through the configured Python) |
 //! | [`replay`] | `replay` | with the replay driver: the recording opens and can be played (frames, arm states, robot model); what it holds |
 //! | [`secrets`] | — | `secrets.env`, shared by `redis` and `llm-keys` |
 //! | [`report`] | — | rows, the table and the JSON |
@@ -66,6 +67,7 @@
 //!     camera: None,
 //!     replay: None,
 //!     disk_places: Vec::new(),
+//!     stt: None,
 //! };
 //! let report = run(&opts)?;
 //! print!("{}", report.render_table());
@@ -86,11 +88,13 @@ mod replay;
 mod report;
 mod secrets;
 mod shm;
+mod stt;
 #[cfg(test)]
 mod test_support;
 mod widowx;
 
 pub use report::{Check, DoctorReport, Status};
+pub use stt::stt_command;
 
 use anyhow::Result;
 use iceoryx2::prelude::Config;
@@ -132,6 +136,8 @@ pub struct DoctorOptions {
     pub replay: Option<robotd_driver::ReplayConfig>,
     /// Where robotd writes (`crate::disk::places`): their free space is checked.
     pub disk_places: Vec<(&'static str, PathBuf)>,
+    /// `[actors.stt] command` when the STT actor runs as a process ([`stt_command`]).
+    pub stt: Option<Vec<String>>,
 }
 
 /// Runs every check and returns the report. Takes a few seconds at most, whatever the network
@@ -152,6 +158,7 @@ pub fn run(opts: &DoctorOptions) -> Result<DoctorReport> {
         widowx::check_widowx(opts.widowx.clone()),
         camera::check_camera(opts.camera.clone()),
         replay::check_replay(opts.replay.as_ref()),
+        stt::check_stt(opts.stt.as_deref(), stt::LOAD_TIMEOUT),
     ];
     Ok(DoctorReport { checks })
 }
@@ -183,6 +190,7 @@ mod tests {
             camera: None,
             replay: None,
             disk_places: vec![("log", std::env::temp_dir())],
+            stt: None,
         };
         let start = Instant::now();
         let report = run(&opts).expect("doctor runs");
@@ -202,7 +210,8 @@ mod tests {
                 "niryo",
                 "widowx",
                 "camera",
-                "replay"
+                "replay",
+                "stt"
             ]
         );
         assert!(report.has_problems());

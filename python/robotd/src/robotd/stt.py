@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import io
+import json
 import math
 import os
 import sys
@@ -42,6 +43,7 @@ from robotd.messages import (
     PCM_SAMPLE_RATE_HZ,
     Segment,
     SttError,
+    SttStatus,
     Transcript,
     transcript_reply,
 )
@@ -241,6 +243,7 @@ class Listener:
         from faster_whisper import WhisperModel
 
         path, self.name = resolve_model(model)
+        self.path = path
         self.model = WhisperModel(
             path, device="cpu", compute_type=compute_type, cpu_threads=threads
         )
@@ -284,13 +287,36 @@ class Listener:
         )
 
 
-def serve(bus: Bus, listener: Listener, max_seconds: float, requests: int = 0) -> None:
-    """Answers ``stt/transcribe`` requests (``requests`` of them; 0: forever)."""
+def serve(
+    bus: Bus, listener: Listener, max_seconds: float, requests: int = 0, load_s: float = 0.0
+) -> None:
+    """Answers ``stt/transcribe`` requests (``requests`` of them; 0: forever).
+
+    Publishes the actor's :class:`SttStatus` on ``stt/status`` once the service is open and
+    after every request (robotd's ``/health`` and ``/metrics`` read it).
+    """
     from robotd.ports import Publisher
 
     server = bus.server("stt/transcribe")
     # Created if nobody listens yet: the transcripts go out whether or not robotd reads them.
     transcripts = Publisher(bus, bus.catalog.topic("stt/transcripts"), create=True)
+    status_topic = Publisher(bus, bus.catalog.topic("stt/status"), create=True)
+    status = SttStatus(
+        pid=os.getpid(),
+        model=listener.name,
+        model_path=listener.path,
+        model_loaded=True,
+        load_s=round(load_s, 3),
+        beam_size=listener.beam_size,
+    )
+
+    def tell() -> None:
+        try:
+            status_topic.publish(status)
+        except Exception as e:  # the status is for monitoring: never stops the service
+            print(f"stt/status: {e}", flush=True)
+
+    tell()
     print("ready", flush=True)
     done = 0
     while requests == 0 or done < requests:
@@ -304,13 +330,20 @@ def serve(bus: Bus, listener: Listener, max_seconds: float, requests: int = 0) -
             transcript = listener.transcribe(samples, source, arrived)
         except SttError as e:
             request.reply(e.reply())
+            status.failed(e)
+            tell()
             print(f"refused: {e.kind}: {e.message}", flush=True)
             continue
         except Exception as e:  # the model failed on it: this request only
-            request.reply(SttError("failed", f"transcription failed: {_short(e)}").reply())
+            error = SttError("failed", f"transcription failed: {_short(e)}")
+            request.reply(error.reply())
+            status.failed(error)
+            tell()
             print(f"failed: {e!r}", flush=True)
             continue
         request.reply(transcript_reply(transcript))
+        status.counted(transcript)
+        tell()
         try:
             transcripts.publish(transcript)
         except Exception as e:  # a full or broken subscriber never stops the service
@@ -349,6 +382,12 @@ def main(argv=None) -> int:
         help="text the model is told precedes the speech: the robot's vocabulary ('' for none)",
     )
     parser.add_argument("--requests", type=int, default=0, help="stop after N requests (0: never)")
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="load the model, transcribe a second of silence, print what was loaded as JSON "
+        "and exit (what `robotd doctor` runs)",
+    )
     args = parser.parse_args(argv)
     if not 0.5 <= args.max_seconds <= 600:
         parser.error("--max-seconds must be 0.5 … 600")
@@ -364,10 +403,26 @@ def main(argv=None) -> int:
     except ImportError as e:
         print(f"stt: {e}; install it with pip install 'robotd[stt]'", file=sys.stderr)
         return 3
-    print(f"model {listener.name} loaded in {time.monotonic() - started:.1f} s", flush=True)
+    load_s = time.monotonic() - started
+    if args.check:
+        import faster_whisper
+
+        print(
+            json.dumps(
+                {
+                    "model": listener.name,
+                    "model_path": listener.path,
+                    "load_s": round(load_s, 2),
+                    "faster_whisper": getattr(faster_whisper, "__version__", "?"),
+                }
+            ),
+            flush=True,
+        )
+        return 0
+    print(f"model {listener.name} loaded in {load_s:.1f} s", flush=True)
     try:
         bus = Bus(args.namespace, node_name="python-stt")
-        serve(bus, listener, args.max_seconds, args.requests)
+        serve(bus, listener, args.max_seconds, args.requests, load_s)
     except NotRunning as e:
         print(f"stt: {e}", file=sys.stderr)
         return 2
