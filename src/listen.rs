@@ -8,7 +8,9 @@
 //! - a stop phrase at the start (`[voice] stop_words`, on by default: "stop", "emergency
 //!   stop") engages the e-stop on `safety/estop` at once, and nothing goes to the LLM;
 //! - anything else goes to the running robotd's agent on `agent/request`, as if typed, and the
-//!   agent's plan, tool calls and answer are printed as `robotd chat` prints them.
+//!   agent's plan, tool calls and answer are printed as `robotd chat` prints them; the words
+//!   are also the current task on `overlay/text` (`user_task`), which the dashboard and
+//!   Foxglove show over the video.
 //!
 //! `--print-only` prints the transcript and does nothing else (no e-stop, no agent).
 //!
@@ -22,10 +24,11 @@ use clap::Args;
 use robotd_config::Config;
 use robotd_protocol::agent::{AgentCancel, AgentEventKind, AgentRequest};
 use robotd_protocol::health::EmergencyStop;
+use robotd_protocol::speech::{OverlayKind, TextOverlay};
 use robotd_protocol::stt::{TranscribeReply, TranscribeRequest, Transcript, PCM_SAMPLE_RATE_HZ};
 use robotd_runtime::bus::{Bus, BusError, BusOptions};
 use robotd_runtime::catalog::{
-    AGENT_CANCEL, AGENT_EVENTS, AGENT_REQUEST, SAFETY_ESTOP, STT_TRANSCRIBE,
+    AGENT_CANCEL, AGENT_EVENTS, AGENT_REQUEST, OVERLAY_TEXT, SAFETY_ESTOP, STT_TRANSCRIBE,
 };
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -544,6 +547,21 @@ async fn act(config: &Config, bus: &Bus, transcript: &Transcript) -> Result<Exit
             return Ok(ExitCode::SUCCESS);
         }
     }
+    // What was said is the task now: the dashboard and Foxglove show it over the video. The
+    // publisher lives until the agent answered: a message of a dropped publisher can be lost.
+    let overlay = TextOverlay::new(transcript.text.trim(), OverlayKind::UserTask);
+    let _task_shown = match bus.publisher(&OVERLAY_TEXT) {
+        Ok(publisher) => {
+            if let Err(error) = publisher.publish(&overlay) {
+                tracing::warn!(%error, "overlay/text: the spoken task is not shown");
+            }
+            Some(publisher)
+        }
+        Err(error) => {
+            tracing::warn!(%error, "overlay/text: the spoken task is not shown");
+            None
+        }
+    };
     let request_id = format!(
         "listen-{}-{}",
         std::process::id(),

@@ -6,7 +6,7 @@
 //! - a recording of a command, then 2 s of silence, then "emergency stop": the voice activity
 //!   detection cuts out the first utterance only, and `--print-only` prints its words;
 //! - a command goes to the agent (the mock LLM is asked with the words said) and its answer is
-//!   printed; "stop" engages the e-stop without the LLM; a silent recording is refused clearly,
+//!   printed, and the words are the task on `overlay/text`; "stop" engages the e-stop without the LLM; a silent recording is refused clearly,
 //!   and so is a bus without an STT actor;
 //! - `/health`'s `stt` part says the model is loaded (tiny.en), counts the utterances, the
 //!   audio seconds and the errors, with the last error; `/metrics` has the same counts.
@@ -17,9 +17,10 @@ mod common;
 mod stt;
 
 use robotd_agent::mock::{MockLlm, MockReply};
+use robotd_protocol::speech::OverlayKind;
 use robotd_protocol::stt::{TranscribeReply, TranscribeRequest};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::STT_TRANSCRIBE;
+use robotd_runtime::catalog::{OVERLAY_TEXT, STT_TRANSCRIBE};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -90,6 +91,34 @@ fn stt_health_when(port: u16, ready: impl Fn(&Value) -> bool) -> Value {
         assert!(Instant::now() < deadline, "/health's stt part: {stt}");
         std::thread::yield_now();
     }
+}
+
+/// The texts of `user_task` overlays on `overlay/text`, read on a thread of their own from
+/// when this returns.
+fn user_tasks(namespace: &str) -> std::sync::mpsc::Receiver<String> {
+    let (ready, ready_rx) = std::sync::mpsc::channel();
+    let (tasks, tasks_rx) = std::sync::mpsc::channel();
+    let namespace = namespace.to_owned();
+    std::thread::spawn(move || {
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        runtime.block_on(async {
+            let bus = Bus::open(BusOptions::new(&namespace, "listen-overlay")).unwrap();
+            let mut overlays = bus.subscriber(&OVERLAY_TEXT).unwrap();
+            ready.send(()).unwrap();
+            while let Ok(message) = overlays.recv().await {
+                if message.body.kind == OverlayKind::UserTask
+                    && tasks.send(message.body.text).is_err()
+                {
+                    return;
+                }
+            }
+        });
+    });
+    ready_rx.recv().expect("the overlay reader started");
+    tasks_rx
 }
 
 #[test]
@@ -200,7 +229,9 @@ fn listen_cuts_out_the_utterance_and_hands_it_on_and_health_counts_it() {
         Some(1.0)
     );
 
-    // A command goes to the agent, and its answer is printed.
+    // A command goes to the agent, and its answer is printed; its words are the task shown
+    // over the video (overlay/text), seen here by a subscriber opened before.
+    let tasks = user_tasks(&namespace);
     let command = wav(
         dir.path(),
         "command.wav",
@@ -213,6 +244,10 @@ fn listen_cuts_out_the_utterance_and_hands_it_on_and_health_counts_it() {
         said.contains("Answer: Picking up the pencil now."),
         "{said}\n{log}"
     );
+    let task = tasks
+        .recv_timeout(Duration::from_secs(10))
+        .expect("no user task on overlay/text");
+    assert!(task.to_lowercase().contains("pencil"), "{task:?}");
     let asked = mock.requests();
     assert_eq!(asked.len(), 1, "one LLM call for the command");
     let user: Vec<String> = asked[0].body["messages"]
