@@ -15,7 +15,7 @@ Starts `robotd serve` (simulated Ned2) with the STT actor supervised as a proces
    whole time, the dashboard's transcript → e-stop-published time, and the time from the answer
    to `GET /estop` saying engaged; the e-stop is released between runs.
 
-Usage: .venv/bin/python scripts/bench/stt.py BINARY [--repeats 10]
+Usage: .venv/bin/python scripts/bench/stt.py BINARY [--repeats 10] [--actor-args JSON] [--latency-only]
 Prints one JSON object. Needs espeak-ng and sox.
 """
 
@@ -137,6 +137,12 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("binary")
     parser.add_argument("--repeats", type=int, default=10)
+    parser.add_argument(
+        "--actor-args", default="[]",
+        help="JSON list of extra arguments for python -m robotd.stt (e.g. '[\"--beam-size\", \"1\"]'), "
+             "to compare settings with the same sentences",
+    )
+    parser.add_argument("--latency-only", action="store_true", help="skip the accuracy part (1.)")
     args = parser.parse_args()
 
     namespace = f"benchstt{os.getpid()}"
@@ -144,7 +150,8 @@ def main():
     logs = tempfile.mkdtemp(prefix="robotd-stt-")
     config = os.path.join(logs, "stt.toml")
     with open(config, "w") as f:
-        f.write(f'[actors.stt]\nmode = "process"\ncommand = ["{sys.executable}", "-m", "robotd.stt"]\n')
+        command = [sys.executable, "-m", "robotd.stt"] + json.loads(args.actor_args)
+        f.write(f'[actors.stt]\nmode = "process"\ncommand = {json.dumps(command)}\n')
     robotd = subprocess.Popen(
         [args.binary, "serve", "--namespace", namespace, "--http", f"127.0.0.1:{port}",
          "--config", config, "--set", f"telemetry.log_dir={logs}"],
@@ -170,12 +177,12 @@ def main():
             assert reply["kind"] == "transcript", reply
             return reply["transcript"], took
 
-        report = {"machine": f"{os.cpu_count()} CPUs, {platform.platform()}, Python {platform.python_version()}",
+        report = {"actor_args": json.loads(args.actor_args), "machine": f"{os.cpu_count()} CPUs, {platform.platform()}, Python {platform.python_version()}",
                   "date": time.strftime("%Y-%m-%d"), "load_before": os.getloadavg()}
         # 1. Accuracy.
         conditions = {}
         misheard = []
-        for voice in speech_audio.VOICES:
+        for voice in speech_audio.VOICES if not args.latency_only else ():
             for condition in ("clean", "noise_10db"):
                 errors = total = right_n = 0
                 for text, keys in COMMANDS:

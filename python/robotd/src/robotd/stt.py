@@ -56,13 +56,20 @@ BUNDLED_NAME = "tiny.en"
 MIN_FILE_RATE_HZ = 8_000
 MAX_FILE_RATE_HZ = 192_000
 
-#: What the model is told it hears (``--prompt``): the robot's words, so that tiny.en writes
-#: "left next to the red cube" rather than "left on the red queue" for a robot command.
+#: What the model is told it hears (``--prompt``): generic robot vocabulary from the tools'
+#: contract (docs/mcp-tools.md: the actions, the Location words, the observation pose, the
+#: detection and workspace queries, the e-stop), so that tiny.en writes "left next to" rather
+#: than "left on the" for a robot command. It names no objects: those are the table's.
 DEFAULT_PROMPT = (
-    "Spoken commands to a robot arm on a table: pick up the pencil and place it left next to "
-    "the red cube, put the blue square right next to the green cylinder, place the pen inside "
-    "the tray, open the gripper, go to the observation pose, what objects do you see, stop."
+    "A person tells a robot arm on a table what to do: pick up an object and place it left next "
+    "to, right next to, above, below, on top of, inside or close to another object; push or "
+    "move an object; open or close the gripper; go to the observation pose; list the detected "
+    "objects and the largest free space; stop; emergency stop."
 )
+
+#: Beam size (``--beam-size``): 5 gets more of the robot's words right than greedy decoding
+#: (BENCHMARKS.md, "Speech to text") at about the same time on two cores.
+DEFAULT_BEAM_SIZE = 5
 
 #: Longest audio transcribed by default, seconds (``--max-seconds``).
 DEFAULT_MAX_SECONDS = 30.0
@@ -260,8 +267,9 @@ class Listener:
             beam_size=self.beam_size,
             condition_on_previous_text=False,
             initial_prompt=self.prompt,
-            # One greedy pass: no sampling at higher temperatures when the model is unsure,
-            # so the same audio always gives the same text, in bounded time.
+            # One pass at temperature 0 (beam search, or greedy with --beam-size 1): no sampling
+            # at higher temperatures when the model is unsure, so the same audio always gives
+            # the same text, in bounded time.
             temperature=0.0,
             vad_filter=False,
         )
@@ -366,7 +374,12 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--compute-type", default="int8", help="CTranslate2 compute type (int8)")
     parser.add_argument("--threads", type=int, default=0, help="CPU threads (0: all cores)")
-    parser.add_argument("--beam-size", type=int, default=1, help="beam size (1: greedy)")
+    parser.add_argument(
+        "--beam-size",
+        type=int,
+        default=DEFAULT_BEAM_SIZE,
+        help=f"beam size ({DEFAULT_BEAM_SIZE}; 1: greedy)",
+    )
     parser.add_argument(
         "--language", default="en", help="language of the speech ('auto': detect it)"
     )
