@@ -216,13 +216,21 @@ pub struct Microphone {
 impl Microphone {
     /// Starts recording from ALSA `device`; a clear error when there is no capture device.
     pub fn open(device: &str) -> Result<Self> {
-        if !Path::new("/dev/snd").exists() && std::env::var_os("PULSE_SERVER").is_none() {
+        let pulse = std::env::var_os("PULSE_SERVER").is_some();
+        Self::open_with(device, Path::new("/dev/snd"), pulse, "arecord")
+    }
+
+    /// [`Microphone::open`] with the sound device directory, whether a sound server is
+    /// named, and the recorder program given (tests).
+    fn open_with(device: &str, snd: &Path, pulse: bool, arecord: &str) -> Result<Self> {
+        if !snd.exists() && !pulse {
             bail!(
-                "no microphone: this machine has no sound devices (/dev/snd is missing) and no \
-                 PULSE_SERVER; attach a microphone, or give a recording with --from-file x.wav"
+                "no microphone: this machine has no sound devices ({} is missing) and no \
+                 PULSE_SERVER; attach a microphone, or give a recording with --from-file x.wav",
+                snd.display()
             );
         }
-        let mut child = Command::new("arecord")
+        let mut child = Command::new(arecord)
             .args([
                 "-q", "-D", device, "-f", "S16_LE", "-c", "1", "-r", "16000", "-t", "raw",
             ])

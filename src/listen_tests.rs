@@ -247,3 +247,39 @@ fn out_of_range_options_are_refused() {
         .contains("30 s at once"));
     assert!(args(&|a| a.wait_s = 0.0).unwrap_err().contains("--wait-s"));
 }
+
+#[test]
+fn without_a_microphone_the_error_says_what_to_do() {
+    let error = Microphone::open_with("default", Path::new("/nonexistent/snd"), false, "arecord")
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(error.starts_with("no microphone"), "{error}");
+    assert!(error.contains("--from-file"), "{error}");
+
+    // A sound device but no arecord.
+    let dir = tempfile::tempdir().unwrap();
+    let error = Microphone::open_with("default", dir.path(), false, "/nonexistent/arecord")
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(error.contains("apt-get install alsa-utils"), "{error}");
+
+    // A recorder that cannot open the device (it exits at once, as arecord does).
+    let fake = dir.path().join("arecord");
+    std::fs::write(
+        &fake,
+        "#!/bin/sh\necho 'arecord: main:830: audio open error: No such file or directory' >&2\nexit 1\n",
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let mut microphone =
+        Microphone::open_with("hw:9", dir.path(), false, fake.to_str().unwrap()).unwrap();
+    let error = microphone.next_frame().unwrap_err().to_string();
+    assert!(
+        error.contains("no microphone: arecord could not record from ALSA device 'hw:9'"),
+        "{error}"
+    );
+    assert!(error.contains("audio open error"), "{error}");
+}
