@@ -52,9 +52,15 @@ pub fn routes<A>(
         }),
     };
     let voice = robotd_dashboard::voice::VoiceApi {
-        stt: Arc::new(runtime.bus.client(&robotd_runtime::catalog::STT_TRANSCRIBE)?),
+        stt: Arc::new(
+            runtime
+                .bus
+                .client(&robotd_runtime::catalog::STT_TRANSCRIBE)?,
+        ),
         estop: Arc::new(Mutex::new(
-            runtime.bus.publisher(&robotd_runtime::catalog::SAFETY_ESTOP)?,
+            runtime
+                .bus
+                .publisher(&robotd_runtime::catalog::SAFETY_ESTOP)?,
         )),
         agent,
         live: live.clone(),

@@ -181,8 +181,7 @@ mod tests {
         for model in [RobotModel::Ned2, RobotModel::WidowX250] {
             let kinematics = Kinematics::new(model);
             let body = kinematics.body(&kinematics.home_joints()).unwrap();
-            let links: std::collections::BTreeSet<&str> =
-                body.iter().map(|b| &*b.link).collect();
+            let links: std::collections::BTreeSet<&str> = body.iter().map(|b| &*b.link).collect();
             assert!(links.len() >= 7, "{model:?}: {links:?}");
             assert!(
                 body.iter().any(|b| b.joints_from_base >= 5),
