@@ -172,7 +172,13 @@ fn an_unknown_object_is_seen_named_and_picked_by_its_new_name() {
                 json!({"object_id": id, "label": "y".repeat(101)}),
             )
             .await;
-        assert!(long.contains("workspace.max_label_chars"), "{long}");
+        // The tool's schema says the limit (workspace.max_label_chars, 100), and a longer
+        // name is refused as an argument error before it reaches the workspace model.
+        assert!(
+            long.contains("Validation Error in label_object")
+                && long.contains("at most 100 characters"),
+            "{long}"
+        );
         let named = lab
             .ok(
                 "label_object",
