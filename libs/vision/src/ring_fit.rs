@@ -350,6 +350,14 @@ pub fn fit_marker(shade: &LocalMean, seed: [f64; 2], radius_px: f64) -> Option<M
                 return None;
             }
         }
+        // Settled: another round would see the same rays.
+        let moved = (centre[0] - rays.centre[0]).hypot(centre[1] - rays.centre[1]);
+        let stretched = (0..RAYS)
+            .map(|k| (radii[k] / rays.radii[k] - 1.0).abs())
+            .fold(0.0, f64::max);
+        if round > 0 && moved < 0.05 && stretched < 0.005 {
+            break;
+        }
         rays = Rays::sample(shade, centre, radii)?;
     }
     // Every explanation at its own best scale and blur.

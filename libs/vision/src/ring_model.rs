@@ -186,15 +186,20 @@ impl Hypothesis {
     }
 
     /// Its basis profiles (the constant first) at the table's blur index `s`.
-    fn rows(self, s: usize) -> Vec<&'static [f64; SAMPLES]> {
+    fn rows(self, s: usize) -> ([&'static [f64; SAMPLES]; 5], usize) {
         static ONES: [f64; SAMPLES] = [1.0; SAMPLES];
         let table = table();
-        let mut rows = vec![&ONES];
-        rows.extend(self.bases().iter().map(|&b| &table[b][s]));
-        if self.surround() {
-            rows.push(&table[SURROUND][s]);
+        let mut rows = [&ONES; 5];
+        let mut n = 1;
+        for &b in self.bases() {
+            rows[n] = &table[b][s];
+            n += 1;
         }
-        rows
+        if self.surround() {
+            rows[n] = &table[SURROUND][s];
+            n += 1;
+        }
+        (rows, n)
     }
 }
 
@@ -316,8 +321,7 @@ fn inverses() -> &'static Vec<Vec<Option<Vec<f64>>>> {
             .map(|h| {
                 (0..SIGMAS)
                     .map(|s| {
-                        let rows = Hypothesis(h).rows(s);
-                        let n = rows.len();
+                        let (rows, n) = Hypothesis(h).rows(s);
                         let normal = nalgebra::DMatrix::from_fn(n, n, |a, b| {
                             rows[a].iter().zip(rows[b]).map(|(x, y)| x * y).sum::<f64>()
                         });
@@ -371,12 +375,11 @@ pub fn fit_profile(
             let Some(inverse) = &inverses[s] else {
                 continue;
             };
-            let rows = hypothesis.rows(s);
-            let n = rows.len();
-            let rhs: Vec<f64> = rows
-                .iter()
-                .map(|r| r.iter().zip(&grey).map(|(x, g)| x * g).sum())
-                .collect();
+            let (rows, n) = hypothesis.rows(s);
+            let mut rhs = [0.0; 5];
+            for (r, row) in rhs.iter_mut().zip(&rows[..n]) {
+                *r = row.iter().zip(&grey).map(|(x, g)| x * g).sum();
+            }
             let mut c = [0.0; 5];
             for a in 0..n {
                 c[a] = (0..n).map(|b| inverse[a * n + b] * rhs[b]).sum();

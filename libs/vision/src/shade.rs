@@ -67,7 +67,8 @@ impl LocalMean {
         if !(u >= 0.0 && v >= 0.0) {
             return None;
         }
-        let (i, j) = (u.floor() as usize, v.floor() as usize);
+        // Both are not negative here: truncation is the floor.
+        let (i, j) = (u as usize, v as usize);
         if i + 1 >= self.width || j + 1 >= self.height {
             return None;
         }
