@@ -8,52 +8,17 @@
 //! right place and the right way round. What must still be refused is refused: a sheet whose
 //! reference cannot be told, a cube by a painted-over corner.
 
+mod common;
+
+use common::{placement, sheet_scene, workspace};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use robotd_perception::detector::{ColourDetector, ColourDetectorSettings, FrameView};
 use robotd_perception::labels::LabelTable;
 use robotd_perception::pipeline::SheetStatus;
 use robotd_perception::Pipeline;
-use robotd_protocol::geometry::{Point2, Pose, RobotModel};
-use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_render::photo::PhotoEffects;
-use robotd_render::sheet_art::{sheet_art, SheetDesign, SheetPlacement};
+use robotd_render::sheet_art::SheetDesign;
 use robotd_render::{look_at, Intrinsics, RenderOptions, RenderScene, Renderer, Shape, Solid};
-
-fn workspace() -> WorkspaceInfo {
-    WorkspaceInfo {
-        id: "niryo_ws".into(),
-        robot: RobotModel::Ned2,
-        upper_left: Point2::new(0.337, 0.087),
-        lower_right: Point2::new(0.163, -0.087),
-        observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
-    }
-}
-
-fn placement(design: SheetDesign) -> SheetPlacement {
-    SheetPlacement {
-        x_min: 0.163,
-        x_max: 0.337,
-        y_min: -0.087,
-        y_max: 0.087,
-        marker_radius_m: if design == SheetDesign::Classic {
-            0.0105
-        } else {
-            0.010
-        },
-    }
-}
-
-fn sheet_scene(design: SheetDesign) -> RenderScene {
-    let mut scene = RenderScene {
-        background: [118, 96, 72],
-        table_z_m: 0.0,
-        quads: Vec::new(),
-        discs: Vec::new(),
-        solids: Vec::new(),
-    };
-    sheet_art(design, &placement(design), &mut scene);
-    scene
-}
 
 /// A camera `height` metres above the sheet's centre, tilted `tilt_deg` towards +y, its image
 /// top turned `roll_deg` from +x.
