@@ -406,10 +406,8 @@ async fn run<W: Worker>(
             };
             match started {
                 Ok(handle) => {
-                    status.send_modify(|s| {
-                        s.generation = generation;
-                        s.phase = Phase::Running(handle);
-                    });
+                    // Events first, then the status that lets requests through: whoever sees
+                    // the restarted actor answer has already been told it restarted.
                     let attempt = u32::try_from(generation).unwrap_or(u32::MAX);
                     config.emit(SupervisionEvent::Restarted {
                         actor: name.to_owned(),
@@ -422,6 +420,10 @@ async fn run<W: Worker>(
                         attempt,
                     });
                     metric_actor_up(name, true);
+                    status.send_modify(|s| {
+                        s.generation = generation;
+                        s.phase = Phase::Running(handle);
+                    });
                     break;
                 }
                 Err(reason) => exit = Exit::failed(format!("restart failed: {reason}")),
