@@ -62,7 +62,7 @@ const LAYERS: &[Layer] = &[
     },
     Layer {
         name: "actors",
-        folders: &["actors/*", "agent", "robot"],
+        folders: &["actors/*", "robot"],
         may_use: &["protocol", "runtime", "libs", "driver api", "drivers"],
     },
     Layer {
@@ -148,12 +148,6 @@ const EXCEPTIONS: &[(&str, &str, Kind, &str)] = &[
         "robotd-config",
         Kind::Normal,
         "robot reads the composed configuration; each crate is to read its own section",
-    ),
-    (
-        "robotd-mcp",
-        "robotd-agent",
-        Kind::Normal,
-        "edges/mcp/src/agent_tools.rs implements the agent's ToolBackend for MCP servers",
     ),
 ];
 

@@ -33,9 +33,13 @@
 //! - [`schema`]: the JSON Schemas derived from those types, and shared schema pieces.
 //! - [`definitions`]: the tools as clients see them (`tools/list`).
 //! - [`limits`]: every string argument's `maxLength`, and the check of it.
+//! - [`backend`]: the [`ToolBackend`](backend::ToolBackend) trait an LLM agent calls tools
+//!   through, and its plain data (implemented by the agent for this registry and by the MCP
+//!   edge for MCP servers).
 //! - `skill`, `view`: what the tools share to ask the skills actor and the workspace model.
 
 pub mod args;
+pub mod backend;
 mod camera;
 pub mod definitions;
 pub mod limits;

@@ -1,11 +1,11 @@
-//! The tools of any MCP server as the agent's [`ToolBackend`]: `robotd chat --mcp URL` drives
-//! a robotd elsewhere, or another MCP robot server, with the same agent as in process.
+//! The tools of any MCP server as a [`ToolBackend`] (the agent's tool source; the trait is
+//! `robotd_tools::backend`'s): `robotd chat --mcp URL` drives a robotd elsewhere, or another MCP
+//! robot server, with the same agent as in process.
 //! Cancelling a call sends `notifications/cancelled`, on which robotd's edge stops the motion.
 
 use crate::client::McpClient;
 use rmcp::model::CallToolRequestParams;
-use robotd_agent::llm::ToolSpec;
-use robotd_agent::tools::{BoxFuture, ToolBackend, ToolResultText};
+use robotd_tools::backend::{BoxFuture, ImagePart, ToolBackend, ToolResultText, ToolSpec};
 use serde_json::{Map, Value};
 use tokio_util::sync::CancellationToken;
 
@@ -112,7 +112,7 @@ impl ToolBackend for McpTools {
                         .content
                         .iter()
                         .filter_map(|c| c.as_image())
-                        .map(|i| robotd_agent::vision::ImagePart {
+                        .map(|i| ImagePart {
                             mime_type: i.mime_type.clone(),
                             data_base64: i.data.clone(),
                         })

@@ -106,21 +106,9 @@ pub fn takes_images(provider: Provider, model: &str, setting: Images) -> bool {
     }
 }
 
-/// One picture a tool returned, as the model is sent it.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ImagePart {
-    /// `image/jpeg`.
-    pub mime_type: String,
-    /// The file, standard base64.
-    pub data_base64: String,
-}
-
-impl ImagePart {
-    /// The `data:` URL of OpenAI's `image_url` parts.
-    pub fn data_url(&self) -> String {
-        format!("data:{};base64,{}", self.mime_type, self.data_base64)
-    }
-}
+/// One picture a tool returned, as the model is sent it (defined with the tool backends in
+/// `robotd_tools::backend`).
+pub use robotd_tools::backend::ImagePart;
 
 /// The event that shows the user `image`, which call `call_id` of tool `name` returned;
 /// `shown_to_model` says whether the model was sent it. Refused unless it is a JPEG or PNG in

@@ -24,7 +24,7 @@
 use crate::providers::{ProviderSettings, Wire};
 use crate::vision::ImagePart;
 use robotd_runtime::backoff::Backoff;
-use serde_json::{json, Map, Value};
+use serde_json::{json, Value};
 use std::time::Duration;
 
 /// One message of a conversation.
@@ -104,16 +104,8 @@ pub struct ToolCall {
     pub arguments: String,
 }
 
-/// A tool as the model sees it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ToolSpec {
-    /// Name.
-    pub name: String,
-    /// What it does.
-    pub description: String,
-    /// JSON Schema of the arguments.
-    pub parameters: Map<String, Value>,
-}
+/// A tool as the model sees it (defined with the tool backends in `robotd_tools::backend`).
+pub use robotd_tools::backend::ToolSpec;
 
 /// Token counts a provider reported.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
