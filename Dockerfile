@@ -16,11 +16,12 @@ RUN apt-get update \
     && rm -rf /var/lib/apt/lists/*
 WORKDIR /src
 COPY . .
-# PROFILE=release builds in minutes instead (no whole-program optimisation).
+# PROFILE=release builds in minutes instead (no whole-program optimisation). Without the
+# default `bench` feature: the service binary carries no benchmarks and no test-only parts.
 ARG PROFILE=dist
 RUN --mount=type=cache,target=/usr/local/cargo/registry \
     --mount=type=cache,target=/src/target \
-    cargo build --locked --profile "${PROFILE}" --bin robotd \
+    cargo build --locked --profile "${PROFILE}" --bin robotd --no-default-features \
     && cp "target/${PROFILE}/robotd" /usr/local/bin/robotd
 
 FROM ${RUNTIME_IMAGE}

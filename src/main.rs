@@ -4,7 +4,6 @@
 //! (`protocol`, `runtime`, `actors/*`, `adapters`).
 
 mod audit;
-mod bench;
 mod call;
 mod catalog;
 mod chat;
@@ -26,8 +25,9 @@ mod serve;
 mod stt_health;
 
 use anyhow::{Context, Result};
-use bench::cli::BenchCommand;
 use clap::{Args, Parser, Subcommand};
+#[cfg(feature = "bench")]
+use robotd_bench::cli::BenchCommand;
 use robotd_config::{Config, LoadOptions};
 use robotd_runtime::telemetry::{self, Mode};
 use std::path::PathBuf;
@@ -71,6 +71,7 @@ enum Command {
     /// and with the niryo or widowx driver the robot (connect and status, or the nine servos).
     Doctor(DoctorArgs),
     /// Measure robotd's machinery beside its raw baseline.
+    #[cfg(feature = "bench")]
     Bench {
         #[command(subcommand)]
         what: BenchCommand,
@@ -125,6 +126,7 @@ enum Command {
         what: AuditCommand,
     },
     /// The other process of a two-process benchmark (started by `robotd bench`).
+    #[cfg(feature = "bench")]
     #[command(hide = true)]
     BenchPeer {
         role: String,
@@ -245,20 +247,6 @@ fn load_config(args: &ConfigArgs) -> Result<Config> {
         file: args.config.clone(),
         overrides,
     })?)
-}
-
-/// Prints benchmark figures as one JSON object (`--json`) or as their table.
-fn print_figures(
-    json: bool,
-    figures: &impl serde::Serialize,
-    table: String,
-) -> Result<std::process::ExitCode> {
-    if json {
-        println!("{}", serde_json::to_string(figures)?);
-    } else {
-        print!("{table}");
-    }
-    Ok(std::process::ExitCode::SUCCESS)
 }
 
 fn main() -> std::process::ExitCode {
@@ -506,116 +494,16 @@ fn run() -> Result<std::process::ExitCode> {
                 std::process::ExitCode::SUCCESS
             })
         }
-        Command::Bench {
-            what: BenchCommand::Bus(args),
-        } => {
-            let exe = std::env::current_exe().context("finding the robotd binary")?;
-            let namespace = format!("bench-{}", std::process::id());
-            let figures = bench::bus::run(
-                &exe,
-                &namespace,
-                bench::bus::BenchSizes {
-                    round_trips: args.round_trips.max(1),
-                    frames: args.frames.max(2),
-                    restarts: args.restarts.max(1),
-                },
-            )?;
-            print_figures(args.json, &figures, figures.table())
+        #[cfg(feature = "bench")]
+        Command::Bench { what } => {
+            robotd_bench::run(what, || Ok(load_config(&cli.config)?.redis.url))
         }
-        Command::Bench {
-            what: BenchCommand::Niryo(args),
-        } => {
-            let figures = bench::niryo::run(args.round_trips, args.images, args.scenes)?;
-            print_figures(args.json, &figures, figures.table())
-        }
-        Command::Bench {
-            what: BenchCommand::Widowx(args),
-        } => {
-            let figures = bench::widowx::run(args.round_trips)?;
-            print_figures(args.json, &figures, figures.table())
-        }
-        Command::Bench {
-            what: BenchCommand::Sim(args),
-        } => {
-            let figures = bench::sim::run(args.frames.max(1))?;
-            print_figures(args.json, &figures, figures.table())
-        }
-        Command::Bench {
-            what: BenchCommand::Perception(args),
-        } => {
-            if let Some(frames) = args.randomized {
-                let report = bench::perception_randomized::run(
-                    frames.max(1),
-                    args.seed,
-                    &args.frame_seeds,
-                    args.dump.as_deref(),
-                )?;
-                return print_figures(args.json, &report, report.table());
-            }
-            let figures = bench::perception::run(args.scenes.max(1), args.bus_frames.max(1))?;
-            print_figures(args.json, &figures, figures.table())
-        }
-        Command::Bench {
-            what: BenchCommand::Redis(args),
-        } => {
-            let config = load_config(&cli.config)?;
-            let figures = bench::redis::run(args.frames.max(10), config.redis.url.clone())?;
-            print_figures(args.json, &figures, figures.table())
-        }
-        Command::Bench {
-            what: BenchCommand::Jpeg(args),
-        } => {
-            let figures = bench::jpeg::run(args.frames.max(10))?;
-            print_figures(args.json, &figures, figures.table())
-        }
-        Command::Bench {
-            what: BenchCommand::Soak(args),
-        } => {
-            let exe = std::env::current_exe().context("the robotd binary's path")?;
-            let report = bench::soak::run(&exe, args.minutes)?;
-            print_figures(args.json, &report, report.table())?;
-            Ok(if report.passed {
-                std::process::ExitCode::SUCCESS
-            } else {
-                std::process::ExitCode::from(1)
-            })
-        }
-        Command::Bench {
-            what: BenchCommand::Ping(args),
-        } => {
-            let figures = bench::ping::run(&args.namespace, args.round_trips.max(1))?;
-            print_figures(args.json, &figures, figures.table())
-        }
-        Command::Bench {
-            what: BenchCommand::Safety(args),
-        } => {
-            let figures = bench::safety::run(args.commands.max(1), args.stops.max(1))?;
-            print_figures(args.json, &figures, figures.table())
-        }
-        Command::Bench {
-            what: BenchCommand::Mcp(args),
-        } => {
-            let exe = std::env::current_exe().context("finding the robotd binary")?;
-            let figures = bench::mcp::run(
-                &exe,
-                args.calls.max(10),
-                args.seconds.max(0.5),
-                args.one_core,
-            )?;
-            print_figures(args.json, &figures, figures.table())
-        }
+        #[cfg(feature = "bench")]
         Command::BenchPeer {
             role,
             peer_namespace,
             count,
             cpu,
-        } => {
-            if role == bench::tcp_echo::PEER_ROLE {
-                bench::tcp_echo::serve_peer()?;
-                return Ok(std::process::ExitCode::SUCCESS);
-            }
-            bench::bus::run_peer(&role, &peer_namespace, count, cpu)?;
-            Ok(std::process::ExitCode::SUCCESS)
-        }
+        } => robotd_bench::run_peer(&role, &peer_namespace, count, cpu),
     }
 }

@@ -28,7 +28,7 @@ use robotd_runtime::supervision::{SupervisedProcess, SupervisionObserver, Superv
 use robotd_skills::{Skills, SkillsSettings};
 use robotd_speech::{Speech, SpeechSettings};
 use robotd_tools::{Registry, ToolSettings};
-use robotd_workspace_model::{MemorySettings, WorkspaceModel, WorkspaceModelSettings};
+use robotd_workspace_model::{WorkspaceModel, WorkspaceModelSettings};
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -585,23 +585,9 @@ pub fn start_workspace_model(
     labels: &LabelTable,
     config: &WorkspaceConfig,
 ) -> Result<WorkspaceModel> {
-    let builtin = labels.labels();
     Ok(WorkspaceModel::start(
         bus,
-        WorkspaceModelSettings {
-            workspaces,
-            labels: builtin.clone(),
-            builtin_labels: builtin,
-            memory: MemorySettings {
-                free_space_margin_m: config.free_space_margin_m,
-                expire_after_frames: config.expire_after_frames,
-                label_limits: robotd_workspace_model::labels::LabelLimits {
-                    max_labels: config.max_labels as usize,
-                    max_chars: config.max_label_chars as usize,
-                },
-            },
-            default_fresh_wait: std::time::Duration::from_millis(config.fresh_wait_ms),
-        },
+        WorkspaceModelSettings::from_config(workspaces, labels.labels(), config),
     )?)
 }
 

@@ -6,7 +6,7 @@
 //! and each object as its pixel box with its number from the report (unknown-coloured objects
 //! in orange).
 
-use super::draw::Canvas;
+use robotd_render::canvas::Canvas;
 use super::report::Report;
 use robotd_perception::plane::TablePlane;
 use robotd_perception::Pipeline;

@@ -3,8 +3,8 @@
 //!
 //! The image goes through the same [`Pipeline`] the perception actor runs on every frame:
 //! the ring markers, the table plane they fix, the colour detector. The command reports what
-//! each step found ([`report`]) and can draw it ([`draw`], written as a PNG by the `image`
-//! crate).
+//! each step found ([`report`]) and can draw it ([`annotate`], on `robotd_render::canvas`;
+//! written as a PNG by the `image` crate).
 //!
 //! Two kinds of image are accepted:
 //! - a camera view of the sheet with its four markers (the normal case). The camera is
@@ -24,7 +24,6 @@
 
 mod annotate;
 mod camera;
-mod draw;
 pub mod report;
 
 use anyhow::{Context, Result};

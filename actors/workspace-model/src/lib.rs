@@ -116,6 +116,29 @@ impl WorkspaceModelSettings {
             default_fresh_wait: DEFAULT_FRESH_WAIT,
         }
     }
+
+    /// Settings for `workspaces` from the `[workspace]` section, with `labels` the built-in
+    /// detector can see (they are also the labels known at start).
+    pub fn from_config(
+        workspaces: Vec<WorkspaceInfo>,
+        labels: Vec<String>,
+        config: &WorkspaceConfig,
+    ) -> Self {
+        Self {
+            workspaces,
+            labels: labels.clone(),
+            builtin_labels: labels,
+            memory: MemorySettings {
+                free_space_margin_m: config.free_space_margin_m,
+                expire_after_frames: config.expire_after_frames,
+                label_limits: labels::LabelLimits {
+                    max_labels: config.max_labels as usize,
+                    max_chars: config.max_label_chars as usize,
+                },
+            },
+            default_fresh_wait: Duration::from_millis(config.fresh_wait_ms),
+        }
+    }
 }
 
 /// The workspace model could not start.

@@ -66,6 +66,7 @@
 //! ```
 
 pub mod annotate;
+pub mod canvas;
 mod intrinsics;
 mod mesh;
 mod noise;

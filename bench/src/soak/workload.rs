@@ -575,7 +575,7 @@ async fn redis_connected(port: u16) -> bool {
 mod tests {
     use super::{suggested_place, PencilMove, PencilTrack};
 
-    use crate::bench::soak::sampler::Outcome;
+    use crate::soak::sampler::Outcome;
 
     #[test]
     fn the_pencil_goes_left_and_back_and_home_after_a_failure() {

@@ -201,11 +201,13 @@ fn through_the_bus(lab: &mut Lab, frames: usize) -> Result<(f64, f64, usize)> {
             )),
         )?;
         let perception = Perception::start(&bus, pipeline, LabelTable::builtin())?;
-        let model = crate::serve::start_workspace_model(
+        let model = robotd_workspace_model::WorkspaceModel::start(
             &bus,
-            vec![workspace.clone()],
-            &table,
-            &robotd_workspace_model::WorkspaceConfig::default(),
+            robotd_workspace_model::WorkspaceModelSettings::from_config(
+                vec![workspace.clone()],
+                table.labels(),
+                &robotd_workspace_model::WorkspaceConfig::default(),
+            ),
         )?;
         let mut objects = bus.subscriber(&WORKSPACE_OBJECTS)?;
         let publisher = bus.frame_publisher(&CAMERA_FRAMES)?;

@@ -14,7 +14,7 @@ pub const GRIPPER_FAIL_EVERY_N: u32 = 15;
 /// The name of the supervised external actor in the soak's configuration.
 pub const EXTERNAL_ACTOR: &str = "soak_peer";
 
-pub use crate::bench::Served;
+pub use crate::Served;
 
 /// A free loopback port.
 pub fn free_port() -> Result<u16> {
@@ -85,7 +85,7 @@ pub fn start_robotd(setup: &ServiceSetup<'_>) -> Result<Served> {
         command.env_remove(v);
     }
     let mut served = Served(command.spawn().context("starting robotd serve")?);
-    crate::bench::wait_until_serving(&mut served)?;
+    crate::wait_until_serving(&mut served)?;
     Ok(served)
 }
 

@@ -4,7 +4,7 @@
 use clap::{Args, Subcommand};
 
 #[derive(Debug, Subcommand)]
-pub(crate) enum BenchCommand {
+pub enum BenchCommand {
     /// Round trips and frame throughput through the bus, beside raw iceoryx2.
     Bus(BenchBusArgs),
     /// The simulator: camera rendering, inverse kinematics, camera frame to the bus.
@@ -41,153 +41,153 @@ pub(crate) enum BenchCommand {
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchWidowxArgs {
+pub struct BenchWidowxArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Round trips per variant.
     #[arg(long, default_value_t = 2000)]
-    pub(crate) round_trips: usize,
+    pub round_trips: usize,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchNiryoArgs {
+pub struct BenchNiryoArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Round trips per variant.
     #[arg(long, default_value_t = 2000)]
-    pub(crate) round_trips: usize,
+    pub round_trips: usize,
     /// Camera images fetched.
     #[arg(long, default_value_t = 100)]
-    pub(crate) images: usize,
+    pub images: usize,
     /// Random scenes for perception through JPEG.
     #[arg(long, default_value_t = 60)]
-    pub(crate) scenes: usize,
+    pub scenes: usize,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchJpegArgs {
+pub struct BenchJpegArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Frames encoded per variant.
     #[arg(long, default_value_t = 300)]
-    pub(crate) frames: usize,
+    pub frames: usize,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchSoakArgs {
+pub struct BenchSoakArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// How long to run, minutes (2 … 10080).
     #[arg(long, default_value_t = 3.0)]
-    pub(crate) minutes: f64,
+    pub minutes: f64,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchPingArgs {
+pub struct BenchPingArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// The running robotd's bus namespace.
     #[arg(long, default_value = "robotd")]
-    pub(crate) namespace: String,
+    pub namespace: String,
     /// Round trips measured.
     #[arg(long, default_value_t = 5_000)]
-    pub(crate) round_trips: usize,
+    pub round_trips: usize,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchSafetyArgs {
+pub struct BenchSafetyArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Motion commands per variant.
     #[arg(long, default_value_t = 2000)]
-    pub(crate) commands: usize,
+    pub commands: usize,
     /// E-stops of a swinging arm per driver (simulator, fake Ned2, fake WidowX) for the
     /// stopping time and distance.
     #[arg(long, default_value_t = 10)]
-    pub(crate) stops: usize,
+    pub stops: usize,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchRedisArgs {
+pub struct BenchRedisArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Frames through the bus and to Redis.
     #[arg(long, default_value_t = 300)]
-    pub(crate) frames: usize,
+    pub frames: usize,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchMcpArgs {
+pub struct BenchMcpArgs {
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Sequential calls per latency measurement.
     #[arg(long, default_value_t = 1000)]
-    pub(crate) calls: usize,
+    pub calls: usize,
     /// Seconds of each throughput run.
     #[arg(long, default_value_t = 3.0)]
-    pub(crate) seconds: f64,
+    pub seconds: f64,
     /// Run the service and the benchmark pinned to CPU 0, without the cross-CPU wake-ups
     /// (slow on VMs) in every figure.
     #[arg(long)]
-    pub(crate) one_core: bool,
+    pub one_core: bool,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchPerceptionArgs {
+pub struct BenchPerceptionArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Random scenes for speed and accuracy.
     #[arg(long, default_value_t = 60)]
-    pub(crate) scenes: usize,
+    pub scenes: usize,
     /// Frames sent through the bus for the frame-to-objects latency.
     #[arg(long, default_value_t = 100)]
-    pub(crate) bus_frames: usize,
+    pub bus_frames: usize,
     /// Instead: N randomized frames (sheet designs, light, lens, camera pose, distractors),
     /// scored against ground truth.
     #[arg(long, value_name = "N")]
-    pub(crate) randomized: Option<usize>,
+    pub randomized: Option<usize>,
     /// Seed of the randomized frames.
     #[arg(long, default_value_t = 1)]
-    pub(crate) seed: u64,
+    pub seed: u64,
     /// With --randomized: write the frames that went wrong to this folder as PNG files.
     #[arg(long, value_name = "DIR")]
-    pub(crate) dump: Option<std::path::PathBuf>,
+    pub dump: Option<std::path::PathBuf>,
     /// With --randomized: run only this frame (a seed the report or a dumped file names);
     /// may be given several times.
     #[arg(long = "frame-seed", value_name = "SEED")]
-    pub(crate) frame_seeds: Vec<u64>,
+    pub frame_seeds: Vec<u64>,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchSimArgs {
+pub struct BenchSimArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Frames rendered per variant.
     #[arg(long, default_value_t = 300)]
-    pub(crate) frames: usize,
+    pub frames: usize,
 }
 
 #[derive(Debug, Args)]
-pub(crate) struct BenchBusArgs {
+pub struct BenchBusArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
-    pub(crate) json: bool,
+    pub json: bool,
     /// Measured round trips per variant.
     #[arg(long, default_value_t = 20_000)]
-    pub(crate) round_trips: usize,
+    pub round_trips: usize,
     /// Frames per variant.
     #[arg(long, default_value_t = 20_000)]
-    pub(crate) frames: usize,
+    pub frames: usize,
     /// Restarts measured.
     #[arg(long, default_value_t = 500)]
-    pub(crate) restarts: usize,
+    pub restarts: usize,
 }

@@ -1,4 +1,4 @@
-//! Drawing on an RGB8 image: the lines, boxes, rings and digits of `robotd detect --out`.
+//! Drawing on an RGB8 image: lines, boxes, rings and digits (what `robotd detect --out` draws).
 //!
 //! Everything is clipped to the image, so a marker or box partly outside it draws what is
 //! inside. Digits use a 3×5 pixel font scaled up with the image, enough to number markers and
