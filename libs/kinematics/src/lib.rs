@@ -27,8 +27,10 @@ use k::prelude::*;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use robotd_protocol::geometry::Pose;
 mod body;
+mod mount;
 
 pub use body::BodyBox;
+pub use mount::{CameraMount, MountError, MAX_MOUNT_OFFSET_M};
 pub use robotd_protocol::geometry::RobotModel;
 use std::sync::{Arc, Mutex};
 
@@ -121,6 +123,8 @@ pub struct Kinematics {
     cartesian: CartesianLimits,
     /// The links' shapes, for [`Kinematics::body`].
     body: Arc<Vec<body::LinkShape>>,
+    /// Where the wrist camera sits on its parent link ([`CameraMount`]).
+    camera_mount: CameraMount,
 }
 
 struct Chains {
@@ -128,8 +132,9 @@ struct Chains {
     tcp: k::SerialChain<f64>,
     /// Base to the flange (Ned2 tool_link, WidowX ee_gripper).
     flange: k::SerialChain<f64>,
-    /// Base to the wrist camera (Ned2 camera_link, on wrist_link: joints 1–5).
-    camera: Option<k::SerialChain<f64>>,
+    /// Base to the wrist camera's parent link (Ned2 wrist_link: joints 1–5); `None`: the
+    /// camera is on the tool centre point (WidowX).
+    camera_parent: Option<k::SerialChain<f64>>,
 }
 
 impl std::fmt::Debug for Kinematics {
@@ -179,7 +184,7 @@ impl Kinematics {
         let chain = k::Chain::<f64>::from(&robot);
         let tcp = serial_to(&chain, tcp_link);
         let flange = serial_to(&chain, flange_link);
-        let camera = chain.find_link("camera_link").map(k::SerialChain::from_end);
+        let camera_parent = (model == RobotModel::Ned2).then(|| serial_to(&chain, "wrist_link"));
         let limits = tcp
             .iter_joints()
             .map(|joint| {
@@ -199,11 +204,12 @@ impl Kinematics {
             chain: Arc::new(Mutex::new(Chains {
                 tcp,
                 flange,
-                camera,
+                camera_parent,
             })),
             limits,
             cartesian,
             body: Arc::new(body::link_shapes(&robot, tcp_link)),
+            camera_mount: CameraMount::default_for(model),
         }
     }
 
@@ -310,53 +316,40 @@ impl Kinematics {
         Ok(chains.flange.end_transform())
     }
 
-    /// Pose of the wrist camera's optical frame (z = viewing direction, x = image right,
-    /// y = image down) for joints `q`; `None` for invalid joints.
-    ///
-    /// The Ned2's `camera_link` looks along its x axis (at the observation pose it points
-    /// straight at the table); image "up" is its y axis, so the far side of a workspace is at
-    /// the top of the image, as on the real robot. The WidowX has no camera in its model:
-    /// robotd assumes one on the wrist, 5 cm behind and above the tool centre, looking down
-    /// the tool's −z (the simulator's and `robotd fake-widowx`'s camera).
-    pub fn camera_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
-        self.check_joints(q).ok()?;
-        if self.model() == RobotModel::WidowX250 {
-            return self.tool_mounted_camera_pose(q);
-        }
-        let chains = self.lock();
-        let camera = chains.camera.as_ref()?;
-        let dof = camera.dof();
-        camera.set_joint_positions_unchecked(q.get(..dof)?);
-        let link = camera.end_transform();
-        // Optical axes in camera_link coordinates: x = z_link, y = −y_link, z = x_link.
-        let optical = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
-            0.0, 0.0, 1.0, //
-            0.0, -1.0, 0.0, //
-            1.0, 0.0, 0.0,
-        ));
-        Some(link * UnitQuaternion::from_rotation_matrix(&optical))
+    /// These kinematics with the wrist camera at `mount` instead of the model's nominal mount
+    /// (`[robot.camera.mount]`, see [`CameraMount`]).
+    pub fn with_camera_mount(mut self, mount: CameraMount) -> Self {
+        self.camera_mount = mount;
+        self
     }
 
-    /// The WidowX's assumed wrist camera (see [`Self::camera_pose`]): 5 cm behind and 5 cm
-    /// above the tool centre, looking along the tool's −z (straight down when the gripper is level, as at
-    /// the `widowx_ws` observation pose), with the tool's forward direction at the top of the
-    /// image, so the far side of a workspace is up, as on the Ned2.
-    fn tool_mounted_camera_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
-        let tcp = self.tool_pose(q).ok()?;
-        let tool_x = tcp.rotation * nalgebra::Vector3::x();
-        let tool_y = tcp.rotation * nalgebra::Vector3::y();
-        let tool_z = tcp.rotation * nalgebra::Vector3::z();
-        // Optical frame: z = viewing direction, y = image down, x = image right.
-        let (x, y, z) = (-tool_y, -tool_x, -tool_z);
-        let rotation =
-            UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_basis_unchecked(&[
-                x, y, z,
-            ]));
-        let position = tcp.translation.vector - tool_x * 0.05 + tool_z * 0.05;
-        Some(Isometry3::from_parts(
-            Translation3::from(position),
-            rotation,
-        ))
+    /// Where the wrist camera sits on its parent link.
+    pub fn camera_mount(&self) -> CameraMount {
+        self.camera_mount
+    }
+
+    /// Pose of the link the camera is mounted on for joints `q` (the Ned2's wrist, the
+    /// WidowX's tool centre point; see [`CameraMount`]); `None` for invalid joints.
+    pub fn camera_parent_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
+        self.check_joints(q).ok()?;
+        let chains = self.lock();
+        let parent = chains.camera_parent.as_ref().unwrap_or(&chains.tcp);
+        let dof = parent.dof();
+        parent.set_joint_positions_unchecked(q.get(..dof)?);
+        Some(parent.end_transform())
+    }
+
+    /// Pose of the wrist camera's optical frame (z = viewing direction, x = image right,
+    /// y = image down) for joints `q`; `None` for invalid joints: the parent link's pose times
+    /// the [`CameraMount`].
+    ///
+    /// With the nominal mounts, the Ned2's camera looks along its `camera_link`'s x axis (at
+    /// the observation pose straight at the table) with the far side of a workspace at the top
+    /// of the image, as on the real robot; the WidowX's sits on the wrist 5 cm behind and above
+    /// the tool centre, looking down the tool's −z (the simulator's and `robotd fake-widowx`'s
+    /// camera).
+    pub fn camera_pose(&self, q: &[f64]) -> Option<Isometry3<f64>> {
+        Some(self.camera_parent_pose(q)? * self.camera_mount.transform)
     }
 
     /// Joints that put the tool centre point at `target`, inside the joint limits. Tries the
