@@ -3,6 +3,8 @@
 //! progress message before each step and a cancel check between steps.
 
 mod push;
+#[cfg(test)]
+mod tests;
 
 use crate::geometry::{self, top_z};
 use crate::plan::{self, HeldPlan};
@@ -189,7 +191,7 @@ impl Runner {
                 pick_at,
                 z_offset_m,
             } => {
-                run.total = 8;
+                run.total = 7;
                 let object = self
                     .pick(run, &object_name, pick_at, z_offset_m, None)
                     .await?;
@@ -197,7 +199,7 @@ impl Runner {
                 Ok(done(Some(object), Some(pick_at), None))
             }
             Skill::Place { place_at, location } => {
-                run.total = 8;
+                run.total = 7;
                 let (object, at) = self.place(run, place_at, location).await?;
                 self.finish(run).await?;
                 Ok(done(Some(object), None, Some(at)))
@@ -209,7 +211,7 @@ impl Runner {
                 location,
                 z_offset_m,
             } => {
-                run.total = 14;
+                run.total = 12;
                 let object = self
                     .pick(
                         run,
@@ -231,7 +233,7 @@ impl Runner {
                 distance_m,
                 z_offset_m,
             } => {
-                run.total = 14;
+                run.total = 12;
                 // The contract: the place is `pick_coordinate` moved by `distance` (not the
                 // object's own centre moved), which is also what the reply says.
                 let target = direction.offset(pick_at, distance_m);
