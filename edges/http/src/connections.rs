@@ -16,11 +16,10 @@
 //!
 //! Each connection is served by hyper's HTTP/1 server with TCP_NODELAY (without it a response
 //! written in two pieces waits for the client's delayed ACK: a ~40 ms floor per call), on a
-//! task of its own run through [`crate::self_wake`], and handlers read the client's address
-//! as `ConnectInfo<SocketAddr>`, as with `axum::serve`.
+//! task of its own, and handlers read the client's address as `ConnectInfo<SocketAddr>`, as
+//! with `axum::serve`.
 
 use crate::body_deadline::DeadlineBody;
-use crate::self_wake::InlineSelfWakes;
 use axum::extract::ConnectInfo;
 use axum::Router;
 use hyper_util::rt::{TokioIo, TokioTimer};
@@ -105,12 +104,10 @@ pub(crate) async fn serve(
         };
         let app = app.clone();
         let stopping = stopping.clone();
-        // hyper wakes a connection's task once per request body while it runs; served
-        // inline, that wake-up does not send the task back through the scheduler.
-        connections.spawn(InlineSelfWakes::new(async move {
+        connections.spawn(async move {
             serve_connection(stream, peer, app, limits.idle_timeout, stopping).await;
             drop(place);
-        }));
+        });
     }
     let _ = stop.send(true);
     refusals.abort_all();

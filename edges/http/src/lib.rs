@@ -20,7 +20,6 @@ pub mod config;
 pub mod connections;
 pub mod guard;
 pub mod safety;
-pub mod self_wake;
 pub use config::HttpConfig;
 pub use connections::ConnectionLimits;
 
