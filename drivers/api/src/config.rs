@@ -110,6 +110,17 @@ impl RobotConfig {
         self.workspaces().iter().map(|w| w.to_info(model)).collect()
     }
 
+    /// Where the wrist camera sits: `[robot.camera.mount]`, else the model's nominal mount.
+    /// A mount the config checks refuse is an error naming the value.
+    pub fn camera_mount(
+        &self,
+    ) -> Result<robotd_kinematics::CameraMount, robotd_kinematics::MountError> {
+        match &self.camera.mount {
+            Some(mount) => robotd_kinematics::CameraMount::from_xyz_rpy_deg(mount.to_array()),
+            None => Ok(robotd_kinematics::CameraMount::default_for(self.model())),
+        }
+    }
+
     /// [`Self::control_rate_hz`] as the period of one control tick.
     pub fn control_period(&self) -> Duration {
         Duration::from_secs_f64(1.0 / f64::from(self.control_rate_hz.max(1)))
@@ -129,6 +140,78 @@ pub struct CameraConfig {
     /// Whether the simulated camera applies the lens distortion of its intrinsics.
     #[serde(default)]
     pub lens_distortion: bool,
+    /// `[robot.camera.mount]`: where the wrist camera sits on the arm; absent: the model's
+    /// nominal mount (`robotd_kinematics::CameraMount::default_for`). `robotd commission`
+    /// measures it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mount: Option<CameraMountConfig>,
+}
+
+/// `[robot.camera.mount]`: the transform from the link the camera is fixed to (the Ned2's
+/// wrist, the WidowX's tool centre point) to the camera's optical frame (z = viewing
+/// direction, x = image right, y = image down). Translation in metres in the link's axes,
+/// rotation as roll, pitch, yaw in degrees (R = Rz(yaw)·Ry(pitch)·Rx(roll)).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraMountConfig {
+    /// Translation along the link's x axis, metres.
+    pub x_m: f64,
+    /// Translation along the link's y axis, metres.
+    pub y_m: f64,
+    /// Translation along the link's z axis, metres.
+    pub z_m: f64,
+    /// Rotation about x, degrees.
+    pub roll_deg: f64,
+    /// Rotation about y, degrees.
+    pub pitch_deg: f64,
+    /// Rotation about z, degrees.
+    pub yaw_deg: f64,
+}
+
+impl CameraMountConfig {
+    /// `[x_m, y_m, z_m, roll_deg, pitch_deg, yaw_deg]`.
+    pub fn to_array(self) -> [f64; 6] {
+        [
+            self.x_m,
+            self.y_m,
+            self.z_m,
+            self.roll_deg,
+            self.pitch_deg,
+            self.yaw_deg,
+        ]
+    }
+
+    /// From `[x_m, y_m, z_m, roll_deg, pitch_deg, yaw_deg]`.
+    pub fn from_array([x_m, y_m, z_m, roll_deg, pitch_deg, yaw_deg]: [f64; 6]) -> Self {
+        Self {
+            x_m,
+            y_m,
+            z_m,
+            roll_deg,
+            pitch_deg,
+            yaw_deg,
+        }
+    }
+
+    fn check(&self, checks: &mut Checks) {
+        let names = ["x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg"];
+        for (name, value) in names.into_iter().zip(self.to_array()) {
+            let key = format!("camera.mount.{name}");
+            if !value.is_finite() {
+                checks.problem(&key, format!("must be a finite number, got {value}"));
+            } else if name.ends_with("_m") && value.abs() > 0.3 {
+                checks.problem(
+                    &key,
+                    format!(
+                        "{value} m is farther than any wrist camera sits from its link (at most \
+                         0.3 m; the translation is in metres, not millimetres)"
+                    ),
+                );
+            } else if name.ends_with("_deg") && value.abs() > 360.0 {
+                checks.problem(&key, format!("{value}° is not an angle from -360 to 360"));
+            }
+        }
+    }
 }
 
 impl Default for CameraConfig {
@@ -137,6 +220,7 @@ impl Default for CameraConfig {
             fps: defaults::camera_fps(),
             noise_stddev: defaults::noise_stddev(),
             lens_distortion: false,
+            mount: None,
         }
     }
 }
@@ -229,6 +313,9 @@ impl Section for RobotConfig {
             ids.push(&workspace.id);
         }
         checks.range_f64("camera.fps", self.camera.fps, 0.1..=60.0, "");
+        if let Some(mount) = &self.camera.mount {
+            mount.check(checks);
+        }
         if self.driver == RobotDriver::Niryo {
             match self.host.as_deref().map(str::trim) {
                 None | Some("") => checks.problem(

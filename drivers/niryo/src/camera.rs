@@ -63,9 +63,25 @@ impl NiryoCamera {
     /// `rectified`: the robot already sends undistorted images (`robot.niryo.images_rectified`),
     /// so the frames are ideal pinhole images whatever distortion the robot reports.
     pub fn new(link: Arc<Link>, rectified: bool) -> Arc<Self> {
+        let model = robotd_protocol::geometry::RobotModel::Ned2;
+        Self::with_mount(
+            link,
+            rectified,
+            robotd_kinematics::CameraMount::default_for(model),
+        )
+    }
+
+    /// [`NiryoCamera::new`] for a camera at `mount` on the wrist (`[robot.camera.mount]`):
+    /// each frame's camera pose is the wrist's, from the joints, times the mount.
+    pub fn with_mount(
+        link: Arc<Link>,
+        rectified: bool,
+        mount: robotd_kinematics::CameraMount,
+    ) -> Arc<Self> {
         Arc::new(Self {
             link,
-            kinematics: Kinematics::new(robotd_protocol::geometry::RobotModel::Ned2),
+            kinematics: Kinematics::new(robotd_protocol::geometry::RobotModel::Ned2)
+                .with_camera_mount(mount),
             latest: Mutex::new(Latest::default()),
             arrived: Notify::new(),
             rectified,

@@ -77,7 +77,11 @@ pub async fn open(config: &RobotConfig, wait_for_robot: Duration, policy: Safety
             arrival_tolerance_rad: config.niryo.arrival_tolerance_rad,
         },
     ));
-    let camera = NiryoCamera::new(link.clone(), config.niryo.images_rectified);
+    let camera = NiryoCamera::with_mount(
+        link.clone(),
+        config.niryo.images_rectified,
+        camera_mount(config),
+    );
     let mut tasks = vec![tokio::spawn(link.clone().run_reconnector())];
     if let Err(reason) = link.wait_connected(wait_for_robot).await {
         tracing::warn!(%reason, "the Niryo robot is not connected yet; robotd keeps trying");
@@ -111,4 +115,14 @@ async fn poll_while_idle(arm: Arc<NiryoArm>) {
             tracing::debug!(%error, "reading the idle arm's joints");
         }
     }
+}
+
+/// `[robot.camera.mount]`, else the Ned2's nominal mount. The config's checks refuse a mount
+/// that cannot be one before a driver starts; should one get here, it is logged and the
+/// nominal mount used.
+fn camera_mount(config: &RobotConfig) -> robotd_kinematics::CameraMount {
+    config.camera_mount().unwrap_or_else(|error| {
+        tracing::error!(%error, "robot.camera.mount is unusable; using the Ned2's nominal mount");
+        robotd_kinematics::CameraMount::default_for(RobotModel::Ned2)
+    })
 }

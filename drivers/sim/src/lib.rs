@@ -55,7 +55,10 @@ pub fn open(config: &RobotConfig) -> Result<SimDriver, SceneError> {
         noise_stddev: config.camera.noise_stddev,
         lens_distortion: config.camera.lens_distortion,
     };
-    let robot = SimRobot::new(&scene, settings);
+    let mount = config
+        .camera_mount()
+        .map_err(|e| SceneError::Invalid(format!("robot.camera.mount: {e}")))?;
+    let robot = SimRobot::new(&scene, settings).with_camera_mount(mount);
     let faults = &config.faults;
     let drivers = RobotDrivers {
         model: scene.robot,

@@ -109,6 +109,13 @@ impl SimRobot {
         }
     }
 
+    /// This robot with its wrist camera at `mount` (`[robot.camera.mount]`): the camera
+    /// renders from there and reports that pose.
+    pub fn with_camera_mount(mut self, mount: robotd_kinematics::CameraMount) -> Self {
+        self.kinematics = self.kinematics.with_camera_mount(mount);
+        self
+    }
+
     /// The robot's kinematics.
     pub fn kinematics(&self) -> &Kinematics {
         &self.kinematics

@@ -82,7 +82,12 @@ pub fn camera_intrinsics(widowx: &WidowxConfig) -> CameraIntrinsics {
 pub fn open(config: &RobotConfig) -> WidowxDrivers {
     let widowx = &config.widowx;
     let bus = ServoBus::start(bus_settings(config));
-    let kinematics = Kinematics::new(RobotModel::WidowX250);
+    let mount = config.camera_mount().unwrap_or_else(|error| {
+        // The config's checks refuse such a mount before a driver starts.
+        tracing::error!(%error, "robot.camera.mount is unusable; using the nominal mount");
+        robotd_kinematics::CameraMount::default_for(RobotModel::WidowX250)
+    });
+    let kinematics = Kinematics::new(RobotModel::WidowX250).with_camera_mount(mount);
     let arm = Arc::new(WidowxArm::new(
         bus.clone(),
         arm::ArmSettings {

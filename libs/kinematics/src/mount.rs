@@ -250,6 +250,19 @@ mod tests {
         assert!((camera.rotation * Vector3::y() + tx).norm() < 1e-12);
     }
 
+    /// The numbers `config/default.toml` and docs/configuration.md give for the nominal mounts.
+    #[test]
+    fn nominal_mounts_are_the_documented_numbers() {
+        for (model, documented) in [
+            (RobotModel::Ned2, [0.0385, 0.0, 0.0, 100.0, -90.0, 0.0]),
+            (RobotModel::WidowX250, [-0.05, 0.0, 0.05, 180.0, 0.0, -90.0]),
+        ] {
+            let mount = CameraMount::from_xyz_rpy_deg(documented).unwrap();
+            let (d, a) = mount.difference(&CameraMount::default_for(model));
+            assert!(d < 1e-12 && a < 1e-6, "{model:?}: {d} m {a}°");
+        }
+    }
+
     #[test]
     fn angles_round_trip_even_at_pitch_90() {
         for rpy in [
