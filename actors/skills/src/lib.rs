@@ -40,6 +40,9 @@
 
 pub mod geometry;
 mod plan;
+#[cfg(test)]
+#[path = "plan/heights.rs"]
+mod plan_heights;
 mod runner;
 
 use robotd_protocol::arm::ArmCommand;
