@@ -103,7 +103,7 @@ impl Runtime {
         let health = Arc::new(HealthBoard::default());
         let restarts: Arc<Mutex<Publisher<RestartEvent>>> =
             Arc::new(Mutex::new(bus.publisher(&HEALTH_RESTARTS)?));
-        let hardware = Hardware::start(&bus, config, |_actor| {
+        let hardware = Hardware::start(&bus, &config.robot_sections(), |_actor| {
             supervision_observer(health.clone(), restarts.clone())
         })
         .await

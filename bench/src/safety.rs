@@ -256,7 +256,7 @@ async fn estop_latencies(trials: usize) -> Result<(Vec<(Duration, Duration)>, Du
         &config.bus.namespace,
         "robotd-bench",
     ))?;
-    let hardware = robotd_robot::Hardware::start(&bus, &config, |_| {
+    let hardware = robotd_robot::Hardware::start(&bus, &config.robot_sections(), |_| {
         robotd_runtime::supervision::observer_fn(
             |_: &robotd_runtime::supervision::SupervisionEvent| {},
         )

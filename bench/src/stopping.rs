@@ -140,7 +140,7 @@ async fn run_trials(
         &config.bus.namespace,
         "robotd-bench",
     ))?;
-    let hardware = robotd_robot::Hardware::start(&bus, config, |_| {
+    let hardware = robotd_robot::Hardware::start(&bus, &config.robot_sections(), |_| {
         robotd_runtime::supervision::observer_fn(
             |_: &robotd_runtime::supervision::SupervisionEvent| {},
         )

@@ -135,6 +135,22 @@ impl Config {
     pub fn actor(&self, actor: &str) -> ActorConfig {
         self.actors.get(actor).cloned().unwrap_or_default()
     }
+
+    /// The sections the robot reads (`[robot]`, `[safety]`, `[telemetry] log_dir`, the restart
+    /// policies of its actors), for [`robotd_robot::Hardware::start`].
+    pub fn robot_sections(&self) -> robotd_robot::RobotSections {
+        robotd_robot::RobotSections {
+            robot: self.robot.clone(),
+            safety: self.safety.clone(),
+            log_dir: self.telemetry.log_dir.clone(),
+            supervision: self.supervision.clone(),
+            actor_supervision: robotd_robot::ACTORS
+                .iter()
+                .filter(|actor| self.actors.contains_key(**actor))
+                .map(|actor| (actor.to_string(), self.supervision_for(actor)))
+                .collect(),
+        }
+    }
 }
 
 #[cfg(test)]

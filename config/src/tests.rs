@@ -134,6 +134,34 @@ fn file_layers_over_defaults() {
     assert_eq!(config.actor("arm").mode, ActorMode::InProcess);
 }
 
+/// The robot gets its own sections, and the restart policy of each of its actors as the whole
+/// configuration says (`[actors.<name>]` over `[supervision]`).
+#[test]
+fn the_robot_sections_are_the_configured_ones() {
+    let file = TempFile::new(
+        "[telemetry]\nlog_dir = \"/var/log/lab\"\n[safety]\nfloor_z_m = 0.01\n\
+         [actors.camera]\nsupervision = { max_restarts = 10 }\n\
+         [actors.perception]\nsupervision = { max_restarts = 7 }\n",
+    );
+    let config = Config::load_with_env(with_file(&file), no_env()).unwrap();
+    let sections = config.robot_sections();
+    assert_eq!(sections.robot, config.robot);
+    assert_eq!(sections.safety.floor_z_m, 0.01);
+    assert_eq!(sections.log_dir, std::path::Path::new("/var/log/lab"));
+    for actor in robotd_robot::ACTORS {
+        assert_eq!(
+            sections.supervision_for(actor),
+            &config.supervision_for(actor)
+        );
+    }
+    assert_eq!(sections.supervision_for("camera").max_restarts, 10);
+    // Only the robot's own actors are handed over.
+    assert_eq!(
+        sections.actor_supervision.keys().collect::<Vec<_>>(),
+        ["camera"]
+    );
+}
+
 #[test]
 fn env_overrides_file() {
     let file =

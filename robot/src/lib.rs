@@ -16,15 +16,16 @@
 //! (`drivers/replay`: it never moves). A new driver is a crate in `drivers/` plus one arm of the `match` in
 //! [`Hardware::start`].
 //!
+//! The robot reads only its own sections of the configuration, [`RobotSections`]; the binary
+//! hands them over from the composed configuration (`robotd_config::Config::robot_sections`).
+//!
 //! ```no_run
-//! # async fn demo() -> anyhow::Result<()> {
+//! # async fn demo(sections: robotd_robot::RobotSections) -> anyhow::Result<()> {
 //! use robotd_runtime::bus::{Bus, BusOptions};
-//! use robotd_config::{Config, LoadOptions};
 //! use robotd_robot::Hardware;
 //!
-//! let config = Config::load(LoadOptions::default())?;
-//! let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd"))?;
-//! let hardware = Hardware::start(&bus, &config, |_actor| {
+//! let bus = Bus::open(BusOptions::new("robotd", "robotd"))?;
+//! let hardware = Hardware::start(&bus, &sections, |_actor| {
 //!     robotd_runtime::supervision::observer_fn(|event: &robotd_runtime::supervision::SupervisionEvent| {
 //!         eprintln!("{event}")
 //!     })
@@ -37,14 +38,49 @@
 
 use robotd_arm::{ArmActor, ArmContext, RunningArm};
 use robotd_camera::CameraActor;
-use robotd_config::{Config, RobotDriver};
-use robotd_driver::{MotionControl, ObservationPose, RobotDrivers};
+use robotd_driver::{MotionControl, ObservationPose, RobotConfig, RobotDriver, RobotDrivers};
 use robotd_driver_sim::SimRobot;
 use robotd_gripper::GripperActor;
 use robotd_runtime::bus::Bus;
+use robotd_runtime::config::SupervisionConfig;
 use robotd_runtime::host::ActorStartError;
 use robotd_runtime::supervision::{Supervised, SupervisionObserver, Supervisor};
-use robotd_safety::Safety;
+use robotd_safety::{Safety, SafetyConfig};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+/// The robot's supervised actors, by the names their supervisors, `[actors.<name>]` and the
+/// observer know them by.
+pub const ACTORS: [&str; 3] = ["arm", "gripper", "camera"];
+
+/// What the robot reads of robotd's configuration: its own sections, handed over by the
+/// binary (`robotd_config::Config::robot_sections` makes them from the composed
+/// configuration), so that this crate depends on neither that configuration nor the edges and
+/// agent whose sections it is made of.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotSections {
+    /// `[robot]`: the driver and its settings, the workspaces.
+    pub robot: RobotConfig,
+    /// `[safety]`: the motion policy.
+    pub safety: SafetyConfig,
+    /// `[telemetry] log_dir`: where the audit log is written when `safety.audit.path` is empty.
+    pub log_dir: PathBuf,
+    /// `[supervision]`: the restart policy of each of the robot's [`ACTORS`] without an entry
+    /// in [`RobotSections::actor_supervision`].
+    pub supervision: SupervisionConfig,
+    /// The effective restart policy of those of the robot's [`ACTORS`] that override
+    /// `[supervision]` (`[actors.<name>]`), by actor name.
+    pub actor_supervision: BTreeMap<String, SupervisionConfig>,
+}
+
+impl RobotSections {
+    /// The restart policy of `actor`: its own if it has one, else `[supervision]`.
+    pub fn supervision_for(&self, actor: &str) -> &SupervisionConfig {
+        self.actor_supervision
+            .get(actor)
+            .unwrap_or(&self.supervision)
+    }
+}
 
 /// Why the robot's actors could not start.
 #[derive(Debug, thiserror::Error)]
@@ -106,44 +142,44 @@ impl Hardware {
     /// each under its supervisor with the observer `observer(actor name)` gives.
     pub async fn start<O: SupervisionObserver>(
         bus: &Bus,
-        config: &Config,
+        sections: &RobotSections,
         observer: impl Fn(&'static str) -> O,
     ) -> Result<Hardware, StartError> {
-        match config.robot.driver {
+        match sections.robot.driver {
             RobotDriver::SimNed2 | RobotDriver::SimWidowx => {
-                let sim = robotd_driver_sim::open(&config.robot)?;
+                let sim = robotd_driver_sim::open(&sections.robot)?;
                 let ground_truth = robotd_driver_sim::serve_ground_truth(bus, sim.robot.clone())?;
-                let mut hardware = Self::start_with(bus, config, sim.drivers, observer).await?;
+                let mut hardware = Self::start_with(bus, sections, sim.drivers, observer).await?;
                 hardware.tasks.push(ground_truth);
                 hardware.sim = Some(sim.robot);
                 Ok(hardware)
             }
             RobotDriver::Niryo => {
                 // The policy first: the driver's automatic calibration on connecting asks it.
-                let safety = Self::policy(config, robotd_protocol::RobotModel::Ned2)?;
+                let safety = Self::policy(sections, robotd_protocol::RobotModel::Ned2)?;
                 let niryo = robotd_driver_niryo::open(
-                    &config.robot,
+                    &sections.robot,
                     std::time::Duration::from_secs(3),
                     safety.clone(),
                 )
                 .await;
                 let mut hardware =
-                    Self::start_on(bus, config, niryo.drivers, safety, observer).await?;
+                    Self::start_on(bus, sections, niryo.drivers, safety, observer).await?;
                 hardware.tasks.extend(niryo.tasks);
                 Ok(hardware)
             }
             RobotDriver::Replay => {
                 // Checks the file on the blocking pool. Should the actors not start, `replay`
                 // is dropped here and aborts its player (and so its reader thread).
-                let mut replay = robotd_driver_replay::open(&config.robot.replay).await?;
+                let mut replay = robotd_driver_replay::open(&sections.robot.replay).await?;
                 let drivers = replay.drivers.clone();
-                let mut hardware = Self::start_with(bus, config, drivers, observer).await?;
+                let mut hardware = Self::start_with(bus, sections, drivers, observer).await?;
                 hardware.tasks.append(&mut replay.tasks);
                 hardware.replay = Some(replay);
                 Ok(hardware)
             }
             RobotDriver::Widowx => {
-                let widowx = robotd_driver_widowx::open(&config.robot);
+                let widowx = robotd_driver_widowx::open(&sections.robot);
                 // Give the servos a moment, so the arm's first state is real; a bus that is
                 // not there yet is not an error (the drivers say why until it answers).
                 let deadline = std::time::Instant::now() + std::time::Duration::from_secs(3);
@@ -153,26 +189,27 @@ impl Hardware {
                 if let Err(reason) = widowx.bus.connection() {
                     tracing::warn!(%reason, "the WidowX is not connected yet; robotd keeps trying");
                 }
-                let mut hardware = Self::start_with(bus, config, widowx.drivers, observer).await?;
+                let mut hardware =
+                    Self::start_with(bus, sections, widowx.drivers, observer).await?;
                 hardware.tasks.extend(widowx.tasks);
                 Ok(hardware)
             }
         }
     }
 
-    /// The motion policy of a `model` robot under `config` (`[safety]`, the workspaces), on
+    /// The motion policy of a `model` robot under `sections` (`[safety]`, the workspaces), on
     /// fresh stop signals, with its audit log opened.
     pub fn policy(
-        config: &Config,
+        sections: &RobotSections,
         model: robotd_protocol::RobotModel,
     ) -> Result<Safety, StartError> {
-        let audit = Safety::open_audit(&config.safety, &config.telemetry.log_dir)
-            .map_err(StartError::Audit)?;
+        let audit =
+            Safety::open_audit(&sections.safety, &sections.log_dir).map_err(StartError::Audit)?;
         Ok(Safety::new(
-            config.safety.clone(),
+            sections.safety.clone(),
             robotd_kinematics::Kinematics::new(model),
             MotionControl::default(),
-            &config.robot.workspaces(),
+            &sections.robot.workspaces(),
             audit,
         ))
     }
@@ -181,26 +218,26 @@ impl Hardware {
     /// new motion policy ([`Hardware::policy`]).
     pub async fn start_with<O: SupervisionObserver>(
         bus: &Bus,
-        config: &Config,
+        sections: &RobotSections,
         drivers: RobotDrivers,
         observer: impl Fn(&'static str) -> O,
     ) -> Result<Hardware, StartError> {
-        let safety = Self::policy(config, drivers.model)?;
-        Self::start_on(bus, config, drivers, safety, observer).await
+        let safety = Self::policy(sections, drivers.model)?;
+        Self::start_on(bus, sections, drivers, safety, observer).await
     }
 
     /// Starts the three actors on the given drivers under the motion policy `safety`, whose
     /// stop signals become the arm's.
     pub async fn start_on<O: SupervisionObserver>(
         bus: &Bus,
-        config: &Config,
+        sections: &RobotSections,
         drivers: RobotDrivers,
         safety: Safety,
         observer: impl Fn(&'static str) -> O,
     ) -> Result<Hardware, StartError> {
         let supervisor = |actor: &'static str| {
             Supervisor::new(actor)
-                .policy(config.supervision_for(actor).policy())
+                .policy(sections.supervision_for(actor).policy())
                 .observer(observer(actor))
         };
         let failed = |actor: &'static str| move |source| StartError::Actor { actor, source };
@@ -213,7 +250,7 @@ impl Hardware {
             control,
             safety: safety.clone(),
             shared: Default::default(),
-            observation_poses: config
+            observation_poses: sections
                 .robot
                 .workspaces()
                 .iter()
@@ -230,7 +267,7 @@ impl Hardware {
             bus,
             supervisor("arm"),
             context.clone(),
-            config.robot.control_period(),
+            sections.robot.control_period(),
         )
         .await
         .map_err(failed("arm"))?;
@@ -243,7 +280,7 @@ impl Hardware {
             bus,
             supervisor("camera"),
             drivers.camera,
-            config.robot.camera.fps,
+            sections.robot.camera.fps,
         )
         .await
         .map_err(failed("camera"))?;

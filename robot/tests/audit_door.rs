@@ -5,6 +5,8 @@
 //! admission, with the id cut in the reply, and the audit log gets no line for it. A known
 //! workspace is admitted and recorded in a keyed chain that verifies.
 
+mod common;
+
 use robotd_arm::{admit_and_run, ArmActor, ArmContext, ObservationPose};
 use robotd_driver::MotionControl;
 use robotd_kinematics::Kinematics;
@@ -24,7 +26,7 @@ async fn an_unknown_workspace_is_refused_before_admission_and_not_audited() {
         "name = \"empty\"\nrobot = \"ned2\"\n",
     )
     .unwrap();
-    let mut robot = robotd_config::Config::default().robot;
+    let mut robot = common::default_sections().robot;
     robot.scene = Some(dir.path().join("empty.toml"));
     let sim = robotd_driver_sim::open(&robot).expect("the simulator");
     let kinematics = Kinematics::new(RobotModel::Ned2);

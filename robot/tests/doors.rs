@@ -71,9 +71,9 @@ async fn a_calibration_passes_the_plan_check_of_its_motion() {
     rig.hardware.shutdown().await;
 }
 
-async fn rig_without_box(config: &robotd_config::Config, start: &[f64]) -> usize {
+async fn rig_without_box(config: &common::TestConfig, start: &[f64]) -> usize {
     let mut config = config.clone();
-    config.bus.namespace.push_str("-free");
+    config.namespace.push_str("-free");
     let rig = rig(&config).await;
     rig.sim.teleport(start).unwrap();
     let arm = rig.bus.client(&ARM_COMMAND).unwrap();

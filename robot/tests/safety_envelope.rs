@@ -7,6 +7,8 @@
 //! the simulator's own kinematics at a finer step than the policy samples, and every tool
 //! position must lie inside the envelope. Every refusal must say why.
 
+mod common;
+
 use robotd_arm::{admit_and_run, ArmActor, ArmContext, ObservationPose};
 use robotd_driver::{
     ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision, DriverError, DriverFuture, Motion,
@@ -222,7 +224,7 @@ async fn random_motions_from_every_origin_never_leave_the_envelope() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(10_000 / OriginKind::ALL.len() + 1);
     let scene = empty_scene();
-    let mut robot = robotd_config::Config::default().robot;
+    let mut robot = common::default_sections().robot;
     robot.scene = Some(scene.path().join("empty.toml"));
     robot.control_rate_hz = 50;
     let sim = robotd_driver_sim::open(&robot).expect("the simulator");

@@ -4,7 +4,9 @@
 //! `gripper/command`, frames on `camera/frames` that show the scene where the projection says,
 //! and supervised restarts under injected faults.
 
-use robotd_config::Config;
+mod common;
+use common::{test_config, TestConfig};
+
 use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, PathKind};
 use robotd_protocol::geometry::{Pose, PoseDelta, RobotModel};
@@ -18,30 +20,22 @@ use robotd_runtime::catalog::{
 };
 use robotd_runtime::supervision::{observer_fn, SupervisionEvent};
 use std::f64::consts::FRAC_PI_2;
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 const TIMEOUT: Duration = Duration::from_secs(20);
 
-fn fresh_config(time_scale: f64) -> Config {
-    static COUNTER: AtomicU32 = AtomicU32::new(0);
-    let mut config = Config::default();
-    config.bus.namespace = format!(
-        "hw-{}-{}",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    );
+fn fresh_config(time_scale: f64) -> TestConfig {
+    // Tests leave no audit files behind (no audit log).
+    let mut config = test_config("hw");
     config.robot.time_scale = time_scale;
     config.robot.control_rate_hz = 100;
     config.robot.camera.fps = 30.0;
     config.supervision.backoff_initial_ms = 5;
-    // Tests leave no audit files behind.
-    config.safety.audit.enabled = false;
     config
 }
 
-async fn start(config: &Config) -> (Bus, Hardware) {
-    let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd-test")).expect("bus");
+async fn start(config: &TestConfig) -> (Bus, Hardware) {
+    let bus = Bus::open(BusOptions::new(&config.namespace, "robotd-test")).expect("bus");
     let hardware = Hardware::start(&bus, config, |_| observer_fn(|_: &SupervisionEvent| {}))
         .await
         .expect("hardware");
@@ -516,7 +510,7 @@ fn object_half_height(object: &robotd_sim::SimObject) -> f64 {
 async fn injected_faults_restart_the_arm_safely_and_the_next_command_works() {
     let mut config = fresh_config(0.05);
     config.robot.faults.arm.fail_every_n = 2;
-    let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd-test")).unwrap();
+    let bus = Bus::open(BusOptions::new(&config.namespace, "robotd-test")).unwrap();
     let (events_tx, mut events) = tokio::sync::mpsc::unbounded_channel::<SupervisionEvent>();
     let hardware = Hardware::start(&bus, &config, |_| events_tx.clone())
         .await
@@ -593,7 +587,7 @@ async fn the_emergency_stop_stays_engaged_across_a_restart_of_the_arm_actor() {
     // The first motion hangs for 300 ms, then crashes the driver.
     config.robot.faults.arm.fail_every_n = 1;
     config.robot.faults.arm.hang_ms = 300;
-    let bus = Bus::open(BusOptions::new(&config.bus.namespace, "robotd-test")).unwrap();
+    let bus = Bus::open(BusOptions::new(&config.namespace, "robotd-test")).unwrap();
     let (events_tx, mut events) = tokio::sync::mpsc::unbounded_channel::<SupervisionEvent>();
     let hardware = Hardware::start(&bus, &config, |_| events_tx.clone())
         .await

@@ -4,16 +4,16 @@
 
 #![allow(dead_code)]
 
-use robotd_config::Config;
 use robotd_driver::{
     ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision, Close, DriverError, DriverFuture,
     GripperDriver, GripperStatus, MotionControl, Open, Permit, RobotDrivers, SetWidth,
 };
 use robotd_protocol::geometry::RobotModel;
-use robotd_robot::Hardware;
+use robotd_robot::{Hardware, RobotSections};
 use robotd_runtime::bus::{Bus, BusOptions};
 use robotd_runtime::supervision::{observer_fn, SupervisionEvent};
 use robotd_safety::Safety;
+use std::ops::{Deref, DerefMut};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -134,21 +134,77 @@ impl GripperDriver for RecordingGripper {
     }
 }
 
+/// The robot's sections as `config/default.toml` documents them (what the binary hands over
+/// when nothing is configured).
+pub fn default_sections() -> RobotSections {
+    let defaults: toml::Table = include_str!("../../../config/default.toml")
+        .parse()
+        .expect("config/default.toml");
+    let section = |name: &str| {
+        defaults
+            .get(name)
+            .cloned()
+            .unwrap_or_else(|| panic!("[{name}] in config/default.toml"))
+    };
+    let telemetry = section("telemetry");
+    RobotSections {
+        robot: section("robot").try_into().expect("[robot]"),
+        safety: section("safety").try_into().expect("[safety]"),
+        log_dir: telemetry["log_dir"]
+            .as_str()
+            .expect("telemetry.log_dir")
+            .into(),
+        supervision: section("supervision").try_into().expect("[supervision]"),
+        actor_supervision: Default::default(),
+    }
+}
+
+/// A test's configuration: the robot's sections (what this crate reads; `config.robot`,
+/// `config.safety`, … through `Deref`) and a bus namespace of its own.
+#[derive(Debug, Clone)]
+pub struct TestConfig {
+    /// The bus namespace (`[bus] namespace`).
+    pub namespace: String,
+    /// The robot's sections.
+    pub sections: RobotSections,
+}
+
+impl Deref for TestConfig {
+    type Target = RobotSections;
+    fn deref(&self) -> &RobotSections {
+        &self.sections
+    }
+}
+
+impl DerefMut for TestConfig {
+    fn deref_mut(&mut self) -> &mut RobotSections {
+        &mut self.sections
+    }
+}
+
+/// The default sections on a bus namespace of its own (`{prefix}-{pid}-{n}`), no audit log.
+pub fn test_config(prefix: &str) -> TestConfig {
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    let mut config = TestConfig {
+        namespace: format!(
+            "{prefix}-{}-{}",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ),
+        sections: default_sections(),
+    };
+    config.safety.audit.enabled = false;
+    config
+}
+
 /// A configuration on a bus namespace of its own: the simulated Ned2 at `time_scale`, 100 Hz
 /// control, no audit log (set one to read it back).
-pub fn fresh_config(time_scale: f64) -> Config {
-    static COUNTER: AtomicU32 = AtomicU32::new(0);
-    let mut config = Config::default();
-    config.bus.namespace = format!(
-        "door-{}-{}",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    );
+pub fn fresh_config(time_scale: f64) -> TestConfig {
+    let mut config = test_config("door");
     config.robot.time_scale = time_scale;
     config.robot.control_rate_hz = 100;
     config.robot.camera.fps = 5.0;
     config.supervision.backoff_initial_ms = 5;
-    config.safety.audit.enabled = false;
     config
 }
 
@@ -161,8 +217,8 @@ pub struct Rig {
     pub sim: robotd_driver_sim::SimRobot,
 }
 
-pub async fn rig(config: &Config) -> Rig {
-    let bus = Bus::open(BusOptions::new(&config.bus.namespace, "door-test")).expect("bus");
+pub async fn rig(config: &TestConfig) -> Rig {
+    let bus = Bus::open(BusOptions::new(&config.namespace, "door-test")).expect("bus");
     let sim = robotd_driver_sim::open(&config.robot).expect("the simulator");
     let safety = Hardware::policy(config, sim.drivers.model).expect("the policy");
     let calls = Calls::default();
@@ -196,7 +252,7 @@ pub async fn rig(config: &Config) -> Rig {
 }
 
 /// The audit log's events (the `event` object of each line) of `config`'s log.
-pub fn audit_events(config: &Config) -> Vec<serde_json::Value> {
+pub fn audit_events(config: &TestConfig) -> Vec<serde_json::Value> {
     std::fs::read_to_string(&config.safety.audit.path)
         .unwrap_or_default()
         .lines()
