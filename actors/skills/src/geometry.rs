@@ -27,6 +27,39 @@ pub fn top_z(o: &DetectedObject) -> f64 {
     (o.position.center_of_mass.z_m * 2.0).max(0.0)
 }
 
+/// How far a stacked object's centre may lie outside the footprint of the object it rests on
+/// (the camera's measurement of either), metres.
+pub const STACK_SUPPORT_TOLERANCE_M: f64 = 0.005;
+
+/// Whether `upper` rests on `lower`: its centre of mass is higher and lies on `lower`'s
+/// footprint (within [`STACK_SUPPORT_TOLERANCE_M`]). Objects on the table never overlap, so an
+/// object whose centre lies on another's footprint stands on it.
+pub fn rests_on(upper: &DetectedObject, lower: &DetectedObject) -> bool {
+    upper.id != lower.id
+        && lower.position.center_of_mass.z_m < upper.position.center_of_mass.z_m - 0.001
+        && Rect::of_object(lower)
+            .grown(STACK_SUPPORT_TOLERANCE_M)
+            .contains(&Rect::footprint(upper.xy(), (0.0, 0.0)))
+}
+
+/// Height of the surface `o` stands on among `objects`: the top of the highest object it rests
+/// on ([`rests_on`]; the workspace model reports a stacked object at its true height), else the
+/// table, 0.
+pub fn base_z(o: &DetectedObject, objects: &[DetectedObject]) -> f64 {
+    objects
+        .iter()
+        .filter(|lower| rests_on(o, lower))
+        .map(|lower| top_among(lower, objects))
+        .fold(0.0, f64::max)
+}
+
+/// Height of `o`'s top among `objects`: its base ([`base_z`]) plus its own height (twice its
+/// centre of mass above the base).
+pub fn top_among(o: &DetectedObject, objects: &[DetectedObject]) -> f64 {
+    let base = base_z(o, objects);
+    (2.0 * o.position.center_of_mass.z_m - base).max(base)
+}
+
 /// Where a placement with `location` relative to `reference` puts the centre of the held
 /// object (`held_extents` = its width along y, height along x), for the four side-by-side
 /// locations of the contract.
@@ -253,6 +286,24 @@ mod tests {
         assert!((p.x_m - (0.25 + 0.03 + 0.02 + 0.015)).abs() < 1e-12);
         assert!(beside(&r, Location::OnTopOf, held).is_none());
         assert!((top_z(&r) - 0.03).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_stacked_object_stands_on_the_top_of_the_one_below() {
+        let cube = object("obj-1", 0.28, 0.04, 0.03, 0.03, 0.015);
+        // A 40 mm cylinder on the cube: its centre 20 mm above the cube's top, 4 mm off centre.
+        let cylinder = object("obj-2", 0.284, 0.04, 0.03, 0.03, 0.05);
+        let beside = object("obj-3", 0.22, 0.04, 0.03, 0.03, 0.02);
+        let all = [cube.clone(), cylinder.clone(), beside.clone()];
+        assert!(rests_on(&cylinder, &cube) && !rests_on(&cube, &cylinder));
+        assert!((base_z(&cylinder, &all) - 0.03).abs() < 1e-12);
+        assert!((top_among(&cylinder, &all) - 0.07).abs() < 1e-12);
+        assert_eq!(base_z(&cube, &all), 0.0);
+        assert!((top_among(&beside, &all) - 0.04).abs() < 1e-12);
+        // A third on top: on the cylinder's top.
+        let third = object("obj-4", 0.28, 0.04, 0.02, 0.02, 0.08);
+        let all = [cube, cylinder, beside, third.clone()];
+        assert!((base_z(&third, &all) - 0.07).abs() < 1e-12);
     }
 
     #[test]

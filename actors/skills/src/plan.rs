@@ -107,13 +107,27 @@ pub(crate) const PALM_CLEARANCE_M: f64 = 0.003;
 /// The tool height for grasping `object` with the caller's `z_offset_m` above its centre of
 /// mass: never below the lowest commanded height, and high enough that the palm, on top of
 /// the fingers, clears the object's own top (a tall object is held by its upper part).
+#[cfg(test)]
 pub(crate) fn grasp_height(
     settings: &SkillsSettings,
     object: &DetectedObject,
     z_offset_m: f64,
 ) -> f64 {
-    let wanted = object.position.center_of_mass.z_m + z_offset_m;
-    let palm_clear = top_z(object) - settings.finger_length_m + PALM_CLEARANCE_M;
+    grasp_height_on(settings, object, 0.0, z_offset_m)
+}
+
+/// [`grasp_height`] for an object standing on a surface at `base_z` (the top of the object it
+/// is stacked on; 0 on the table): its top is its base plus twice its centre of mass above it.
+pub(crate) fn grasp_height_on(
+    settings: &SkillsSettings,
+    object: &DetectedObject,
+    base_z: f64,
+    z_offset_m: f64,
+) -> f64 {
+    let z = object.position.center_of_mass.z_m;
+    let wanted = z + z_offset_m;
+    let top = (2.0 * z - base_z).max(base_z);
+    let palm_clear = top - settings.finger_length_m + PALM_CLEARANCE_M;
     wanted.max(palm_clear).max(settings.min_tcp_z_m)
 }
 
@@ -459,7 +473,7 @@ pub(crate) fn place_target(
                     STACK_OVERHANG_M * 1000.0
                 )));
             }
-            return on_reference(top_z(reference));
+            return on_reference(geometry::top_among(reference, others));
         }
         Location::Inside => return on_reference(settings.container_floor_m),
         Location::CloseTo => {

@@ -6,7 +6,7 @@ mod push;
 #[cfg(test)]
 mod tests;
 
-use crate::geometry::{self, top_z};
+use crate::geometry;
 use crate::plan::{self, HeldPlan};
 use crate::SkillsSettings;
 use robotd_kinematics::{pose_to_isometry, Kinematics};
@@ -65,6 +65,9 @@ struct Held {
     tcp_above_base_m: f64,
     /// Gripper yaw it was picked with.
     yaw_rad: f64,
+    /// Its own height, base to top, metres (a stacked object's centre of mass is above the
+    /// object it stood on).
+    height_m: f64,
 }
 
 /// The bus ports and state of the skills actor.
@@ -530,10 +533,21 @@ impl Runner {
                 max_mm: max * 1000.0,
             });
         }
+        // Of a stack, only the top comes off: the workspace model reports a stacked object at
+        // its true height, on the top of the one it rests on.
+        if let Some(upper) = objects.iter().find(|o| geometry::rests_on(o, &object)) {
+            return Err(SkillError::BadPlacement {
+                reason: format!(
+                    "'{}' stands on top of '{}'; move '{}' first",
+                    upper.label, object.label, upper.label
+                ),
+            });
+        }
         let xy = object_xy(&object);
-        let grasp_z = plan::grasp_height(&self.settings, &object, z_offset_m);
+        let base_z = geometry::base_z(&object, &objects);
+        let object_top = geometry::top_among(&object, &objects);
+        let grasp_z = plan::grasp_height_on(&self.settings, &object, base_z, z_offset_m);
         let yaw = plan::grasp_yaw(&self.settings, &object, &objects, grasp_z)?;
-        let base_z = (object.position.center_of_mass.z_m * 2.0 - top_z(&object)).max(0.0);
         let held = HeldPlan {
             object: &object,
             yaw_rad: yaw,
@@ -547,7 +561,7 @@ impl Runner {
                 .collect();
             plan::place_target(&self.settings, &others, &held, place_at, location)?;
         }
-        let above_z = top_z(&object) + self.settings.approach_height_m;
+        let above_z = object_top + self.settings.approach_height_m;
         let above = down(xy, above_z, yaw);
         let grasp = down(xy, grasp_z, yaw);
         self.reachable(&[("the pick approach", above), ("the grasp pose", grasp)])?;
@@ -566,6 +580,7 @@ impl Runner {
                 object: object.clone(),
                 tcp_above_base_m: grasp_z - base_z,
                 yaw_rad: yaw,
+                height_m: object_top - base_z,
             });
         }
         self.step(run, "lifting".into())?;
@@ -618,7 +633,7 @@ impl Runner {
             plan::place_target(&self.settings, &others, &held_plan, at, location)?;
         let release_z = plan::release_height(&self.settings, &held_plan, surface_z);
         let above_z = surface_z
-            + top_z(&held.object)
+            + held.height_m
             + held.tcp_above_base_m.max(0.0)
             + self.settings.approach_height_m;
         let above = down(target, above_z, held.yaw_rad);

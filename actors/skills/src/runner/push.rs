@@ -28,6 +28,19 @@ impl Runner {
             format!("the gripper holds '{label}'; place it before pushing")
         })?;
         let (objects, object) = self.look_for(run, &ws, name, at).await?;
+        // A push would topple a stack or slide its top off: stacks come apart by picking.
+        if let Some(other) = objects
+            .iter()
+            .find(|o| geometry::rests_on(o, &object) || geometry::rests_on(&object, o))
+        {
+            return Err(SkillError::BadPlacement {
+                reason: format!(
+                    "'{}' and '{}' are stacked; pushing would topple them, pick the top one off \
+                     first",
+                    object.label, other.label
+                ),
+            });
+        }
         let end_of_object = direction.offset(object_xy(&object), distance_m);
         self.workspace("push", end_of_object)?;
         if let Some(problem) = plan::push_problem(&self.settings, &object, &objects, end_of_object)
