@@ -39,6 +39,15 @@ pub struct FakeNiryoArgs {
     /// Fault: close every connection at once.
     #[arg(long)]
     pub refuse_connections: bool,
+    /// Wrong on purpose: the camera sits this far from the configured mount, in its own
+    /// optical frame: DX_MM,DY_MM,DZ_MM,DROLL_DEG,DPITCH_DEG,DYAW_DEG (`robotd commission`
+    /// measures it).
+    #[arg(long, value_name = "OFFSET")]
+    pub mount_offset: Option<String>,
+    /// Send images already undistorted, as Ned2 software from 5.8.0 does (the intrinsics still
+    /// report the lens's distortion).
+    #[arg(long)]
+    pub rectified: bool,
 }
 
 /// Serves until Ctrl-C.
@@ -47,8 +56,13 @@ pub fn run(mut config: Config, args: FakeNiryoArgs) -> Result<()> {
         RobotDriver::SimNed2 | RobotDriver::Niryo => config.robot.driver = RobotDriver::SimNed2,
         other => bail!("fake-niryo simulates a Ned2; robot.driver = {other:?} is another robot"),
     }
-    // A real lens: the images carry the Ned2's distortion, as GET_CAMERA_INTRINSICS says.
-    config.robot.camera.lens_distortion = true;
+    // A real lens: the images carry the Ned2's distortion, as GET_CAMERA_INTRINSICS says,
+    // unless the robot rectifies them.
+    config.robot.camera.lens_distortion = !args.rectified;
+    if let Some(offset) = &args.mount_offset {
+        let offset = crate::fake_wrong::parse_mount_offset(offset)?;
+        crate::fake_wrong::apply_mount_offset(&mut config, &offset)?;
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

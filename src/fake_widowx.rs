@@ -29,6 +29,15 @@ pub struct FakeWidowxArgs {
     /// can check where every object really is.
     #[arg(long)]
     pub ground_truth: bool,
+    /// Wrong on purpose: the camera sits this far from the configured mount, in its own
+    /// optical frame: DX_MM,DY_MM,DZ_MM,DROLL_DEG,DPITCH_DEG,DYAW_DEG (`robotd commission`
+    /// measures it).
+    #[arg(long, value_name = "OFFSET")]
+    pub mount_offset: Option<String>,
+    /// Wrong on purpose: the gripper's real CLOSED,OPEN ticks, instead of the configured
+    /// `robot.widowx.gripper_closed_ticks` and `gripper_open_ticks`.
+    #[arg(long, value_name = "CLOSED,OPEN")]
+    pub gripper_ticks: Option<String>,
 }
 
 /// Serves until Ctrl-C.
@@ -41,6 +50,15 @@ pub fn run(mut config: Config, args: FakeWidowxArgs) -> Result<()> {
             config.robot.driver = RobotDriver::SimWidowx
         }
         other => bail!("fake-widowx simulates a WidowX; robot.driver = {other:?} is another robot"),
+    }
+    if let Some(offset) = &args.mount_offset {
+        let offset = crate::fake_wrong::parse_mount_offset(offset)?;
+        crate::fake_wrong::apply_mount_offset(&mut config, &offset)?;
+    }
+    if let Some(ticks) = &args.gripper_ticks {
+        let (closed, open) = crate::fake_wrong::parse_ticks(ticks)?;
+        config.robot.widowx.gripper_closed_ticks = closed;
+        config.robot.widowx.gripper_open_ticks = open;
     }
     if let Some(dir) = args.device.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

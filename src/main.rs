@@ -7,6 +7,7 @@ mod audit;
 mod call;
 mod catalog;
 mod chat;
+mod commission;
 mod dashboard;
 mod detect;
 mod disk;
@@ -14,6 +15,7 @@ mod doctor;
 mod estop;
 mod fake_niryo;
 mod fake_widowx;
+mod fake_wrong;
 mod foxglove;
 mod health_board;
 mod health_parts;
@@ -76,6 +78,10 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Commission a real arm: measure what no simulator can (the camera's mount on the arm,
+    /// rectified images, …) slowly and under the motion policy, and write it as config
+    /// (docs/commissioning.md).
+    Commission(commission::CommissionArgs),
     /// Run the built-in perception on one image file: markers, workspace, objects (check a
     /// camera or the lighting; `--out annotated.png` draws what was found).
     Detect(detect::DetectArgs),
@@ -447,6 +453,7 @@ fn run() -> Result<std::process::ExitCode> {
             Ok(std::process::ExitCode::SUCCESS)
         }
         Command::Detect(args) => detect::run(&args, &load_config(&cli.config)?),
+        Command::Commission(args) => commission::run(&load_config(&cli.config)?, &args),
         Command::Doctor(args) => {
             let config = load_config(&cli.config)?;
             let config_dir = cli

@@ -1,0 +1,63 @@
+//! The connect step of `robotd commission`: the driver reaches the robot and the robot tells
+//! where its joints are, whether it is calibrated and whether the e-stop is engaged.
+//!
+//! Nothing moves here. The niryo driver calibrates a robot that needs it on connecting when
+//! `robot.niryo.auto_calibrate` is true (a motion the policy admits like any other); with
+//! `false`, a robot that needs calibration is reported and the moving steps are refused.
+//! An engaged e-stop refuses the moving steps too: release it (`robotd estop --release`)
+//! once the arm's surroundings are clear.
+
+use super::session::Session;
+use anyhow::{bail, Result};
+use robotd_config::Config;
+use serde::Serialize;
+use std::time::Duration;
+
+/// How long the robot has to answer: a Ned2 that calibrates on connecting takes ~30 s.
+const CONNECT_WAIT: Duration = Duration::from_secs(60);
+
+/// What the connect step found.
+#[derive(Debug, Clone, Serialize)]
+pub struct Connected {
+    /// The robot's joints, radians, base to wrist.
+    pub joints_rad: Vec<f64>,
+    /// Whether the robot is calibrated.
+    pub calibrated: bool,
+    /// The camera's image size, pixels.
+    pub image_size: [u32; 2],
+    /// The camera's lens distortion as the driver reports it (all zero: rectified images).
+    pub distortion: [f64; 5],
+}
+
+/// Runs the step: an error when the robot is not connected, not calibrated or e-stopped.
+pub async fn run(session: &mut Session, config: &Config) -> Result<Connected> {
+    let state = session.state(CONNECT_WAIT).await?;
+    if let Err(reason) = session
+        .command(robotd_protocol::arm::ArmCommand::GetJoints)
+        .await
+    {
+        bail!(
+            "the robot does not answer ({:?} driver): {reason}",
+            config.robot.driver
+        );
+    }
+    if state.estop_engaged {
+        bail!(
+            "the emergency stop is engaged: nothing may move. Clear the arm's surroundings, \
+             release it (`robotd estop --release`) and run robotd commission again"
+        );
+    }
+    if !state.calibrated {
+        bail!(
+            "the robot is not calibrated: calibrate it (robot.niryo.auto_calibrate = true does \
+             it on connecting) and run robotd commission again"
+        );
+    }
+    let intrinsics = session.intrinsics();
+    Ok(Connected {
+        joints_rad: state.joints.positions_rad,
+        calibrated: state.calibrated,
+        image_size: [intrinsics.width, intrinsics.height],
+        distortion: intrinsics.distortion,
+    })
+}

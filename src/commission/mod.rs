@@ -1,0 +1,239 @@
+//! `robotd commission`: first contact with a real arm. It measures, on the robot itself, what
+//! no simulator and no fake can tell robotd — and writes the measured values as a config
+//! file — before the arm works unattended, the way industrial robots are commissioned.
+//!
+//! The steps, each in its own module, in order:
+//!
+//! 1. **connect** ([`connect`]): the driver reaches the robot, which reports its joints,
+//!    whether it is calibrated and whether the e-stop is engaged.
+//! 2. **camera** ([`camera`]): whether the images come already rectified, where the camera
+//!    sits on the arm and how high the table is (hand-eye calibration on the workspace sheet,
+//!    [`handeye`]).
+//!
+//! Not built yet (each says so when asked for with `--only`, and the report lists it):
+//! the gripper's range, the stopping distance on the real arm (`robotd bench safety --stops`
+//! measures it against the fakes), the supervised pick.
+//!
+//! Every motion is a request on `arm/command` from the origin `cli`, so the motion policy
+//! admits it (fence, joint margins, the speed cap this command lowers to `--speed`), audits
+//! it, and the e-stop stops it ([`session`]). Each moving step says what it will do and, unless
+//! `--yes`, waits for the operator's go. A step that cannot run says why and leaves the arm at
+//! rest. The report is printed (`--json` for machines); `--write FILE` writes the measured
+//! values as a config file — a new file, never over an existing one.
+
+mod camera;
+mod connect;
+pub mod handeye;
+mod session;
+mod write;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use robotd_config::Config;
+use serde::Serialize;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// The steps, in the order they run.
+pub const STEPS: [&str; 5] = ["connect", "camera", "gripper", "stopping", "pick"];
+
+/// Steps that are not built yet.
+const NOT_BUILT: [&str; 3] = ["gripper", "stopping", "pick"];
+
+/// Options of `robotd commission`.
+#[derive(Debug, Args)]
+pub struct CommissionArgs {
+    /// Run unattended: do not wait for the operator's go before a step moves the arm.
+    #[arg(long)]
+    pub yes: bool,
+    /// Run only this step (connect, camera, gripper, stopping, pick).
+    #[arg(long, value_name = "STEP")]
+    pub only: Option<String>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the measured values to this new config file (never over an existing file).
+    #[arg(long, value_name = "FILE")]
+    pub write: Option<PathBuf>,
+    /// The workspace whose sheet the camera step uses (default: the first configured).
+    #[arg(long, value_name = "ID")]
+    pub workspace: Option<String>,
+    /// Speed cap of every commissioning motion, m/s at the tool (never above the configured
+    /// `safety.max_tcp_speed_m_s`).
+    #[arg(long, default_value_t = 0.1, value_name = "M_S")]
+    pub speed: f64,
+}
+
+/// One step's outcome in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct StepOutcome {
+    /// The step's name.
+    pub step: String,
+    /// `ok`, `failed`, `skipped` or `not built`.
+    pub status: String,
+    /// Why it failed or was skipped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// What it measured.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub measured: Option<serde_json::Value>,
+}
+
+/// The whole report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// The robot model.
+    pub robot: String,
+    /// The configured driver.
+    pub driver: String,
+    /// Each step run or asked for.
+    pub steps: Vec<StepOutcome>,
+    /// The file written, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub written: Option<PathBuf>,
+}
+
+fn outcome(step: &str, result: Result<serde_json::Value>) -> StepOutcome {
+    match result {
+        Ok(measured) => StepOutcome {
+            step: step.into(),
+            status: "ok".into(),
+            reason: None,
+            measured: Some(measured),
+        },
+        Err(error) => StepOutcome {
+            step: step.into(),
+            status: "failed".into(),
+            reason: Some(format!("{error:#}")),
+            measured: None,
+        },
+    }
+}
+
+/// Asks the operator before a step that moves the arm; `Ok(false)`: they declined.
+fn operator_agrees(args: &CommissionArgs, what: &str) -> Result<bool> {
+    eprintln!("robotd commission: {what}");
+    if args.yes {
+        return Ok(true);
+    }
+    if !std::io::stdin().is_terminal() {
+        bail!(
+            "this step moves the arm and nobody is at the terminal to agree: run with --yes to \
+             commission unattended"
+        );
+    }
+    eprint!("Keep the e-stop at hand. Go ahead? [y/N] ");
+    let mut answer = String::new();
+    std::io::stdin().read_line(&mut answer)?;
+    Ok(matches!(answer.trim(), "y" | "Y" | "yes"))
+}
+
+/// Runs `robotd commission`; the exit code is 0 when every step run succeeded.
+pub fn run(config: &Config, args: &CommissionArgs) -> Result<ExitCode> {
+    if let Some(only) = &args.only {
+        if !STEPS.contains(&only.as_str()) {
+            bail!(
+                "--only {only}: no such step; the steps are {}",
+                STEPS.join(", ")
+            );
+        }
+        if NOT_BUILT.contains(&only.as_str()) {
+            bail!(
+                "the {only} step is not built yet (issue 45): robotd commission measures \
+                 connect and camera today"
+            );
+        }
+    }
+    if !(args.speed.is_finite() && args.speed > 0.0 && args.speed <= 0.5) {
+        bail!("--speed {}: give a cap from 0.01 to 0.5 m/s", args.speed);
+    }
+    if let Some(path) = &args.write {
+        if path.exists() {
+            bail!(
+                "--write {}: the file exists; commissioning writes a new file and never \
+                 overwrites one (your config stays yours): give a new path",
+                path.display()
+            );
+        }
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    let report = runtime.block_on(run_steps(config, args))?;
+    let failed = report.steps.iter().any(|s| s.status == "failed");
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", write::render(&report));
+    }
+    Ok(if failed {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
+    let wanted = |step: &str| args.only.as_deref().is_none_or(|only| only == step);
+    let mut report = Report {
+        robot: format!("{:?}", config.robot.model()),
+        driver: format!("{:?}", config.robot.driver),
+        steps: Vec::new(),
+        written: None,
+    };
+    let mut session = match session::Session::start(config, args.speed).await {
+        Ok(session) => session,
+        Err(error) => {
+            report.steps.push(outcome("connect", Err(error)));
+            return Ok(report);
+        }
+    };
+    let connected = connect::run(&mut session, config).await;
+    let connected_ok = connected.is_ok();
+    if wanted("connect") || !connected_ok {
+        report.steps.push(outcome(
+            "connect",
+            connected.and_then(|c| Ok(serde_json::to_value(c)?)),
+        ));
+    }
+    if !connected_ok {
+        return Ok(report);
+    }
+    let mut camera_report = None;
+    if wanted("camera") {
+        let result = if operator_agrees(
+            args,
+            "camera: the arm visits 10 views of the workspace sheet around its observation \
+             pose, slowly, and ends at the observation pose",
+        )? {
+            camera::run(&mut session, config, args.workspace.as_deref()).await
+        } else {
+            Err(anyhow::anyhow!("the operator declined; nothing moved"))
+        };
+        if let Ok(measured) = &result {
+            camera_report = Some(measured.clone());
+        }
+        report.steps.push(outcome(
+            "camera",
+            result.and_then(|c| Ok(serde_json::to_value(c)?)),
+        ));
+    }
+    if args.only.is_none() {
+        for step in NOT_BUILT {
+            report.steps.push(StepOutcome {
+                step: step.into(),
+                status: "not built".into(),
+                reason: Some(format!("the {step} step is not built yet (issue 45)")),
+                measured: None,
+            });
+        }
+    }
+    if let Some(path) = &args.write {
+        write::write_config(path, config, camera_report.as_ref())?;
+        report.written = Some(path.clone());
+    }
+    Ok(report)
+}

@@ -1,0 +1,166 @@
+//! `robotd commission` against the fakes made wrong on purpose: the fake robot's camera sits
+//! 8 mm and 3° away from where robotd's config says, and (Ned2) its images come rectified.
+//! Commissioning must find the true mount within 2 mm and 0.5°, say that the images are
+//! rectified, and write both to a new config file; with that file, commissioning again finds
+//! the mount where the file says.
+
+mod common;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use robotd_kinematics::{CameraMount, RobotModel};
+use serde_json::Value;
+use std::process::Command;
+
+/// The fakes' offset: 8 mm along the image's x, 3° about its y axis.
+const OFFSET: &str = "8,0,0,0,3,0";
+
+fn true_mount(model: RobotModel) -> CameraMount {
+    CameraMount::default_for(model).offset_by(&Isometry3::from_parts(
+        Translation3::new(0.008, 0.0, 0.0),
+        UnitQuaternion::from_euler_angles(0.0, 3f64.to_radians(), 0.0),
+    ))
+}
+
+/// Runs `robotd commission --yes --json` with `settings` and `args`.
+fn run(settings: &[&str], args: &[&str]) -> std::process::Output {
+    let logs = tempfile::tempdir().unwrap();
+    Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .arg("--set")
+        .arg(format!("telemetry.log_dir={}", logs.path().display()))
+        .args(settings)
+        .args(["commission", "--yes", "--json"])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Runs `robotd commission` with `settings`; its exit code and JSON report.
+fn commission(settings: &[&str], args: &[&str]) -> (Option<i32>, Value) {
+    let output = run(settings, args);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let report = serde_json::from_str(&stdout).unwrap_or_else(|e| {
+        panic!(
+            "not a JSON report ({e}): {stdout}\nstderr: {}",
+            String::from_utf8_lossy(&output.stderr)
+        )
+    });
+    (output.status.code(), report)
+}
+
+fn step<'a>(report: &'a Value, name: &str) -> &'a Value {
+    report["steps"]
+        .as_array()
+        .and_then(|steps| steps.iter().find(|s| s["step"] == name))
+        .unwrap_or_else(|| panic!("no {name} step in {report:#}"))
+}
+
+/// The measured mount's distance (mm) and angle (°) from `truth`.
+fn error_of(camera: &Value, truth: &CameraMount) -> (f64, f64) {
+    let values: Vec<f64> = camera["measured"]["mount"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let measured = CameraMount::from_xyz_rpy_deg(values.try_into().unwrap()).unwrap();
+    let (m, deg) = truth.difference(&measured);
+    (m * 1000.0, deg)
+}
+
+#[test]
+fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
+    let namespace = common::fresh_namespace("commission-ned2");
+    let (_fake, port) = common::start_fake_niryo(
+        &[
+            "--namespace",
+            &format!("{namespace}-fake"),
+            "--set",
+            "robot.time_scale=0.2",
+        ],
+        &["--mount-offset", OFFSET, "--rectified"],
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let written = dir.path().join("commissioned.toml");
+    let port = format!("robot.port={port}");
+    let robot = [
+        "--namespace",
+        namespace.as_str(),
+        "--config",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
+        "--set",
+        "robot.host=127.0.0.1",
+        "--set",
+        port.as_str(),
+        "--set",
+        "robot.time_scale=0.2",
+    ];
+    let (code, report) = commission(
+        &robot,
+        &["--only", "camera", "--write", written.to_str().unwrap()],
+    );
+    let camera = step(&report, "camera");
+    assert_eq!(camera["status"], "ok", "{report:#}");
+    assert_eq!(code, Some(0), "{report:#}");
+    let (mm, deg) = error_of(camera, &true_mount(RobotModel::Ned2));
+    eprintln!("Ned2 mount error {mm:.2} mm {deg:.3}°: {camera:#}");
+    assert!(
+        mm < 2.0 && deg < 0.5,
+        "{mm:.2} mm {deg:.3}° off: {camera:#}"
+    );
+    let measured = &camera["measured"];
+    assert!(
+        measured["mount_change_mm"].as_f64().unwrap() > 6.0,
+        "{camera:#}"
+    );
+    assert_eq!(measured["images_rectified"], true, "{camera:#}");
+    let file = std::fs::read_to_string(&written).unwrap();
+    assert!(file.contains("[robot.camera.mount]"), "{file}");
+    assert!(file.contains("images_rectified = true"), "{file}");
+
+    // Never over an existing file: refused before anything moves.
+    let again = run(&robot, &["--write", written.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert_eq!(again.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("never overwrites"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(&written).unwrap(), file);
+
+    // With the written values, the camera is where the config says.
+    let with_written = [
+        "--namespace",
+        namespace.as_str(),
+        "--config",
+        written.to_str().unwrap(),
+        "--set",
+        "robot.driver=niryo",
+        "--set",
+        "robot.host=127.0.0.1",
+        "--set",
+        port.as_str(),
+        "--set",
+        "robot.time_scale=0.2",
+    ];
+    let (code, report) = commission(&with_written, &["--only", "camera"]);
+    let camera = step(&report, "camera");
+    assert_eq!(code, Some(0), "{report:#}");
+    let measured = &camera["measured"];
+    assert!(
+        measured["mount_change_mm"].as_f64().unwrap() < 1.0,
+        "{camera:#}"
+    );
+    assert!(
+        measured["mount_change_deg"].as_f64().unwrap() < 0.3,
+        "{camera:#}"
+    );
+    assert_eq!(measured["images_rectified"], true, "{camera:#}");
+}
+
+#[test]
+fn a_step_that_is_not_built_says_so_and_nothing_starts() {
+    let output = run(
+        &["--namespace", &common::fresh_namespace("commission-no")],
+        &["--only", "pick"],
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("not built yet"), "{stderr}");
+}
