@@ -60,6 +60,27 @@ pub fn top_among(o: &DetectedObject, objects: &[DetectedObject]) -> f64 {
     (2.0 * o.position.center_of_mass.z_m - base).max(base)
 }
 
+/// The skills' own check of a table placement (`place_object` with no location) of `object` at
+/// `at` among `others` (the objects on the table without it), held at gripper yaw `yaw_rad`
+/// by the grasp the skills take of it on the table: `None` when the skills would place it
+/// there, else why not. The workspace model answers free space with it.
+pub fn table_place_problem(
+    settings: &crate::SkillsSettings,
+    others: &[DetectedObject],
+    object: &DetectedObject,
+    yaw_rad: f64,
+    at: Point2,
+) -> Option<String> {
+    let held = crate::plan::HeldPlan {
+        object,
+        yaw_rad,
+        tcp_above_base_m: crate::plan::grasp_height_on(settings, object, 0.0, 0.0),
+    };
+    crate::plan::place_target(settings, others, &held, at, Location::None)
+        .err()
+        .map(|e| e.to_string())
+}
+
 /// Where a placement with `location` relative to `reference` puts the centre of the held
 /// object (`held_extents` = its width along y, height along x), for the four side-by-side
 /// locations of the contract.

@@ -8,6 +8,14 @@
 //! Of equally large rectangles the first found wins (scanning rows from the near edge).
 //! Held objects are not passed in: they are not on the table.
 //!
+//! What the tool answers is [`placeable_free_space`]: the same search, but with the skills'
+//! footprints (turned as the objects lie) and the corner markers' keep-out squares taken as
+//! occupied, and a rectangle's centre answered only when the skills' own placement check
+//! ([`robotd_skills::geometry::table_place_problem`]) accepts there an object as large as the
+//! rectangle and, for every gripper yaw, the smallest object (released lowest, its opening
+//! fingers reaching furthest beyond it): whatever fits the rectangle can be put down at its
+//! centre. Of the free rectangles, the largest whose centre passes is answered.
+//!
 //! ```
 //! use robotd_protocol::geometry::{Point2, Pose, RobotModel};
 //! use robotd_protocol::workspace::WorkspaceInfo;
@@ -25,48 +33,100 @@
 //! assert!((center.x_m - 0.25).abs() < 1e-12);
 //! ```
 
-use robotd_protocol::geometry::Point2;
+use robotd_protocol::geometry::{Point2, Point3};
 use robotd_protocol::objects::DetectedObject;
 use robotd_protocol::workspace::WorkspaceInfo;
+use robotd_skills::geometry::{marker_zones, table_place_problem, Rect};
+use robotd_skills::SkillsSettings;
+use std::f64::consts::PI;
 
 /// Cells along each side of the grid.
 pub const GRID: usize = 100;
 
-/// The largest free rectangle: area in m² and centre.
-pub fn largest_free_space(
-    workspace: &WorkspaceInfo,
-    objects: &[DetectedObject],
-    margin_m: f64,
-) -> (f64, Point2) {
-    let (x0, y0) = (workspace.lower_right.x_m, workspace.lower_right.y_m);
-    let (dx, dy) = (
-        workspace.height_m() / GRID as f64,
-        workspace.width_m() / GRID as f64,
-    );
-    // occupied[i][j]: row i along x (near → far), column j along y (right → left).
-    let mut occupied = vec![[false; GRID]; GRID];
-    for o in objects {
-        let c = o.xy();
-        let (hx, hy) = (
-            o.dimensions.height_m / 2.0 + margin_m,
-            o.dimensions.width_m / 2.0 + margin_m,
-        );
-        for (i, row) in occupied.iter_mut().enumerate() {
-            let x = x0 + (i as f64 + 0.5) * dx;
-            if (x - c.x_m).abs() > hx {
-                continue;
-            }
-            for (j, cell) in row.iter_mut().enumerate() {
-                let y = y0 + (j as f64 + 0.5) * dy;
-                if (y - c.y_m).abs() <= hy {
-                    *cell = true;
-                }
-            }
+/// Gripper yaws the smallest-object probe of [`placeable_free_space`] is checked at (every
+/// 15° of a half turn; the fingers are symmetric).
+const PROBE_YAWS: usize = 12;
+
+/// Free rectangles [`placeable_free_space`] checks, largest first, before it gives up.
+const MAX_CHECKED: usize = 400;
+
+/// A free rectangle of the grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FreeRect {
+    /// Its area, m².
+    pub area_m2: f64,
+    /// Its centre.
+    pub center: Point2,
+    /// Its extent along x, metres.
+    pub size_x_m: f64,
+    /// Its extent along y, metres.
+    pub size_y_m: f64,
+}
+
+/// The grid of a workspace: its near-right corner and cell sizes.
+struct Grid {
+    x0: f64,
+    y0: f64,
+    dx: f64,
+    dy: f64,
+    area_m2: f64,
+}
+
+impl Grid {
+    fn of(workspace: &WorkspaceInfo) -> Self {
+        Self {
+            x0: workspace.lower_right.x_m,
+            y0: workspace.lower_right.y_m,
+            dx: workspace.height_m() / GRID as f64,
+            dy: workspace.width_m() / GRID as f64,
+            area_m2: workspace.area_m2(),
         }
     }
-    // Histogram of free cells above each column, rows taken one at a time.
+
+    /// The centre of cell (i, j).
+    fn cell(&self, i: usize, j: usize) -> Point2 {
+        Point2::new(
+            self.x0 + (i as f64 + 0.5) * self.dx,
+            self.y0 + (j as f64 + 0.5) * self.dy,
+        )
+    }
+
+    /// `occupied[i][j]`: row i along x (near → far), column j along y (right → left); a cell is
+    /// occupied when `inside` holds at its centre.
+    fn occupied(&self, inside: impl Fn(Point2) -> bool) -> Vec<[bool; GRID]> {
+        let mut occupied = vec![[false; GRID]; GRID];
+        for (i, row) in occupied.iter_mut().enumerate() {
+            for (j, cell) in row.iter_mut().enumerate() {
+                *cell = inside(self.cell(i, j));
+            }
+        }
+        occupied
+    }
+
+    /// The rectangle of `height` rows ending at row `i_top` and `width` columns from
+    /// `j_start`.
+    fn rect(&self, (cells, i_top, height, j_start, width): Candidate) -> FreeRect {
+        let x_lo = self.x0 + (i_top + 1 - height) as f64 * self.dx;
+        let x_hi = self.x0 + (i_top + 1) as f64 * self.dx;
+        let y_lo = self.y0 + j_start as f64 * self.dy;
+        let y_hi = self.y0 + (j_start + width) as f64 * self.dy;
+        FreeRect {
+            area_m2: cells as f64 / (GRID * GRID) as f64 * self.area_m2,
+            center: Point2::new((x_lo + x_hi) / 2.0, (y_lo + y_hi) / 2.0),
+            size_x_m: x_hi - x_lo,
+            size_y_m: y_hi - y_lo,
+        }
+    }
+}
+
+/// A free rectangle of cells: (cells, i_top, height, j_start, width).
+type Candidate = (usize, usize, usize, usize, usize);
+
+/// The maximal free rectangles of `occupied` (the histogram-and-stack algorithm: each row
+/// taken as the bottom, the free cells above each column as a histogram), in the order found.
+fn free_rectangles(occupied: &[[bool; GRID]]) -> Vec<Candidate> {
+    let mut found = Vec::new();
     let mut heights = [0usize; GRID];
-    let mut best = (0usize, 0usize, 0usize, 0usize, 0usize); // cells, i_top, height, j_start, width
     for (i, row) in occupied.iter().enumerate() {
         for j in 0..GRID {
             heights[j] = if row[j] { 0 } else { heights[j] + 1 };
@@ -82,24 +142,115 @@ pub fn largest_free_space(
                 let height = heights[top];
                 let start = stack.last().map_or(0, |&s| s + 1);
                 let width = j - start;
-                if height * width > best.0 {
-                    best = (height * width, i, height, start, width);
-                }
+                found.push((height * width, i, height, start, width));
             }
             stack.push(j);
         }
     }
-    let (cells, i_top, height, j_start, width) = best;
-    let area = cells as f64 / (GRID * GRID) as f64 * workspace.area_m2();
-    if cells == 0 {
-        return (0.0, workspace.center());
+    found
+}
+
+/// The largest free rectangle: area in m² and centre.
+pub fn largest_free_space(
+    workspace: &WorkspaceInfo,
+    objects: &[DetectedObject],
+    margin_m: f64,
+) -> (f64, Point2) {
+    let grid = Grid::of(workspace);
+    let occupied = grid.occupied(|p| {
+        objects.iter().any(|o| {
+            let c = o.xy();
+            (p.x_m - c.x_m).abs() <= o.dimensions.height_m / 2.0 + margin_m
+                && (p.y_m - c.y_m).abs() <= o.dimensions.width_m / 2.0 + margin_m
+        })
+    });
+    // Of equally large rectangles the first found wins.
+    let mut best: Option<Candidate> = None;
+    for candidate in free_rectangles(&occupied) {
+        if candidate.0 > best.map_or(0, |b| b.0) {
+            best = Some(candidate);
+        }
     }
-    // Rows i_top − height + 1 … i_top, columns j_start … j_start + width − 1.
-    let x_lo = x0 + (i_top + 1 - height) as f64 * dx;
-    let x_hi = x0 + (i_top + 1) as f64 * dx;
-    let y_lo = y0 + j_start as f64 * dy;
-    let y_hi = y0 + (j_start + width) as f64 * dy;
-    (area, Point2::new((x_lo + x_hi) / 2.0, (y_lo + y_hi) / 2.0))
+    match best {
+        Some(best) => {
+            let rect = grid.rect(best);
+            (rect.area_m2, rect.center)
+        }
+        None => (0.0, workspace.center()),
+    }
+}
+
+/// The largest free rectangle of `workspace` whose centre takes a place (module docs): the
+/// objects' footprints grown by `margin_m` and the corner markers' keep-out squares are
+/// occupied, and the centre passes the skills' placement check (`skills`' sizes) for any
+/// object that fits the rectangle. `None` when no free rectangle does.
+pub fn placeable_free_space(
+    workspace: &WorkspaceInfo,
+    objects: &[DetectedObject],
+    margin_m: f64,
+    skills: &SkillsSettings,
+) -> Option<FreeRect> {
+    let grid = Grid::of(workspace);
+    let footprints: Vec<Rect> = objects
+        .iter()
+        .map(|o| Rect::of_object(o).grown(margin_m))
+        .collect();
+    // A cell whose centre is clear of a marker's square may still reach half a cell into it.
+    let half_cell = grid.dx.hypot(grid.dy) / 2.0;
+    let markers = marker_zones(workspace, skills.marker_keep_out_m).map(|z| z.grown(half_cell));
+    let occupied = grid.occupied(|p| {
+        let point = Rect::footprint(p, (0.0, 0.0));
+        footprints
+            .iter()
+            .chain(&markers)
+            .any(|area| area.contains(&point))
+    });
+    let mut candidates = free_rectangles(&occupied);
+    // Largest first; of equally large ones the first found (a stable sort).
+    candidates.sort_by_key(|c| std::cmp::Reverse(c.0));
+    candidates.dedup();
+    candidates
+        .into_iter()
+        .take(MAX_CHECKED)
+        .map(|c| grid.rect(c))
+        .find(|rect| takes_any_place(rect, objects, skills))
+}
+
+/// A flat probe object at `at`: `size_x` along x, `size_y` along y, 2 mm high.
+fn probe(at: Point2, size_x: f64, size_y: f64) -> DetectedObject {
+    let mut o = DetectedObject {
+        id: "free-space-probe".into(),
+        label: "an object".into(),
+        ..Default::default()
+    };
+    o.position.center_of_mass = Point3::new(at.x_m, at.y_m, 0.001);
+    o.position.center = o.position.center_of_mass;
+    o.dimensions.width_m = size_y;
+    o.dimensions.height_m = size_x;
+    o.dimensions.size_m2 = size_x * size_y;
+    // The footprint's long side lies along the grasp yaw's x axis.
+    o.gripper_rotation_rad = if size_y > size_x { PI / 2.0 } else { 0.0 };
+    o
+}
+
+/// Whether the skills would put down at `rect`'s centre an object as large as `rect` (less a
+/// millimetre each side), and the smallest object at every gripper yaw.
+fn takes_any_place(rect: &FreeRect, objects: &[DetectedObject], skills: &SkillsSettings) -> bool {
+    let at = rect.center;
+    let whole = probe(
+        at,
+        (rect.size_x_m - 0.002).max(0.001),
+        (rect.size_y_m - 0.002).max(0.001),
+    );
+    let yaw = whole.gripper_rotation_rad;
+    if table_place_problem(skills, objects, &whole, yaw, at).is_some() {
+        return false;
+    }
+    let small = probe(at, 0.001, 0.001);
+    (0..PROBE_YAWS).all(|k| {
+        let yaw = k as f64 * PI / PROBE_YAWS as f64;
+        table_place_problem(skills, objects, &small, yaw, at).is_none()
+    })
 }
 
 #[cfg(test)]
@@ -196,5 +347,95 @@ mod tests {
         let (area, c) = largest_free_space(&ws, &[object(0.25, 0.0, 0.5, 0.5)], 0.0);
         assert_eq!(area, 0.0);
         assert_eq!(c, ws.center());
+        let skills = SkillsSettings::new(RobotModel::Ned2, vec![ws.clone()]);
+        let full = [object(0.25, 0.0, 0.5, 0.5)];
+        assert_eq!(placeable_free_space(&ws, &full, 0.0, &skills), None);
+    }
+
+    /// A seeded xorshift: uniform in [lo, hi).
+    struct Random(u64);
+    impl Random {
+        fn next(&mut self, lo: f64, hi: f64) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            lo + (hi - lo) * (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// An object of `sx` × `sy` (along x, y), `h` high at (x, y), lying along its long side.
+    fn solid(id: usize, x: f64, y: f64, sx: f64, sy: f64, h: f64) -> DetectedObject {
+        let mut o = object(x, y, sy, sx);
+        o.id = format!("obj-{id}");
+        o.label = format!("object {id}");
+        o.position.center_of_mass.z_m = h / 2.0;
+        o.gripper_rotation_rad = if sy > sx { PI / 2.0 } else { 0.0 };
+        o
+    }
+
+    #[test]
+    fn any_object_that_fits_the_answered_rectangle_can_be_put_down_at_its_centre() {
+        let ws = niryo();
+        let skills = SkillsSettings::new(RobotModel::Ned2, vec![ws.clone()]);
+        let mut random = Random(0x005e_ed43);
+        let (mut scenes, mut tried, mut plain_refused) = (0, 0, 0);
+        while scenes < 300 {
+            // 1 to 6 objects at random, none overlapping (as on a real table).
+            let mut objects: Vec<DetectedObject> = Vec::new();
+            let n = random.next(1.0, 7.0) as usize;
+            for id in 0..50 {
+                if objects.len() == n {
+                    break;
+                }
+                let (sx, sy) = (random.next(0.01, 0.06), random.next(0.01, 0.06));
+                let o = solid(
+                    id,
+                    random.next(0.17, 0.33),
+                    random.next(-0.08, 0.08),
+                    sx,
+                    sy,
+                    random.next(0.005, 0.06),
+                );
+                let here = Rect::of_object(&o);
+                if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
+                    objects.push(o);
+                }
+            }
+            scenes += 1;
+            // The plain largest rectangle (the Python server's answer) is often refused.
+            let (_, plain) = largest_free_space(&ws, &objects, 0.01);
+            let dot = solid(99, plain.x_m, plain.y_m, 0.001, 0.001, 0.002);
+            if (0..12).any(|k| {
+                table_place_problem(&skills, &objects, &dot, k as f64 * PI / 12.0, plain).is_some()
+            }) {
+                plain_refused += 1;
+            }
+            let Some(free) = placeable_free_space(&ws, &objects, 0.01, &skills) else {
+                continue;
+            };
+            // Objects that fit the rectangle, at its centre, at both grasp yaws.
+            for k in 0..8 {
+                let sx = random.next(0.002, free.size_x_m - 0.002);
+                let sy = random.next(0.002, free.size_y_m - 0.002);
+                let o = solid(
+                    100 + k,
+                    free.center.x_m,
+                    free.center.y_m,
+                    sx,
+                    sy,
+                    random.next(0.002, 0.06),
+                );
+                for yaw in [o.gripper_rotation_rad, o.gripper_rotation_rad + PI / 2.0] {
+                    tried += 1;
+                    let problem = table_place_problem(&skills, &objects, &o, yaw, free.center);
+                    assert_eq!(problem, None, "{free:?} in {objects:#?}");
+                }
+            }
+        }
+        assert!(tried > 4000, "{tried} places tried");
+        assert!(
+            plain_refused > 10,
+            "the plain answer was refused {plain_refused} times"
+        );
     }
 }

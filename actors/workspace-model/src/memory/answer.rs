@@ -4,13 +4,13 @@
 //! [`check_request`] refuses a malformed request before anything is looked up;
 //! [`SceneMemory::answer`] then dispatches on the request: object questions go to the
 //! [queries] over the objects on the table of the current workspace, the largest free space
-//! is searched by [`largest_free_space`], label questions go to the
+//! is searched by [`placeable_free_space`] (with the skills' sizes), label questions go to the
 //! [label registry](crate::labels), picks and places to the [tracker](crate::tracker). A
 //! placed object changes workspace when it is put down outside its own (by more than
 //! [`PLACE_WORKSPACE_MARGIN_M`]) and inside another.
 
 use super::SceneMemory;
-use crate::free_space::largest_free_space;
+use crate::free_space::placeable_free_space;
 use crate::queries;
 use robotd_protocol::geometry::Point2;
 use robotd_protocol::objects::DetectedObject;
@@ -122,9 +122,21 @@ impl SceneMemory {
                         reason: "no workspace is configured".into(),
                     })?;
                 let objects: Vec<DetectedObject> = self.tracker.on_table(&ws.id).cloned().collect();
-                let (area_m2, center) =
-                    largest_free_space(ws, &objects, self.settings.free_space_margin_m);
-                WorkspaceReply::FreeSpace { area_m2, center }
+                match placeable_free_space(
+                    ws,
+                    &objects,
+                    self.settings.free_space_margin_m,
+                    &self.skills,
+                ) {
+                    Some(free) => WorkspaceReply::FreeSpace {
+                        area_m2: free.area_m2,
+                        center: free.center,
+                    },
+                    None => WorkspaceReply::FreeSpace {
+                        area_m2: 0.0,
+                        center: ws.center(),
+                    },
+                }
             }
             WorkspaceRequest::GetWorkspacePoint {
                 workspace_id,

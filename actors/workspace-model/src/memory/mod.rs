@@ -97,6 +97,9 @@ pub struct SceneMemory {
     tracker: Tracker,
     labels: LabelRegistry,
     current: Option<usize>,
+    /// The skills' sizes (gripper, markers' keep-out) for the free-space answer, defaults of
+    /// the first workspace's robot.
+    skills: robotd_skills::SkillsSettings,
 }
 
 impl SceneMemory {
@@ -108,7 +111,11 @@ impl SceneMemory {
         builtin: &[String],
         settings: MemorySettings,
     ) -> Self {
+        let robot = workspaces
+            .first()
+            .map_or(robotd_protocol::RobotModel::Ned2, |w| w.robot);
         Self {
+            skills: robotd_skills::SkillsSettings::new(robot, workspaces.clone()),
             tracker: Tracker::new(settings.expire_after_frames),
             labels: LabelRegistry::with_limits(labels, builtin, settings.label_limits),
             settings,

@@ -51,12 +51,14 @@
 //! it, and missed `expire_after_frames` times it is forgotten like any other.
 
 mod association;
+mod stacks;
 mod votes;
 
 pub use association::{
     same_footprint, ASSOCIATION_GATE_M, FOOTPRINT_RATIO, ORIENTATION_TOLERANCE_RAD, RELABEL_GATE_M,
     RELABEL_PENALTY_M,
 };
+pub use stacks::{STACK_FRAGMENT_MARGIN_M, STACK_SUPPORT_TOLERANCE_M};
 pub use votes::LABEL_VOTES;
 
 use robotd_protocol::geometry::{Point2, Point3};
@@ -168,6 +170,10 @@ struct Track {
     reported: bool,
     /// Views it was seen in while a candidate.
     sightings: u32,
+    /// The id of the object it stands on, when a skill stacked it ([`stacks`]).
+    support: Option<String>,
+    /// Height of the surface it stands on, metres (0: the table).
+    base_z_m: f64,
 }
 
 /// The remembered objects of every workspace.
@@ -234,6 +240,7 @@ impl Tracker {
         }
 
         // Greedy association, cheapest pairs first (see `association`).
+        let stacked = stacks::in_stack(&self.tracks);
         let pairs = association::pairs(&self.tracks, ws, source, &detections.objects);
         let mut track_seen = vec![false; self.tracks.len()];
         let mut det_taken = vec![false; detections.objects.len()];
@@ -244,6 +251,14 @@ impl Tracker {
             track_seen[t] = true;
             det_taken[d] = true;
             let track = &mut self.tracks[t];
+            track.missed = 0;
+            track.confirmed = true;
+            track.source = source.to_owned();
+            if stacked[t] {
+                // Part of a stack: seen, but not measurable there (see `stacks`).
+                track.object.timestamp_unix_s = detections.objects[d].timestamp_unix_s;
+                continue;
+            }
             let id = std::mem::take(&mut track.object.id);
             let name = std::mem::take(&mut track.object.label);
             track.object = detections.objects[d].clone();
@@ -256,11 +271,33 @@ impl Tracker {
                 track.detected_as.clone()
             };
             track.object.workspace_id = ws.to_owned();
-            track.missed = 0;
-            track.confirmed = true;
-            track.source = source.to_owned();
+            track.support = None;
+            track.base_z_m = 0.0;
             if !track.reported {
                 track.sightings += 1;
+            }
+        }
+
+        // What shows of a stack around its top is a piece of it, not a new object.
+        for (d, det) in detections.objects.iter().enumerate() {
+            if det_taken[d] {
+                continue;
+            }
+            if let Some(t) = stacks::stack_under(&self.tracks, &stacked, det.xy(), ws) {
+                det_taken[d] = true;
+                track_seen[t] = true;
+                self.tracks[t].missed = 0;
+            }
+        }
+        // An object carrying one that is seen is hidden, not gone.
+        for t in 0..self.tracks.len() {
+            let carries_seen = stacked[t]
+                && self.tracks.iter().enumerate().any(|(u, upper)| {
+                    track_seen[u] && upper.support.as_deref() == Some(&self.tracks[t].object.id)
+                });
+            if carries_seen {
+                track_seen[t] = true;
+                self.tracks[t].missed = 0;
             }
         }
 
@@ -290,6 +327,20 @@ impl Tracker {
                     candidate_limit
                 }
         });
+        // An object whose support was forgotten stands on the table as far as memory knows.
+        for i in 0..self.tracks.len() {
+            let Some(support) = &self.tracks[i].support else {
+                continue;
+            };
+            if !self
+                .tracks
+                .iter()
+                .any(|t| t.reported && t.object.id == *support)
+            {
+                self.tracks[i].support = None;
+                self.tracks[i].set_base(0.0);
+            }
+        }
 
         // Candidates seen often enough are reported, first seen first.
         for track in self.tracks.iter_mut() {
@@ -326,6 +377,8 @@ impl Tracker {
                 named: false,
                 reported,
                 sightings: 1,
+                support: None,
+                base_z_m: 0.0,
             });
         }
 
@@ -462,14 +515,28 @@ impl Tracker {
 
     /// The skills put `id` down at `at` in workspace `workspace_id` (held or not: a push moves
     /// an object without holding it). It is on the table there, unconfirmed, with its height
-    /// and size unchanged.
+    /// and size unchanged — or, when `at` lies on another object's footprint, on top of that
+    /// one ([`stacks`]): its centre of mass at the lower one's top plus half its own height.
     pub fn place(
         &mut self,
         id: &str,
         at: Point2,
         workspace_id: &str,
     ) -> Result<&DetectedObject, UnknownObject> {
+        self.track_mut(id)?;
+        let support = stacks::support_at(&self.tracks, id.trim(), at, workspace_id)
+            .map(|s| (self.tracks[s].object.id.clone(), self.tracks[s].top_z()));
         let track = self.track_mut(id)?;
+        match support {
+            Some((support, top)) => {
+                track.support = Some(support);
+                track.set_base(top);
+            }
+            None => {
+                track.support = None;
+                track.set_base(0.0);
+            }
+        }
         track.held = false;
         track.confirmed = false;
         track.missed = 0;

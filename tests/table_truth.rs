@@ -1,0 +1,200 @@
+//! Issue 43, "tools that tell the truth about the table": scenarios on the default simulated
+//! scene where the workspace model's picture and the simulator's ground truth must agree —
+//! a stack built and taken apart, an object near the sheet's edge, the free-space centre.
+
+mod common;
+#[path = "common/lab.rs"]
+mod lab;
+
+use lab::{assert_near, lab, runtime, seen_in, Lab};
+use serde_json::{json, Value};
+
+/// The detected objects' data, after a fresh view.
+async fn detected(lab: &Lab) -> Vec<Value> {
+    let data = lab.ok("get_detected_objects", json!({})).await;
+    data.as_array().cloned().unwrap_or_default()
+}
+
+fn xy(o: &Value) -> [f64; 2] {
+    let c = &o["position"]["center_of_mass"];
+    [c["x"].as_f64().unwrap(), c["y"].as_f64().unwrap()]
+}
+
+fn z(o: &Value) -> f64 {
+    o["position"]["center_of_mass"]["z"].as_f64().unwrap()
+}
+
+/// The one detected object called `label`, asserting there is exactly one.
+fn one<'a>(objects: &'a [Value], label: &str) -> &'a Value {
+    let found: Vec<&Value> = objects.iter().filter(|o| o["label"] == label).collect();
+    assert_eq!(found.len(), 1, "one '{label}' in {objects:#?}");
+    found[0]
+}
+
+/// The labels detected, sorted.
+fn labels(objects: &[Value]) -> Vec<String> {
+    let mut l: Vec<String> = seen_in(&Value::Array(objects.to_vec()))
+        .into_iter()
+        .map(|s| s.0)
+        .collect();
+    l.sort();
+    l
+}
+
+const DEFAULT_LABELS: [&str; 4] = ["blue square", "green cylinder", "pencil", "red cube"];
+
+#[test]
+fn a_stack_is_one_object_on_another_and_comes_apart_again() {
+    runtime().block_on(async {
+        let lab = lab(None).await;
+        let objects = detected(&lab).await;
+        assert_eq!(labels(&objects), DEFAULT_LABELS);
+        let cylinder_at = xy(one(&objects, "green cylinder"));
+        let cube_at = xy(one(&objects, "red cube"));
+
+        lab.ok(
+            "pick_place_object",
+            json!({"object_name": "green cylinder", "pick_coordinate": cylinder_at,
+                   "place_coordinate": cube_at, "location": "on top of"}),
+        )
+        .await;
+        let truth_cube = lab.truth_of("red cube").await;
+        let truth_cyl = lab.truth_of("green cylinder").await;
+        assert!((truth_cyl.bottom_z_m - truth_cube.top_z_m).abs() < 0.003);
+
+        // Several views: the stack is two objects, named as before, the top one at its height.
+        let mut ids = None;
+        for _ in 0..6 {
+            let objects = detected(&lab).await;
+            assert_eq!(labels(&objects), DEFAULT_LABELS, "{objects:#?}");
+            let cyl = one(&objects, "green cylinder");
+            let cube = one(&objects, "red cube");
+            assert!(
+                (z(cyl) - (truth_cube.top_z_m + 0.020)).abs() < 0.004,
+                "the cylinder's centre at z {:.4}, on a cube whose top is at {:.4}",
+                z(cyl),
+                truth_cube.top_z_m
+            );
+            assert!((z(cube) - 0.015).abs() < 0.004, "cube z {:.4}", z(cube));
+            let these = (cyl["id"].clone(), cube["id"].clone());
+            assert_eq!(*ids.get_or_insert(these.clone()), these, "ids kept");
+        }
+
+        // Take the stack apart: the cylinder first, then the cube.
+        let objects = detected(&lab).await;
+        let cyl_at = xy(one(&objects, "green cylinder"));
+        lab.ok(
+            "pick_place_object",
+            json!({"object_name": "green cylinder", "pick_coordinate": cyl_at,
+                   "place_coordinate": [0.30, -0.06]}),
+        )
+        .await;
+        assert_near(&lab.truth_of("green cylinder").await, [0.30, -0.06], 0.006);
+        let objects = detected(&lab).await;
+        assert_eq!(labels(&objects), DEFAULT_LABELS, "{objects:#?}");
+        let cube_at = xy(one(&objects, "red cube"));
+        lab.ok(
+            "pick_place_object",
+            json!({"object_name": "red cube", "pick_coordinate": cube_at,
+                   "place_coordinate": [0.28, -0.01]}),
+        )
+        .await;
+        assert_near(&lab.truth_of("red cube").await, [0.28, -0.01], 0.006);
+        let objects = detected(&lab).await;
+        assert_eq!(labels(&objects), DEFAULT_LABELS, "{objects:#?}");
+    });
+}
+
+#[test]
+fn a_cylinder_at_the_sheets_lower_edge_has_no_phantom_neighbour() {
+    runtime().block_on(async {
+        let lab = lab(None).await;
+        let objects = detected(&lab).await;
+        let cylinder_at = xy(one(&objects, "green cylinder"));
+        let edge = [0.185, 0.013];
+        lab.move_object("green cylinder", cylinder_at, edge).await;
+        let mut ids = None;
+        for view in 0..12 {
+            let objects = detected(&lab).await;
+            assert_eq!(
+                labels(&objects),
+                DEFAULT_LABELS,
+                "view {view}: {objects:#?}"
+            );
+            let mut these: Vec<String> = objects
+                .iter()
+                .map(|o| o["id"].as_str().unwrap().to_owned())
+                .collect();
+            these.sort();
+            assert_eq!(*ids.get_or_insert(these.clone()), these, "view {view}");
+        }
+        // Nothing the camera made up stands in the way of taking it back.
+        let objects = detected(&lab).await;
+        let at = xy(one(&objects, "green cylinder"));
+        lab.move_object("green cylinder", at, cylinder_at).await;
+        assert_near(&lab.truth_of("green cylinder").await, cylinder_at, 0.006);
+    });
+}
+
+/// The names quoted ('…') in a tool's text.
+fn quoted(text: &str) -> Vec<String> {
+    text.split('\'')
+        .skip(1)
+        .step_by(2)
+        .map(str::to_owned)
+        .collect()
+}
+
+#[test]
+fn failure_texts_name_objects_as_the_detection_tools_do() {
+    runtime().block_on(async {
+        let lab = lab(None).await;
+        let objects = detected(&lab).await;
+        let names = labels(&objects);
+        let mut texts = Vec::new();
+        for o in &objects {
+            let at = xy(o);
+            let label = o["label"].as_str().unwrap();
+            // Placing onto each object, pushing each into its neighbours, picking the wrong
+            // name there: every refusal names what the detection tools name.
+            for (tool, args) in [
+                (
+                    "pick_object",
+                    json!({"object_name": "unicorn", "pick_coordinate": at}),
+                ),
+                (
+                    "pick_place_object",
+                    json!({"object_name": label, "pick_coordinate": at,
+                           "place_coordinate": [0.25, 0.0], "location": "on top of"}),
+                ),
+                (
+                    "push_object",
+                    json!({"object_name": label, "push_coordinate": at,
+                           "direction": "left", "distance": 0.15}),
+                ),
+            ] {
+                let (text, _) = lab.call(tool, args).await;
+                texts.push(text);
+            }
+        }
+        let mut refusals = 0;
+        for text in texts.iter().filter(|t| t.starts_with('❌')) {
+            refusals += 1;
+            for name in quoted(text) {
+                if name == "unicorn" {
+                    continue;
+                }
+                assert!(
+                    names.contains(&name),
+                    "'{name}' in \"{text}\" is none of {names:?}"
+                );
+            }
+            if let Some(seen) = text.split("seen there: ").nth(1) {
+                for name in seen.split(", ") {
+                    assert!(names.contains(&name.to_owned()), "{name} in {text}");
+                }
+            }
+        }
+        assert!(refusals >= 4, "{texts:#?}");
+    });
+}
