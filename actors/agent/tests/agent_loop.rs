@@ -22,6 +22,8 @@ use tokio_util::sync::CancellationToken;
 #[derive(Default)]
 struct RecordingTools {
     calls: Mutex<Vec<(String, Map<String, Value>)>>,
+    /// Told when `move2observation_pose` is running (and waiting to be cancelled).
+    moving: tokio::sync::Notify,
 }
 
 impl ToolBackend for RecordingTools {
@@ -41,6 +43,7 @@ impl ToolBackend for RecordingTools {
                 .unwrap()
                 .push((name.to_owned(), arguments.clone()));
             if name == "move2observation_pose" {
+                self.moving.notify_one();
                 cancel.cancelled().await;
                 return ToolResultText::failed("❌ Motion stopped: cancelled");
             }
@@ -348,13 +351,15 @@ async fn switching_provider_keeps_the_history_and_ollama_gets_real_tool_calls() 
     );
     agent.switch(ollama_at(&ollama)).unwrap();
     assert_eq!(agent.provider().model, "llama3.2:1b");
-    // The Ollama mock's first reply calls a tool that runs until cancelled; cancel it after
-    // a moment so the request ends, then check what Ollama was sent.
+    // The Ollama mock's first reply calls a tool that runs until cancelled; cancel it once
+    // it runs so the request ends, then check what Ollama was sent.
     let cancel = CancellationToken::new();
     let canceller = {
-        let cancel = cancel.clone();
+        let (cancel, tools) = (cancel.clone(), tools.clone());
         tokio::spawn(async move {
-            tokio::time::sleep(Duration::from_millis(300)).await;
+            tokio::time::timeout(Duration::from_secs(10), tools.moving.notified())
+                .await
+                .expect("the tool call reached the tool within 10 s");
             cancel.cancel();
         })
     };
