@@ -95,6 +95,16 @@ async fn wait_disconnected(widowx: &WidowxDrivers, what: &str) -> String {
     }
 }
 
+/// Waits until the simulated arm has moved from `from` (a motion is under way), instead of
+/// guessing how long starting one takes.
+async fn wait_moving(fake: &FakeServoBus, from: &[f64]) {
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while max_diff(&fake.sim().joints(), from) < 0.01 {
+        assert!(Instant::now() < deadline, "the arm never started moving");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
 fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
         .zip(b)
@@ -151,6 +161,7 @@ async fn a_stop_holds_the_arm_within_a_tick_or_two() {
     let arm = rig.widowx.drivers.arm.clone();
     let control = MotionControl::default();
     let motion_control = control.clone();
+    let from = rig.fake.sim().joints();
     let motion = tokio::spawn(async move {
         execute(
             &arm,
@@ -160,7 +171,7 @@ async fn a_stop_holds_the_arm_within_a_tick_or_two() {
         )
         .await
     });
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    wait_moving(&rig.fake, &from).await;
     let stopped_at = Instant::now();
     control.request_stop();
     let result = motion.await.unwrap();
@@ -204,6 +215,7 @@ async fn a_servo_fault_is_named_the_arm_held_and_the_servo_rebooted_within_a_sec
     let arm = rig.widowx.drivers.arm.clone();
     let control = MotionControl::default();
     let motion_control = control.clone();
+    let from = rig.fake.sim().joints();
     let motion = tokio::spawn(async move {
         execute(
             &arm,
@@ -213,7 +225,7 @@ async fn a_servo_fault_is_named_the_arm_held_and_the_servo_rebooted_within_a_sec
         )
         .await
     });
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    wait_moving(&rig.fake, &from).await;
     rig.fake.latch_hardware_error(4, 0x20);
     let error = motion.await.unwrap().unwrap_err();
     let text = error.to_string();
