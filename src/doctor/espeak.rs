@@ -100,10 +100,14 @@ mod tests {
         let check = check_espeak(Some("/nonexistent"));
         assert_eq!(check.status, Status::Problem);
         assert_eq!(check.fix.as_deref(), Some("apt-get install espeak-ng"));
+    }
+
+    #[test]
+    fn espeak_installed_is_ok_with_its_version() {
+        crate::doctor::test_support::require_program("espeak-ng", "espeak-ng");
         let path = std::env::var("PATH").ok();
-        if find_on_path("espeak-ng", path.as_deref()).is_some() {
-            let check = check_espeak(path.as_deref());
-            assert_eq!(check.status, Status::Ok, "{check:?}");
-        }
+        let check = check_espeak(path.as_deref());
+        assert_eq!(check.status, Status::Ok, "{check:?}");
+        assert!(!check.found.contains("unknown version"), "{check:?}");
     }
 }
