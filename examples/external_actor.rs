@@ -15,7 +15,7 @@
 
 use robotd_protocol::diagnostics::{Ping, TestPatternReply, TestPatternRequest};
 use robotd_runtime::bus::{Bus, BusOptions, Fault, FaultKind};
-use robotd_runtime::catalog::{SYSTEM_PING, TEST_PATTERN, TEST_PATTERN_FRAMES};
+use robotd_topics::{SYSTEM_PING, TEST_PATTERN, TEST_PATTERN_FRAMES};
 use std::time::Duration;
 
 #[tokio::main]

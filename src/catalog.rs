@@ -1,11 +1,11 @@
 //! `robotd catalog`: the bus catalogue for people and for other languages.
 //!
-//! The table is for reading; `--json` is [`robotd_runtime::catalog::description`] verbatim,
+//! The table is for reading; `--json` is [`robotd_topics::description`] verbatim,
 //! the file `python/robotd/src/robotd_bus/catalog.json` that the Python package loads (a test
 //! keeps the two equal, so the Python side cannot drift from the Rust catalogue).
 
 use robotd_runtime::bus::Entry;
-use robotd_runtime::catalog::description;
+use robotd_topics::description;
 
 /// The catalogue as a table or as pretty JSON (with a final newline).
 pub fn render(json: bool) -> String {

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use robotd_config::Config;
 use robotd_dashboard::live::Live;
 use robotd_dashboard::{AgentLink, DashboardApi};
-use robotd_runtime::catalog::{AGENT_CANCEL, AGENT_REQUEST};
+use robotd_topics::{AGENT_CANCEL, AGENT_REQUEST};
 use std::sync::{Arc, Mutex};
 
 /// The dashboard's routes and its live state (stop it at shutdown). `agent` is the agent
@@ -52,15 +52,9 @@ pub fn routes<A>(
         }),
     };
     let voice = robotd_dashboard::voice::VoiceApi {
-        stt: Arc::new(
-            runtime
-                .bus
-                .client(&robotd_runtime::catalog::STT_TRANSCRIBE)?,
-        ),
+        stt: Arc::new(runtime.bus.client(&robotd_topics::STT_TRANSCRIBE)?),
         estop: Arc::new(Mutex::new(
-            runtime
-                .bus
-                .publisher(&robotd_runtime::catalog::SAFETY_ESTOP)?,
+            runtime.bus.publisher(&robotd_topics::SAFETY_ESTOP)?,
         )),
         agent,
         live: live.clone(),

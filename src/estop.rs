@@ -18,8 +18,8 @@ use robotd_config::Config;
 use robotd_protocol::health::{EStopRelease, EmergencyStop};
 use robotd_protocol::safety::{printable, Origin, OriginKind};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE};
 use robotd_runtime::origin::with_origin;
+use robotd_topics::{ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE};
 use std::time::{Duration, Instant};
 
 /// How long to wait for robotd's arm to confirm the new e-stop state on `arm/state`.

@@ -27,7 +27,7 @@ use robotd_protocol::health::EmergencyStop;
 use robotd_protocol::speech::{OverlayKind, TextOverlay};
 use robotd_protocol::stt::{TranscribeReply, TranscribeRequest, Transcript, PCM_SAMPLE_RATE_HZ};
 use robotd_runtime::bus::{Bus, BusError, BusOptions};
-use robotd_runtime::catalog::{
+use robotd_topics::{
     AGENT_CANCEL, AGENT_EVENTS, AGENT_REQUEST, OVERLAY_TEXT, SAFETY_ESTOP, STT_TRANSCRIBE,
 };
 use std::io::Read;

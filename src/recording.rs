@@ -135,7 +135,7 @@ pub fn record(
 /// the robot model and workspaces and report success.
 fn warn_without_a_robotd(bus: &Bus) -> Result<()> {
     let ping = bus
-        .client(&robotd_runtime::catalog::SYSTEM_PING)
+        .client(&robotd_topics::SYSTEM_PING)
         .context("looking for a robotd on the bus")?;
     if !ping.has_server() {
         eprintln!(
@@ -163,7 +163,7 @@ fn refuse_a_second_robot(bus: &Bus, topics: &[String], path: &Path) -> Result<()
         return Ok(());
     }
     let ping = bus
-        .client(&robotd_runtime::catalog::SYSTEM_PING)
+        .client(&robotd_topics::SYSTEM_PING)
         .context("looking for a robotd on the bus")?;
     if ping.has_server() {
         bail!(

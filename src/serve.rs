@@ -23,11 +23,11 @@ use robotd_runtime::bus::stale::{
     remove_half_created_after, HALF_CREATED_SETTLE, SHARED_MEMORY_DIR,
 };
 use robotd_runtime::bus::{Bus, BusOptions, Publisher};
-use robotd_runtime::catalog::{HEALTH_RESTARTS, SYSTEM_PING};
 use robotd_runtime::supervision::{SupervisedProcess, SupervisionObserver, Supervisor};
 use robotd_skills::{Skills, SkillsSettings};
 use robotd_speech::{Speech, SpeechSettings};
 use robotd_tools::{Registry, ToolSettings};
+use robotd_topics::{HEALTH_RESTARTS, SYSTEM_PING};
 use robotd_workspace_model::{WorkspaceModel, WorkspaceModelSettings};
 use std::path::Path;
 use std::sync::{Arc, Mutex};
@@ -244,9 +244,9 @@ impl Runtime {
         Ok(robotd_http::safety::SafetyApi {
             safety: self.hardware.safety.clone(),
             estop: Arc::new(Mutex::new(
-                self.bus.publisher(&robotd_runtime::catalog::SAFETY_ESTOP)?,
+                self.bus.publisher(&robotd_topics::SAFETY_ESTOP)?,
             )),
-            release: Arc::new(self.bus.client(&robotd_runtime::catalog::SAFETY_RELEASE)?),
+            release: Arc::new(self.bus.client(&robotd_topics::SAFETY_RELEASE)?),
         })
     }
 

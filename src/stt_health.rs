@@ -12,8 +12,8 @@
 use anyhow::{Context, Result};
 use robotd_protocol::stt::SttStatus;
 use robotd_runtime::bus::Bus;
-use robotd_runtime::catalog::STT_STATUS;
 use robotd_runtime::metrics::Metrics;
+use robotd_topics::STT_STATUS;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tokio_util::sync::CancellationToken;

@@ -9,7 +9,7 @@ mod common;
 use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_protocol::diagnostics::SimWorldRequest;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::SIM_WORLD;
+use robotd_topics::SIM_WORLD;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -494,7 +494,7 @@ fn interactive_chat_lists_tools_switches_provider_and_keeps_the_conversation() {
 
 #[test]
 fn ctrl_c_during_a_motion_stops_the_arm_over_mcp() {
-    use robotd_runtime::catalog::ARM_STATE;
+    use robotd_topics::ARM_STATE;
     use tokio::io::AsyncBufReadExt;
     let namespace = common::fresh_namespace("chat-cancel");
     let port = common::free_port();

@@ -7,7 +7,7 @@ mod common;
 use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_protocol::agent::{AgentEventKind, AgentRequest};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{AGENT_EVENTS, AGENT_REQUEST};
+use robotd_topics::{AGENT_EVENTS, AGENT_REQUEST};
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::Duration;

@@ -5,7 +5,7 @@ mod common;
 
 use robotd_protocol::diagnostics::TestPatternRequest;
 use robotd_runtime::bus::{Bus, BusOptions, FRAME_BYTES};
-use robotd_runtime::catalog::{TEST_PATTERN, TEST_PATTERN_FRAMES};
+use robotd_topics::{TEST_PATTERN, TEST_PATTERN_FRAMES};
 use std::time::Duration;
 
 #[test]

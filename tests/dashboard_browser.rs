@@ -14,7 +14,7 @@ use browser::Browser;
 use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_protocol::diagnostics::SimWorldRequest;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{ARM_STATE, SIM_WORLD};
+use robotd_topics::{ARM_STATE, SIM_WORLD};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};

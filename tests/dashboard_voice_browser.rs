@@ -17,7 +17,7 @@ use browser::Browser;
 use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_protocol::diagnostics::SimWorldRequest;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::SIM_WORLD;
+use robotd_topics::SIM_WORLD;
 use serde_json::json;
 use std::time::Duration;
 

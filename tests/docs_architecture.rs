@@ -110,7 +110,7 @@ fn looks_like_repository_path(span: &str) -> bool {
 
 /// The names of every topic, frame topic and service of the bus catalogue.
 fn catalogue_names() -> HashSet<String> {
-    robotd_runtime::catalog::entries()
+    robotd_topics::entries()
         .iter()
         .map(|entry| entry.name().to_owned())
         .collect()

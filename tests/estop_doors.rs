@@ -18,7 +18,7 @@ use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, ArmState};
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::health::EmergencyStop;
 use robotd_runtime::bus::{Bus, BusOptions, Subscriber};
-use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP};
+use robotd_topics::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
 use std::net::Ipv4Addr;

@@ -15,7 +15,7 @@ use foxglove::Decode;
 use futures::{SinkExt, StreamExt};
 use robotd_perception::eval::Lab;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::CAMERA_FRAMES;
+use robotd_topics::CAMERA_FRAMES;
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::process::Command;

@@ -10,7 +10,7 @@ use common::mcp_http::{header, json_rpc, INIT, INITIALIZED};
 
 use robotd_protocol::arm::ArmState;
 use robotd_runtime::bus::{Bus, BusOptions, Subscriber};
-use robotd_runtime::catalog::ARM_STATE;
+use robotd_topics::ARM_STATE;
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{Ipv4Addr, TcpStream};

@@ -11,7 +11,7 @@ use rmcp::service::PeerRequestOptions;
 use robotd_mcp::client::{connect, McpClient};
 use robotd_protocol::arm::ArmState;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::ARM_STATE;
+use robotd_topics::ARM_STATE;
 use serde_json::{json, Value};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};

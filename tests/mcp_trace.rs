@@ -8,9 +8,9 @@ use robotd_mcp::{http, McpService};
 use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceReply};
 use robotd_protocol::{Point2, Pose, RobotModel};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::WORKSPACE_QUERY;
 use robotd_runtime::telemetry::{self, Mode};
 use robotd_tools::{Registry, ToolSettings};
+use robotd_topics::WORKSPACE_QUERY;
 use std::sync::Arc;
 
 #[test]

@@ -10,7 +10,7 @@ use robotd_protocol::envelope::unix_now_ns;
 use robotd_protocol::location::{Location, WorkspacePoint};
 use robotd_protocol::workspace::{WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{ARM_COMMAND, WORKSPACE_QUERY};
+use robotd_topics::{ARM_COMMAND, WORKSPACE_QUERY};
 use std::process::Command;
 use std::time::Duration;
 

@@ -14,7 +14,7 @@
 mod common;
 
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES};
+use robotd_topics::{ARM_STATE, CAMERA_FRAMES};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;

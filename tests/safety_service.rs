@@ -14,7 +14,7 @@ use robotd_protocol::diagnostics::{SimObjectState, SimWorldRequest};
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::health::{EStopRelease, EmergencyStop};
 use robotd_runtime::bus::{Bus, BusOptions, Client, Subscriber};
-use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE, SIM_WORLD};
+use robotd_topics::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE, SIM_WORLD};
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 

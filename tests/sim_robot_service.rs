@@ -6,7 +6,7 @@ mod common;
 
 use robotd_protocol::arm::{ArmCommand, ArmReply};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{ARM_COMMAND, CAMERA_FRAMES};
+use robotd_topics::{ARM_COMMAND, CAMERA_FRAMES};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 

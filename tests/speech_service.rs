@@ -5,7 +5,7 @@ mod common;
 
 use robotd_protocol::speech::{OverlayKind, SpeakRequest, SpeechEvent};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{OVERLAY_TEXT, SPEECH_EVENTS, SPEECH_SPEAK};
+use robotd_topics::{OVERLAY_TEXT, SPEECH_EVENTS, SPEECH_SPEAK};
 use std::process::Command;
 use std::time::Duration;
 

@@ -18,7 +18,7 @@ mod stt;
 
 use robotd_protocol::stt::{TranscribeReply, TranscribeRequest};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::STT_TRANSCRIBE;
+use robotd_topics::STT_TRANSCRIBE;
 use serde_json::Value;
 use std::time::Duration;
 

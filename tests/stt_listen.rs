@@ -20,7 +20,7 @@ use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_protocol::speech::OverlayKind;
 use robotd_protocol::stt::{TranscribeReply, TranscribeRequest};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{OVERLAY_TEXT, STT_TRANSCRIBE};
+use robotd_topics::{OVERLAY_TEXT, STT_TRANSCRIBE};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

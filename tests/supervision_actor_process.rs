@@ -6,7 +6,7 @@ mod common;
 
 use robotd_protocol::diagnostics::TestPatternRequest;
 use robotd_runtime::bus::{Bus, BusError, BusOptions};
-use robotd_runtime::catalog::{HEALTH_RESTARTS, TEST_PATTERN};
+use robotd_topics::{HEALTH_RESTARTS, TEST_PATTERN};
 use std::time::{Duration, Instant};
 
 fn signal(pid: u32, signal: &str) {

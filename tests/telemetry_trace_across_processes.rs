@@ -6,8 +6,8 @@ mod common;
 use robotd_config::Config;
 use robotd_protocol::diagnostics::Ping;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::SYSTEM_PING;
 use robotd_runtime::telemetry::{self, current_trace_context, Mode};
+use robotd_topics::SYSTEM_PING;
 use std::time::Duration;
 use tracing::Instrument;
 

@@ -18,7 +18,7 @@ use robotd_perception::labels::LabelTable;
 use robotd_perception::{Perception, Pipeline};
 use robotd_protocol::envelope::unix_now_ns;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{CAMERA_FRAMES, WORKSPACE_OBJECTS};
+use robotd_topics::{CAMERA_FRAMES, WORKSPACE_OBJECTS};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 

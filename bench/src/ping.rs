@@ -8,7 +8,7 @@ use super::Latency;
 use anyhow::{bail, Context, Result};
 use robotd_protocol::diagnostics::Ping;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::SYSTEM_PING;
+use robotd_topics::SYSTEM_PING;
 use serde::Serialize;
 use std::time::{Duration, Instant};
 

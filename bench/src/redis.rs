@@ -23,7 +23,7 @@ use robotd_redis::camera::encode_jpeg;
 use robotd_redis::wire::{camera_entry, FrameMeta, ROBOT_CAMERA};
 use robotd_redis::{RedisEdge, RedisEdgeSettings, Trust};
 use robotd_runtime::bus::{Bus, BusOptions, FramePublisher};
-use robotd_runtime::catalog::CAMERA_FRAMES;
+use robotd_topics::CAMERA_FRAMES;
 use serde::Serialize;
 use std::time::{Duration, Instant};
 

@@ -247,7 +247,7 @@ pub fn run(commands: usize, stops: usize) -> Result<SafetyFigures> {
 async fn estop_latencies(trials: usize) -> Result<(Vec<(Duration, Duration)>, Duration)> {
     use robotd_protocol::arm::ArmCommand;
     use robotd_protocol::health::{EStopRelease, EmergencyStop};
-    use robotd_runtime::catalog::{ARM_COMMAND, SAFETY_ESTOP, SAFETY_RELEASE};
+    use robotd_topics::{ARM_COMMAND, SAFETY_ESTOP, SAFETY_RELEASE};
     let mut config = robotd_config::Config::default();
     config.bus.namespace = format!("bench-estop-{}", std::process::id());
     config.robot.time_scale = 1.0;

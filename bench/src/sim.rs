@@ -13,8 +13,8 @@ use robotd_driver_sim::{SimCamera, SimRobot, SimSettings};
 use robotd_kinematics::{pose_to_isometry, Kinematics};
 use robotd_protocol::geometry::{Pose, RobotModel};
 use robotd_runtime::bus::{Bus, BusOptions, FRAME_BYTES};
-use robotd_runtime::catalog::CAMERA_FRAMES;
 use robotd_sim::Scene;
+use robotd_topics::CAMERA_FRAMES;
 use serde::Serialize;
 use std::time::{Duration, Instant};
 

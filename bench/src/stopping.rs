@@ -25,7 +25,7 @@ use robotd_protocol::arm::ArmCommand;
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::health::{EStopRelease, EmergencyStop};
 use robotd_protocol::safety::{Origin, OriginKind};
-use robotd_runtime::catalog::{ARM_COMMAND, SAFETY_ESTOP, SAFETY_RELEASE};
+use robotd_topics::{ARM_COMMAND, SAFETY_ESTOP, SAFETY_RELEASE};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 

@@ -6,9 +6,9 @@
 //!
 //! | actor | serves / publishes | catalogue |
 //! |---|---|---|
-//! | arm | `arm/command` (motions, stop, queries), `arm/state`, listens to `safety/estop` | [`ARM_COMMAND`](robotd_runtime::catalog::ARM_COMMAND) |
-//! | gripper | `gripper/command`, `gripper/state` | [`GRIPPER_COMMAND`](robotd_runtime::catalog::GRIPPER_COMMAND) |
-//! | camera | `camera/frames` (640×480 RGB, zero-copy) | [`CAMERA_FRAMES`](robotd_runtime::catalog::CAMERA_FRAMES) |
+//! | arm | `arm/command` (motions, stop, queries), `arm/state`, listens to `safety/estop` | [`ARM_COMMAND`](robotd_topics::ARM_COMMAND) |
+//! | gripper | `gripper/command`, `gripper/state` | [`GRIPPER_COMMAND`](robotd_topics::GRIPPER_COMMAND) |
+//! | camera | `camera/frames` (640×480 RGB, zero-copy) | [`CAMERA_FRAMES`](robotd_topics::CAMERA_FRAMES) |
 //!
 //! Drivers: `sim-ned2` (the default) and `sim-widowx` run the simulator of `drivers/sim`;
 //! `niryo` drives a real Ned2 over TCP (`drivers/niryo`); `widowx` a real WidowX 250 s over

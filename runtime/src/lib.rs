@@ -3,8 +3,6 @@
 //! - [`bus`]: typed messages over iceoryx2 shared memory — topics with a declared overflow
 //!   policy, camera frames read in place, request-response that always answers. The same code
 //!   works whether the peer is in this process or another one.
-//! - [`catalog`]: the names and policies of robotd's topics and services, shared by every
-//!   process that joins the bus.
 //! - [`supervision`]: restart policy, restart budget, exponential backoff, a safe-state hook
 //!   before every restart, for in-process (kameo) actors and for actor processes alike.
 //! - [`host`]: serves a bus service with a supervised in-process actor.
@@ -14,6 +12,9 @@
 //! - [`metrics`]: the Prometheus metrics behind `GET /metrics`.
 //! - [`heap`]: gives memory freed by a burst of work back to the system.
 //! - [`backoff`]: the waits between attempts of every reconnect and retry loop.
+//!
+//! The robot's own topics and services (their names, message types and policies) are not
+//! here: they are the catalogue of `robotd-topics` (`libs/topics`), built on [`bus`].
 //!
 //! A request across the bus, in one process (two processes work the same way):
 //!
@@ -43,7 +44,6 @@
 //! ```
 pub mod backoff;
 pub mod bus;
-pub mod catalog;
 pub mod config;
 pub mod heap;
 pub mod host;

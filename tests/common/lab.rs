@@ -9,7 +9,7 @@ use rmcp::model::CallToolRequestParams;
 use robotd_mcp::client::{connect, McpClient};
 use robotd_protocol::diagnostics::{SimObjectState, SimWorldRequest};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::SIM_WORLD;
+use robotd_topics::SIM_WORLD;
 use serde_json::Value;
 use std::time::Duration;
 

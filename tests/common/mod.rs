@@ -446,7 +446,7 @@ pub fn runtime() -> tokio::runtime::Runtime {
 pub async fn sim_world(
     bus: &robotd_runtime::bus::Bus,
 ) -> Vec<robotd_protocol::diagnostics::SimObjectState> {
-    bus.client(&robotd_runtime::catalog::SIM_WORLD)
+    bus.client(&robotd_topics::SIM_WORLD)
         .expect("a sim/world client")
         .request(
             &robotd_protocol::diagnostics::SimWorldRequest {},

@@ -37,9 +37,7 @@ pub fn wait_for_stt(namespace: &str) {
             namespace, "stt-wait",
         ))
         .unwrap();
-        let client = bus
-            .client(&robotd_runtime::catalog::STT_TRANSCRIBE)
-            .unwrap();
+        let client = bus.client(&robotd_topics::STT_TRANSCRIBE).unwrap();
         assert!(
             client.wait_for_server(Duration::from_secs(120)).await,
             "the STT actor did not serve stt/transcribe within 120 s (is faster-whisper \

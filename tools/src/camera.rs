@@ -11,7 +11,7 @@
 //! to a frame period for the next.
 
 use robotd_runtime::bus::{Bus, FrameSample, FrameSubscriber};
-use robotd_runtime::catalog::CAMERA_FRAMES;
+use robotd_topics::CAMERA_FRAMES;
 use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;

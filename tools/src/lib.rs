@@ -59,7 +59,6 @@ use robotd_protocol::speech::{SpeakRequest, TextOverlay};
 use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply};
 use robotd_protocol::Pose;
 use robotd_runtime::bus::{Bus, BusError, Client, Publisher};
-use robotd_runtime::catalog;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -297,10 +296,10 @@ impl Registry {
             return Err(ConnectError::NoWorkspace);
         }
         let queries = (0..settings.query_clients.max(1))
-            .map(|_| bus.client(&catalog::WORKSPACE_QUERY))
+            .map(|_| bus.client(&robotd_topics::WORKSPACE_QUERY))
             .collect::<Result<Vec<_>, _>>()?;
         let (rest_tx, rest_rx) = watch::channel(None);
-        let mut arm_states = bus.subscriber(&catalog::ARM_STATE)?;
+        let mut arm_states = bus.subscriber(&robotd_topics::ARM_STATE)?;
         let watcher = tokio::spawn(async move {
             let mut last: Option<ArmRest> = None;
             while let Ok(envelope) = arm_states.recv().await {
@@ -329,7 +328,7 @@ impl Registry {
             }
         });
         let routes: Arc<Mutex<HashMap<u64, mpsc::UnboundedSender<SkillProgress>>>> = Arc::default();
-        let mut progress = bus.subscriber(&catalog::SKILLS_PROGRESS)?;
+        let mut progress = bus.subscriber(&robotd_topics::SKILLS_PROGRESS)?;
         let progress_routes = routes.clone();
         let router = tokio::spawn(async move {
             while let Ok(envelope) = progress.recv().await {
@@ -352,13 +351,13 @@ impl Registry {
                 tools,
                 queries,
                 next_query: AtomicUsize::new(0),
-                skills: bus.client(&catalog::SKILLS_RUN)?,
-                arm: bus.client(&catalog::ARM_COMMAND)?,
-                cancel: Mutex::new(bus.publisher(&catalog::SKILLS_CANCEL)?),
-                estop: Mutex::new(bus.publisher(&catalog::SAFETY_ESTOP)?),
-                release: bus.client(&catalog::SAFETY_RELEASE)?,
-                speak: Mutex::new(bus.publisher(&catalog::SPEECH_SPEAK)?),
-                overlay: Mutex::new(bus.publisher(&catalog::OVERLAY_TEXT)?),
+                skills: bus.client(&robotd_topics::SKILLS_RUN)?,
+                arm: bus.client(&robotd_topics::ARM_COMMAND)?,
+                cancel: Mutex::new(bus.publisher(&robotd_topics::SKILLS_CANCEL)?),
+                estop: Mutex::new(bus.publisher(&robotd_topics::SAFETY_ESTOP)?),
+                release: bus.client(&robotd_topics::SAFETY_RELEASE)?,
+                speak: Mutex::new(bus.publisher(&robotd_topics::SPEECH_SPEAK)?),
+                overlay: Mutex::new(bus.publisher(&robotd_topics::OVERLAY_TEXT)?),
                 arm_rest: rest_rx,
                 progress_routes: routes,
                 next_run: AtomicU64::new(run_base),

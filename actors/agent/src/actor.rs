@@ -38,7 +38,7 @@ use std::sync::{Arc, Mutex};
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 
-pub use robotd_runtime::catalog::{AGENT_CANCEL, AGENT_EVENTS, AGENT_REQUEST};
+pub use robotd_topics::{AGENT_CANCEL, AGENT_EVENTS, AGENT_REQUEST};
 
 /// Longest text an event carries (tool results can be long; a picture event is bounded by
 /// `MAX_PICTURE_BYTES`, and the bus slice is 256 KiB).

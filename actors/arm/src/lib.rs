@@ -705,7 +705,7 @@ pub async fn start(
     context: ArmContext,
     state_period: Duration,
 ) -> Result<RunningArm, robotd_runtime::host::ActorStartError> {
-    use robotd_runtime::catalog::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE};
+    use robotd_topics::{ARM_COMMAND, ARM_STATE, SAFETY_ESTOP, SAFETY_RELEASE};
     let halt_driver = context.driver.clone();
     let actor_context = context.clone();
     let actor = supervisor

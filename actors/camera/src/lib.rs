@@ -119,7 +119,7 @@ pub async fn start(
     (Supervised<CameraActor>, tokio::task::JoinHandle<()>),
     robotd_runtime::host::ActorStartError,
 > {
-    let frames = Arc::new(bus.frame_publisher(&robotd_runtime::catalog::CAMERA_FRAMES)?);
+    let frames = Arc::new(bus.frame_publisher(&robotd_topics::CAMERA_FRAMES)?);
     let frame_ids = Arc::new(AtomicU64::new(1));
     let actor_driver = driver.clone();
     let actor = supervisor

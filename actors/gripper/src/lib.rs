@@ -228,7 +228,7 @@ pub async fn start(
     ),
     robotd_runtime::host::ActorStartError,
 > {
-    use robotd_runtime::catalog::{GRIPPER_COMMAND, GRIPPER_STATE};
+    use robotd_topics::{GRIPPER_COMMAND, GRIPPER_STATE};
     let state = Arc::new(bus.publisher(&GRIPPER_STATE)?);
     let policy = safety.clone();
     let actor = supervisor

@@ -22,7 +22,7 @@ use crate::labels::LabelTable;
 use crate::pipeline::{Pipeline, SheetStatus};
 use robotd_protocol::objects::Detections;
 use robotd_runtime::bus::{Bus, BusError};
-use robotd_runtime::catalog::{
+use robotd_topics::{
     ARM_STATE, CAMERA_FRAMES, GRIPPER_STATE, PERCEPTION_DETECTIONS, PERCEPTION_PIXEL_DETECTIONS,
 };
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};

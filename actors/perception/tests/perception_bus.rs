@@ -8,7 +8,7 @@ use robotd_protocol::arm::ArmState;
 use robotd_protocol::envelope::unix_now_ns;
 use robotd_protocol::objects::Detections;
 use robotd_runtime::bus::{Bus, BusOptions, FramePublisher, Subscriber};
-use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
+use robotd_topics::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
 use std::time::Duration;
 
 fn publish(publisher: &FramePublisher, rgb: &[u8], frame_id: u64) -> u64 {
@@ -138,7 +138,7 @@ async fn detections_from(sub: &mut Subscriber<Detections>, source: &str) -> Dete
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn pixel_detections_from_the_bus_are_placed_like_robotds_own_or_refused_with_a_reason() {
     use robotd_protocol::pixels::{PixelDetection, PixelDetections};
-    use robotd_runtime::catalog::PERCEPTION_PIXEL_DETECTIONS;
+    use robotd_topics::PERCEPTION_PIXEL_DETECTIONS;
     use std::sync::atomic::Ordering;
 
     let mut lab = Lab::new(2.0, false).unwrap();

@@ -23,7 +23,7 @@
 //! use robotd_protocol::{Point2, RobotModel};
 //! use robotd_skills::{Skills, SkillsSettings};
 //! let skills = Skills::start(&bus, SkillsSettings::new(RobotModel::Ned2, workspaces))?;
-//! let client = bus.client(&robotd_runtime::catalog::SKILLS_RUN)?;
+//! let client = bus.client(&robotd_topics::SKILLS_RUN)?;
 //! let reply = client
 //!     .request(
 //!         &SkillRequest {
@@ -50,7 +50,6 @@ use robotd_protocol::skills::{SkillError, SkillReply};
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_protocol::RobotModel;
 use robotd_runtime::bus::{Bus, BusError};
-use robotd_runtime::catalog;
 use robotd_runtime::origin::{current_origin, with_origin};
 use robotd_safety::Safety;
 use runner::{CancelFlag, Runner};
@@ -167,14 +166,14 @@ impl Skills {
         let safety = settings.safety.clone();
         let runner = Runner::new(
             settings,
-            bus.client(&catalog::ARM_COMMAND)?,
-            bus.client(&catalog::GRIPPER_COMMAND)?,
-            bus.client(&catalog::WORKSPACE_QUERY)?,
-            bus.publisher(&catalog::SKILLS_PROGRESS)?,
+            bus.client(&robotd_topics::ARM_COMMAND)?,
+            bus.client(&robotd_topics::GRIPPER_COMMAND)?,
+            bus.client(&robotd_topics::WORKSPACE_QUERY)?,
+            bus.publisher(&robotd_topics::SKILLS_PROGRESS)?,
             cancel.clone(),
         );
         let runner = Arc::new(tokio::sync::Mutex::new(runner));
-        let mut server = bus.server(&catalog::SKILLS_RUN)?;
+        let mut server = bus.server(&robotd_topics::SKILLS_RUN)?;
         let serve = tokio::spawn(async move {
             let served = server
                 .serve(move |request| {
@@ -220,8 +219,8 @@ impl Skills {
                 tracing::error!(%error, "the skills actor stopped serving");
             }
         });
-        let mut cancels = bus.subscriber(&catalog::SKILLS_CANCEL)?;
-        let stopper = bus.client(&catalog::ARM_COMMAND)?;
+        let mut cancels = bus.subscriber(&robotd_topics::SKILLS_CANCEL)?;
+        let stopper = bus.client(&robotd_topics::ARM_COMMAND)?;
         let canceller = tokio::spawn(async move {
             while let Ok(envelope) = cancels.recv().await {
                 let run_id = envelope.body.run_id;

@@ -10,7 +10,6 @@ use robotd_protocol::skills::{Skill, SkillCancel, SkillReply, SkillRequest};
 use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
 use robotd_protocol::{Location, Point2, Point3, Pose, RobotModel};
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog;
 use robotd_skills::{Skills, SkillsSettings};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
@@ -128,7 +127,7 @@ fn start(bus: &Bus, world: &Arc<World>) -> Skills {
     *world.pose.lock().unwrap() = workspace().observation_pose;
     // Like the arm actor: every request handled at once in a task of its own (so `Stop`
     // reaches a motion that hangs), each reply sent when its handling ends.
-    let mut arm = bus.server(&catalog::ARM_COMMAND).unwrap();
+    let mut arm = bus.server(&robotd_topics::ARM_COMMAND).unwrap();
     let w = world.clone();
     tokio::spawn(async move {
         let (done_tx, mut done_rx) = tokio::sync::mpsc::unbounded_channel();
@@ -149,7 +148,7 @@ fn start(bus: &Bus, world: &Arc<World>) -> Skills {
             }
         }
     });
-    let mut gripper = bus.server(&catalog::GRIPPER_COMMAND).unwrap();
+    let mut gripper = bus.server(&robotd_topics::GRIPPER_COMMAND).unwrap();
     let w = world.clone();
     tokio::spawn(async move {
         gripper
@@ -173,7 +172,7 @@ fn start(bus: &Bus, world: &Arc<World>) -> Skills {
             })
             .await
     });
-    let mut model = bus.server(&catalog::WORKSPACE_QUERY).unwrap();
+    let mut model = bus.server(&robotd_topics::WORKSPACE_QUERY).unwrap();
     let w = world.clone();
     tokio::spawn(async move {
         model
@@ -209,7 +208,7 @@ fn pick() -> Skill {
 }
 
 async fn run(bus: &Bus, run_id: u64, skill: Skill) -> SkillReply {
-    let client = bus.client(&catalog::SKILLS_RUN).unwrap();
+    let client = bus.client(&robotd_topics::SKILLS_RUN).unwrap();
     client
         .request(&SkillRequest { run_id, skill }, TIMEOUT)
         .await
@@ -344,9 +343,9 @@ async fn a_cancel_stops_the_arm_and_nothing_moves_after_it() {
     world.grasps.store(true, Ordering::SeqCst);
     world.hang_going_down.store(true, Ordering::SeqCst);
     let skills = start(&bus, &world);
-    let cancels = bus.publisher(&catalog::SKILLS_CANCEL).unwrap();
+    let cancels = bus.publisher(&robotd_topics::SKILLS_CANCEL).unwrap();
     let running = {
-        let bus_client = bus.client(&catalog::SKILLS_RUN).unwrap();
+        let bus_client = bus.client(&robotd_topics::SKILLS_RUN).unwrap();
         tokio::spawn(async move {
             bus_client
                 .request(

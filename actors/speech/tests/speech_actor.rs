@@ -3,13 +3,13 @@
 
 use robotd_protocol::speech::{SpeakRequest, SpeechEvent};
 use robotd_runtime::bus::{Bus, BusOptions, Publisher, Subscriber};
-use robotd_runtime::catalog::{SPEECH_EVENTS, SPEECH_SPEAK};
 use robotd_runtime::supervision::{observer_fn, SupervisionEvent, SupervisionPolicy};
 use robotd_speech::engine::{
     Audio, ElevenLabsEngine, EngineError, EspeakEngine, SpeechEngine, Utterance,
 };
 use robotd_speech::output::{Output, Spool};
 use robotd_speech::{Speech, SpeechSettings};
+use robotd_topics::{SPEECH_EVENTS, SPEECH_SPEAK};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};

@@ -36,7 +36,7 @@
 //! use robotd_protocol::envelope::unix_now_ns;
 //! use robotd_protocol::workspace::{WorkspaceQuery, WorkspaceRequest};
 //! use robotd_runtime::bus::{Bus, BusOptions};
-//! use robotd_runtime::catalog::WORKSPACE_QUERY;
+//! use robotd_topics::WORKSPACE_QUERY;
 //! use robotd_workspace_model::{WorkspaceModel, WorkspaceModelSettings};
 //! use std::time::Duration;
 //!
@@ -76,9 +76,7 @@ use robotd_protocol::workspace::{
     WorkspaceReply, WorkspaceRequest, MAX_FRESH_WAIT_MS,
 };
 use robotd_runtime::bus::{Bus, BusError, PendingReply, Publisher, Server, Subscriber};
-use robotd_runtime::catalog::{
-    PERCEPTION_DETECTIONS, WORKSPACE_LABELS, WORKSPACE_OBJECTS, WORKSPACE_QUERY,
-};
+use robotd_topics::{PERCEPTION_DETECTIONS, WORKSPACE_LABELS, WORKSPACE_OBJECTS, WORKSPACE_QUERY};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::Notify;

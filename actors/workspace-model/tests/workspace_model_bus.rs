@@ -15,9 +15,7 @@ use robotd_protocol::workspace::{
     WorkspaceReply, WorkspaceRequest,
 };
 use robotd_runtime::bus::{Bus, BusOptions, Client, Publisher, Subscriber};
-use robotd_runtime::catalog::{
-    PERCEPTION_DETECTIONS, WORKSPACE_LABELS, WORKSPACE_OBJECTS, WORKSPACE_QUERY,
-};
+use robotd_topics::{PERCEPTION_DETECTIONS, WORKSPACE_LABELS, WORKSPACE_OBJECTS, WORKSPACE_QUERY};
 use robotd_workspace_model::{
     MemorySettings, WorkspaceModel, WorkspaceModelSettings, WorkspaceStartError,
 };

@@ -10,7 +10,7 @@ use robotd_agent::mock::{MockLlm, MockReply};
 use robotd_mcp::client::{connect, McpClient};
 use robotd_protocol::agent::AgentRequest;
 use robotd_runtime::bus::{Bus, BusOptions};
-use robotd_runtime::catalog::{AGENT_EVENTS, AGENT_REQUEST};
+use robotd_topics::{AGENT_EVENTS, AGENT_REQUEST};
 use serde_json::{json, Map, Value};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};

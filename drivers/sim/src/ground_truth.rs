@@ -12,7 +12,7 @@ pub fn serve_ground_truth(
     bus: &Bus,
     robot: SimRobot,
 ) -> Result<tokio::task::JoinHandle<()>, BusError> {
-    let mut server = bus.server(&robotd_runtime::catalog::SIM_WORLD)?;
+    let mut server = bus.server(&robotd_topics::SIM_WORLD)?;
     Ok(tokio::spawn(async move {
         let served = server
             .serve(move |_request| {

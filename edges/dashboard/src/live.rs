@@ -25,7 +25,7 @@ use robotd_protocol::agent::AgentEvent;
 use robotd_protocol::objects::DetectedObject;
 use robotd_protocol::workspace::{WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
 use robotd_runtime::bus::{Bus, BusError};
-use robotd_runtime::catalog::{
+use robotd_topics::{
     AGENT_EVENTS, ARM_STATE, CAMERA_FRAMES, HEALTH_RESTARTS, OVERLAY_TEXT, PERCEPTION_DETECTIONS,
     WORKSPACE_OBJECTS, WORKSPACE_QUERY,
 };

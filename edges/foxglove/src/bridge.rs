@@ -32,7 +32,7 @@ use robotd_protocol::geometry::RobotModel;
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_recording::camera::FrameMeta;
 use robotd_runtime::bus::{Bus, BusError};
-use robotd_runtime::catalog::{
+use robotd_topics::{
     AGENT_EVENTS, ARM_STATE, CAMERA_FRAMES, HEALTH_RESTARTS, OVERLAY_TEXT, WORKSPACE_OBJECTS,
 };
 use serde_json::json;

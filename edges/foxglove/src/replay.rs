@@ -28,7 +28,7 @@ use crate::topics::{self, JsonPublisher};
 use robotd_recording::camera::{FramePairer, RecordedFrame};
 use robotd_recording::reader::{Messages, ReadError};
 use robotd_runtime::bus::{Bus, BusError, FRAME_CHANNELS, FRAME_HEIGHT, FRAME_WIDTH};
-use robotd_runtime::catalog::CAMERA_FRAMES;
+use robotd_topics::CAMERA_FRAMES;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::{Duration, Instant};

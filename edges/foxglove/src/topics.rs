@@ -9,7 +9,6 @@
 
 use robotd_protocol::envelope::Message;
 use robotd_runtime::bus::{Bus, BusError, Publisher, Subscriber, Topic};
-use robotd_runtime::catalog;
 use schemars::generate::SchemaSettings;
 use schemars::JsonSchema;
 
@@ -112,27 +111,27 @@ fn json_schema<T: JsonSchema>() -> Vec<u8> {
     serde_json::to_vec(&schema).expect("a JSON Schema is JSON")
 }
 
-/// Every message topic of robotd's catalogue (a test holds it to [`catalog::entries`]).
+/// Every message topic of robotd's catalogue (a test holds it to [`robotd_topics::entries`]).
 pub fn all() -> Vec<Box<dyn JsonTopic>> {
     vec![
-        typed(catalog::ARM_STATE),
-        typed(catalog::GRIPPER_STATE),
-        typed(catalog::SAFETY_ESTOP),
-        typed(catalog::PERCEPTION_DETECTIONS),
-        typed(catalog::PERCEPTION_PIXEL_DETECTIONS),
-        typed(catalog::WORKSPACE_OBJECTS),
-        typed(catalog::WORKSPACE_LABELS),
-        typed(catalog::SPEECH_SPEAK),
-        typed(catalog::SPEECH_EVENTS),
-        typed(catalog::OVERLAY_TEXT),
-        typed(catalog::SKILLS_PROGRESS),
-        typed(catalog::SKILLS_CANCEL),
-        typed(catalog::AGENT_REQUEST),
-        typed(catalog::AGENT_EVENTS),
-        typed(catalog::AGENT_CANCEL),
-        typed(catalog::HEALTH_RESTARTS),
-        typed(catalog::STT_TRANSCRIPTS),
-        typed(catalog::STT_STATUS),
+        typed(robotd_topics::ARM_STATE),
+        typed(robotd_topics::GRIPPER_STATE),
+        typed(robotd_topics::SAFETY_ESTOP),
+        typed(robotd_topics::PERCEPTION_DETECTIONS),
+        typed(robotd_topics::PERCEPTION_PIXEL_DETECTIONS),
+        typed(robotd_topics::WORKSPACE_OBJECTS),
+        typed(robotd_topics::WORKSPACE_LABELS),
+        typed(robotd_topics::SPEECH_SPEAK),
+        typed(robotd_topics::SPEECH_EVENTS),
+        typed(robotd_topics::OVERLAY_TEXT),
+        typed(robotd_topics::SKILLS_PROGRESS),
+        typed(robotd_topics::SKILLS_CANCEL),
+        typed(robotd_topics::AGENT_REQUEST),
+        typed(robotd_topics::AGENT_EVENTS),
+        typed(robotd_topics::AGENT_CANCEL),
+        typed(robotd_topics::HEALTH_RESTARTS),
+        typed(robotd_topics::STT_TRANSCRIPTS),
+        typed(robotd_topics::STT_STATUS),
     ]
 }
 
@@ -193,7 +192,7 @@ mod tests {
 
     #[test]
     fn every_message_topic_of_the_catalogue_is_bridged_with_its_type() {
-        let entries = catalog::entries();
+        let entries = robotd_topics::entries();
         for entry in &entries {
             let name = entry.name();
             let bridged = find(name);

@@ -21,7 +21,7 @@ use robotd_protocol::objects::Detections;
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_render::annotate::draw_objects;
 use robotd_runtime::bus::Bus;
-use robotd_runtime::catalog::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
+use robotd_topics::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};

@@ -26,7 +26,7 @@ use robotd_protocol::objects::{DetectedObject, Detections};
 use robotd_protocol::workspace::{WorkspaceInfo, WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
 use robotd_runtime::backoff::Backoff;
 use robotd_runtime::bus::{Bus, BusError, Client, Publisher};
-use robotd_runtime::catalog::{PERCEPTION_DETECTIONS, WORKSPACE_QUERY};
+use robotd_topics::{PERCEPTION_DETECTIONS, WORKSPACE_QUERY};
 use robotd_vision::detector::{DetectError, Detector, FrameView, SheetView};
 use robotd_vision::external::PixelObject;
 use robotd_vision::labels::LabelTable;

@@ -17,7 +17,7 @@ use robotd_protocol::workspace::{
     DetectableLabels, TrackedObjects, WorkspaceQuery, WorkspaceReply, WorkspaceRequest,
 };
 use robotd_runtime::bus::{Bus, BusError};
-use robotd_runtime::catalog::{
+use robotd_topics::{
     OVERLAY_TEXT, PERCEPTION_DETECTIONS, WORKSPACE_LABELS, WORKSPACE_OBJECTS, WORKSPACE_QUERY,
 };
 use std::time::Duration;

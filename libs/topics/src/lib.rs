@@ -1,13 +1,19 @@
-//! The catalogue of robotd's bus topics and services: name, message types, overflow policy.
+//! # robotd-topics: the catalogue of robotd's bus topics and services
+//!
+//! Each topic and service of the robot: its name, message types (from `robotd-protocol`) and
+//! overflow policy. The bus machinery they are declared with (`Topic`, `FrameTopic`,
+//! `Service`, overflow policies, descriptions) is the runtime's, `robotd_runtime::bus`; the
+//! names of this robot are here.
 //!
 //! Every process that joins a robotd bus (robotd itself, an actor in its own process, a test)
 //! declares topics from here, so both ends always agree on names and policies — a mismatch is
-//! refused by iceoryx2 when the port is created.
+//! refused by iceoryx2 when the port is created. `robotd catalog --json` prints [`entries`]
+//! for actors in other languages (`python/robotd/src/robotd/catalog.json`).
 
-use crate::bus::{Description, Entry, FrameTopic, Overflow, Service};
 use robotd_protocol::diagnostics::{
     Ping, Pong, SimWorldReply, SimWorldRequest, TestPatternReply, TestPatternRequest,
 };
+use robotd_runtime::bus::{Description, Entry, FrameTopic, Overflow, Service};
 
 /// robotd's own liveness probe: any process can ping the running service.
 pub const SYSTEM_PING: Service<Ping, Pong> = Service::new("system/ping");
@@ -27,8 +33,8 @@ pub const TEST_PATTERN_FRAMES: FrameTopic =
 /// Supervision events (restarts, safe states, exhausted budgets) of every supervised actor.
 /// Latest wins: a stuck dashboard must never slow down a restart; every event is also a
 /// metric and a log line.
-pub const HEALTH_RESTARTS: crate::bus::Topic<robotd_protocol::health::RestartEvent> =
-    crate::bus::Topic::new("health/restarts", Overflow::latest_wins(16));
+pub const HEALTH_RESTARTS: robotd_runtime::bus::Topic<robotd_protocol::health::RestartEvent> =
+    robotd_runtime::bus::Topic::new("health/restarts", Overflow::latest_wins(16));
 
 /// Commands to the arm actor (motion, queries, stop). Requests are never dropped: a caller
 /// gets the reply or an error. `Stop` and the queries are answered at once, even while a
@@ -38,8 +44,8 @@ pub const ARM_COMMAND: Service<robotd_protocol::arm::ArmCommand, robotd_protocol
 
 /// Joint states and tool pose of the arm, at the control rate while it moves and about once a
 /// second while it rests. Latest wins: a slow reader only ever misses old poses.
-pub const ARM_STATE: crate::bus::Topic<robotd_protocol::arm::ArmState> =
-    crate::bus::Topic::new("arm/state", Overflow::latest_wins(8));
+pub const ARM_STATE: robotd_runtime::bus::Topic<robotd_protocol::arm::ArmState> =
+    robotd_runtime::bus::Topic::new("arm/state", Overflow::latest_wins(8));
 
 /// Commands to the gripper actor.
 pub const GRIPPER_COMMAND: Service<
@@ -48,8 +54,8 @@ pub const GRIPPER_COMMAND: Service<
 > = Service::new("gripper/command");
 
 /// The gripper's state after every command. Latest wins.
-pub const GRIPPER_STATE: crate::bus::Topic<robotd_protocol::gripper::GripperState> =
-    crate::bus::Topic::new("gripper/state", Overflow::latest_wins(8));
+pub const GRIPPER_STATE: robotd_runtime::bus::Topic<robotd_protocol::gripper::GripperState> =
+    robotd_runtime::bus::Topic::new("gripper/state", Overflow::latest_wins(8));
 
 /// The wrist camera's frames (640×480 RGB, zero-copy). Latest wins: a slow consumer gets the
 /// newest frame, never an old one.
@@ -58,8 +64,8 @@ pub const CAMERA_FRAMES: FrameTopic = FrameTopic::new("camera/frames", Overflow:
 /// Engage the emergency stop, from anyone. Back-pressure: an e-stop is never dropped; the
 /// sender gets an error if the arm cannot take it. A message with `engaged: false` releases
 /// nothing (it is ignored and audited): releasing is [`SAFETY_RELEASE`].
-pub const SAFETY_ESTOP: crate::bus::Topic<robotd_protocol::health::EmergencyStop> =
-    crate::bus::Topic::new("safety/estop", Overflow::back_pressure(16));
+pub const SAFETY_ESTOP: robotd_runtime::bus::Topic<robotd_protocol::health::EmergencyStop> =
+    robotd_runtime::bus::Topic::new("safety/estop", Overflow::back_pressure(16));
 
 /// Release the emergency stop: a deliberate request to the safety policy, with
 /// `confirm: "release"` and who releases it; the policy records it with the request's origin
@@ -72,15 +78,16 @@ pub const SAFETY_RELEASE: Service<
 /// Objects found in each processed camera frame (built-in detector, or an external detector
 /// through the Redis edge), in world coordinates, with the frame id they came from. Latest
 /// wins: the workspace model only ever needs the newest view.
-pub const PERCEPTION_DETECTIONS: crate::bus::Topic<robotd_protocol::objects::Detections> =
-    crate::bus::Topic::new("perception/detections", Overflow::latest_wins(16));
+pub const PERCEPTION_DETECTIONS: robotd_runtime::bus::Topic<robotd_protocol::objects::Detections> =
+    robotd_runtime::bus::Topic::new("perception/detections", Overflow::latest_wins(16));
 
 /// Objects a detector outside robotd (a Python actor) found in the pixels of one camera frame;
 /// perception maps them onto the table and publishes them on `perception/detections`. Latest
 /// wins, like the detections themselves; up to 4 MiB (masks as pixel lists).
-pub const PERCEPTION_PIXEL_DETECTIONS: crate::bus::Topic<robotd_protocol::pixels::PixelDetections> =
-    crate::bus::Topic::new("perception/pixel_detections", Overflow::latest_wins(16))
-        .with_max_bytes(4 * 1024 * 1024);
+pub const PERCEPTION_PIXEL_DETECTIONS: robotd_runtime::bus::Topic<
+    robotd_protocol::pixels::PixelDetections,
+> = robotd_runtime::bus::Topic::new("perception/pixel_detections", Overflow::latest_wins(16))
+    .with_max_bytes(4 * 1024 * 1024);
 
 /// Questions to the workspace model (the detection and workspace tools), optionally asking
 /// for a view fresher than a given time.
@@ -90,26 +97,28 @@ pub const WORKSPACE_QUERY: Service<
 > = Service::new("workspace/query");
 
 /// The objects the workspace model remembers, with stable ids, after every applied detection.
-pub const WORKSPACE_OBJECTS: crate::bus::Topic<robotd_protocol::workspace::TrackedObjects> =
-    crate::bus::Topic::new("workspace/objects", Overflow::latest_wins(8));
+pub const WORKSPACE_OBJECTS: robotd_runtime::bus::Topic<
+    robotd_protocol::workspace::TrackedObjects,
+> = robotd_runtime::bus::Topic::new("workspace/objects", Overflow::latest_wins(8));
 
 /// The detectable-label list, at start and on every change.
-pub const WORKSPACE_LABELS: crate::bus::Topic<robotd_protocol::workspace::DetectableLabels> =
-    crate::bus::Topic::new("workspace/labels", Overflow::latest_wins(8));
+pub const WORKSPACE_LABELS: robotd_runtime::bus::Topic<
+    robotd_protocol::workspace::DetectableLabels,
+> = robotd_runtime::bus::Topic::new("workspace/labels", Overflow::latest_wins(8));
 
 /// Texts for the TTS actor to say. Back-pressure: a request is never silently lost (the
 /// actor's own queue decides what to drop, and says so on `speech/events`); sending returns at
 /// once.
-pub const SPEECH_SPEAK: crate::bus::Topic<robotd_protocol::speech::SpeakRequest> =
-    crate::bus::Topic::new("speech/speak", Overflow::back_pressure(16));
+pub const SPEECH_SPEAK: robotd_runtime::bus::Topic<robotd_protocol::speech::SpeakRequest> =
+    robotd_runtime::bus::Topic::new("speech/speak", Overflow::back_pressure(16));
 
 /// What happened to each text: started, finished, dropped (and why).
-pub const SPEECH_EVENTS: crate::bus::Topic<robotd_protocol::speech::SpeechEvent> =
-    crate::bus::Topic::new("speech/events", Overflow::latest_wins(16));
+pub const SPEECH_EVENTS: robotd_runtime::bus::Topic<robotd_protocol::speech::SpeechEvent> =
+    robotd_runtime::bus::Topic::new("speech/events", Overflow::latest_wins(16));
 
 /// Texts to show over the video (robot speech, the user's task, system messages).
-pub const OVERLAY_TEXT: crate::bus::Topic<robotd_protocol::speech::TextOverlay> =
-    crate::bus::Topic::new("overlay/text", Overflow::latest_wins(32));
+pub const OVERLAY_TEXT: robotd_runtime::bus::Topic<robotd_protocol::speech::TextOverlay> =
+    robotd_runtime::bus::Topic::new("overlay/text", Overflow::latest_wins(32));
 
 /// Pick, place, push and the other robot-control skills. One skill runs at a time; a request
 /// that arrives while one runs waits its turn.
@@ -119,28 +128,29 @@ pub const SKILLS_RUN: Service<
 > = Service::new("skills/run");
 
 /// Progress of the running skill (step n of total). Latest wins.
-pub const SKILLS_PROGRESS: crate::bus::Topic<robotd_protocol::skills::SkillProgress> =
-    crate::bus::Topic::new("skills/progress", Overflow::latest_wins(32));
+pub const SKILLS_PROGRESS: robotd_runtime::bus::Topic<robotd_protocol::skills::SkillProgress> =
+    robotd_runtime::bus::Topic::new("skills/progress", Overflow::latest_wins(32));
 
 /// Cancel a running skill: the arm stops at once. Back-pressure: a cancel is never dropped.
-pub const SKILLS_CANCEL: crate::bus::Topic<robotd_protocol::skills::SkillCancel> =
-    crate::bus::Topic::new("skills/cancel", Overflow::back_pressure(16));
+pub const SKILLS_CANCEL: robotd_runtime::bus::Topic<robotd_protocol::skills::SkillCancel> =
+    robotd_runtime::bus::Topic::new("skills/cancel", Overflow::back_pressure(16));
 
 /// Requests to the LLM agent (`robotd chat`, a dashboard). Back-pressure: a request is never
 /// dropped.
-pub const AGENT_REQUEST: crate::bus::Topic<robotd_protocol::agent::AgentRequest> =
-    crate::bus::Topic::new("agent/request", Overflow::back_pressure(16));
+pub const AGENT_REQUEST: robotd_runtime::bus::Topic<robotd_protocol::agent::AgentRequest> =
+    robotd_runtime::bus::Topic::new("agent/request", Overflow::back_pressure(16));
 
 /// The agent's plan, tool calls, results, the pictures it looked at and its answer per
 /// request. Back-pressure: a reader never misses a tool call or the answer. Up to 256 KiB: a
 /// picture event carries a JPEG of up to 160 KiB as base64.
-pub const AGENT_EVENTS: crate::bus::Topic<robotd_protocol::agent::AgentEvent> =
-    crate::bus::Topic::new("agent/events", Overflow::back_pressure(16)).with_max_bytes(256 * 1024);
+pub const AGENT_EVENTS: robotd_runtime::bus::Topic<robotd_protocol::agent::AgentEvent> =
+    robotd_runtime::bus::Topic::new("agent/events", Overflow::back_pressure(16))
+        .with_max_bytes(256 * 1024);
 
 /// Cancel an agent request (the running motion stops safely). Back-pressure: a cancel is never
 /// dropped.
-pub const AGENT_CANCEL: crate::bus::Topic<robotd_protocol::agent::AgentCancel> =
-    crate::bus::Topic::new("agent/cancel", Overflow::back_pressure(16));
+pub const AGENT_CANCEL: robotd_runtime::bus::Topic<robotd_protocol::agent::AgentCancel> =
+    robotd_runtime::bus::Topic::new("agent/cancel", Overflow::back_pressure(16));
 
 /// Speech to text (the STT actor, a Python actor on the bus: `python -m robotd.stt`): audio
 /// in (16 kHz mono 16-bit PCM, or a WAV/WebM/Ogg file's bytes, at most
@@ -153,16 +163,16 @@ pub const STT_TRANSCRIBE: Service<
 
 /// Every transcript the STT actor made, as it makes it: what the robot heard, for the
 /// dashboard, the agent and recordings. Latest wins: a slow reader never holds up listening.
-pub const STT_TRANSCRIPTS: crate::bus::Topic<robotd_protocol::stt::Transcript> =
-    crate::bus::Topic::new("stt/transcripts", Overflow::latest_wins(16));
+pub const STT_TRANSCRIPTS: robotd_runtime::bus::Topic<robotd_protocol::stt::Transcript> =
+    robotd_runtime::bus::Topic::new("stt/transcripts", Overflow::latest_wins(16));
 
 /// How the STT actor is doing: its model, what it has transcribed, its last error (published
 /// when the model is loaded and after every request; `/health` and `/metrics` read it).
-pub const STT_STATUS: crate::bus::Topic<robotd_protocol::stt::SttStatus> =
-    crate::bus::Topic::new("stt/status", Overflow::latest_wins(4));
+pub const STT_STATUS: robotd_runtime::bus::Topic<robotd_protocol::stt::SttStatus> =
+    robotd_runtime::bus::Topic::new("stt/status", Overflow::latest_wins(4));
 
 /// Every entry above, in order: what `robotd catalog` prints and what an actor in another
-/// language declares (see [`crate::bus::describe`]).
+/// language declares (see [`robotd_runtime::bus::describe`]).
 pub fn entries() -> Vec<Entry> {
     vec![
         SYSTEM_PING.describe(),
@@ -199,7 +209,7 @@ pub fn entries() -> Vec<Entry> {
 
 /// The catalogue with the bus's shared settings.
 pub fn description() -> Description {
-    crate::bus::describe(entries())
+    robotd_runtime::bus::describe(entries())
 }
 
 #[cfg(test)]
@@ -208,7 +218,7 @@ mod tests {
 
     #[test]
     fn every_constant_of_the_catalogue_is_listed_once() {
-        let source = include_str!("catalog.rs");
+        let source = include_str!("lib.rs");
         let constants = source
             .lines()
             .filter(|line| line.starts_with("pub const "))
