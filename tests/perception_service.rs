@@ -96,10 +96,16 @@ fn the_served_workspace_model_knows_the_default_scene_from_pixels() {
         );
         assert!(pencil.timestamp_unix_s * 1e9 > asked as f64);
 
-        // The same objects keep their ids from frame to frame.
-        tokio::time::sleep(Duration::from_millis(500)).await;
+        // The same objects keep their ids from frame to frame: a view taken after this one.
         let again = workspace
-            .request(&WorkspaceQuery::now(all()), Duration::from_secs(5))
+            .request(
+                &WorkspaceQuery {
+                    request: all(),
+                    fresh_after_unix_ns: Some((pencil.timestamp_unix_s * 1e9) as u64 + 1),
+                    max_wait_ms: 3000,
+                },
+                Duration::from_secs(5),
+            )
             .await
             .unwrap();
         let WorkspaceReply::Objects { objects: later } = again else {
@@ -112,6 +118,11 @@ fn the_served_workspace_model_knows_the_default_scene_from_pixels() {
             ids
         };
         assert_eq!(ids(&objects), ids(&later));
+        let seen_again = later.iter().find(|o| o.label == "pencil").unwrap();
+        assert!(
+            seen_again.timestamp_unix_s > pencil.timestamp_unix_s,
+            "not a later view: {seen_again:?}"
+        );
 
         // /health says the camera sees the workspace from its observation pose.
         let (code, body) = common::http_get(port, "/health");
