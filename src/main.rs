@@ -489,6 +489,7 @@ fn run() -> Result<std::process::ExitCode> {
                 replay: (config.robot.driver == robotd_config::RobotDriver::Replay)
                     .then(|| config.robot.replay.clone()),
                 stt: doctor::stt_command(&config),
+                robot: Some(config.robot.clone()),
             })?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&report.to_json())?);

@@ -164,3 +164,53 @@ fn a_step_that_is_not_built_says_so_and_nothing_starts() {
     assert_eq!(output.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("not built yet"), "{stderr}");
 }
+
+#[test]
+fn commissioning_a_widowx_finds_its_camera_mount() {
+    let namespace = common::fresh_namespace("commission-widowx");
+    let dir = tempfile::tempdir().unwrap();
+    let device = dir.path().join("ttyDXL");
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/config/widowx.toml");
+    let (_fake, camera_url) = common::start_fake_widowx(
+        &[
+            "--namespace",
+            &format!("{namespace}-fake"),
+            "--config",
+            config,
+            "--set",
+            "robot.time_scale=0.2",
+        ],
+        &device,
+        &["--mount-offset", OFFSET],
+    );
+    let device = format!("robot.widowx.device={}", device.display());
+    let camera_url = format!("robot.widowx.camera_url={camera_url}");
+    let (code, report) = commission(
+        &[
+            "--namespace",
+            namespace.as_str(),
+            "--config",
+            config,
+            "--set",
+            device.as_str(),
+            "--set",
+            camera_url.as_str(),
+            "--set",
+            "robot.time_scale=0.2",
+        ],
+        &["--only", "camera"],
+    );
+    let camera = step(&report, "camera");
+    assert_eq!(code, Some(0), "{report:#}");
+    let (mm, deg) = error_of(camera, &true_mount(RobotModel::WidowX250));
+    eprintln!("WidowX mount error {mm:.2} mm {deg:.3}°: {camera:#}");
+    assert!(
+        mm < 2.0 && deg < 0.5,
+        "{mm:.2} mm {deg:.3}° off: {camera:#}"
+    );
+    assert_eq!(
+        camera["measured"]["images_rectified"],
+        Value::Null,
+        "{camera:#}"
+    );
+}

@@ -2,8 +2,8 @@
 //! the camera sits on the arm (hand-eye calibration) and how high the table is.
 //!
 //! The arm visits up to 10 views of the workspace sheet: its observation pose, then that
-//! pose's joints turned by small steps of the base (±0.1 rad), forearm (±0.25), wrist (±0.15)
-//! and tool (±0.35) joints — only the combinations in which the camera, where robotd believes
+//! pose's joints turned by small steps (each joint by −1, 0 or +1 step: base ±0.15 rad,
+//! shoulder and elbow ±0.12, forearm and wrist ±0.3, tool ±0.4) — only the combinations in which the camera, where robotd believes
 //! it is, sees all four markers well inside the picture, picked so that their viewing
 //! directions differ most. Each view is a motion like any other (the motion policy admits it,
 //! the fence and the speed cap apply, the e-stop stops it); a view the policy refuses or that
@@ -30,6 +30,7 @@ use robotd_protocol::location::WorkspacePoint;
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_vision::detector::{ColourDetector, ColourDetectorSettings, FrameView};
 use robotd_vision::labels::LabelTable;
+use robotd_vision::markers::MarkerObservation;
 use robotd_vision::Pipeline;
 use serde::Serialize;
 use std::time::Duration;
@@ -59,7 +60,10 @@ pub struct CameraReport {
     pub mount_change_mm: f64,
     /// How far it is turned from the configured one, degrees.
     pub mount_change_deg: f64,
-    /// Measured table height (the sheet's surface), metres, base frame.
+    /// The table's height (the sheet's surface), metres, base frame, fitted together with the
+    /// mount as a check: robotd's model puts it at 0, and the mount is fitted with it there
+    /// (see `handeye`); a few millimetres off means the robot stands lower or higher than
+    /// the table.
     pub table_z_m: f64,
     /// RMS of the markers' disagreement, mm.
     pub residual_mm_rms: f64,
@@ -81,8 +85,12 @@ const PLAN_MARGIN_PX: f64 = 45.0;
 /// Most views visited.
 pub const MAX_VIEWS: usize = 10;
 
-/// The views to visit, as joints: the observation pose's joints turned by small steps of the
-/// base, forearm, wrist and tool joints, kept when the believed camera would see all four
+/// The step each joint is turned by from the observation pose, radians, base to tool: the
+/// shoulder and elbow move the camera, the wrist tilts it back towards the sheet.
+const JOINT_STEPS_RAD: [f64; 6] = [0.15, 0.12, 0.12, 0.3, 0.3, 0.4];
+
+/// The views to visit, as joints: the observation pose's joints each turned by -1, 0 or +1
+/// of [`JOINT_STEPS_RAD`], kept when the believed camera would see all four
 /// markers well inside the picture, then picked greedily so that their viewing directions
 /// differ most (the first is the observation pose itself).
 pub fn plan_views(
@@ -93,36 +101,30 @@ pub fn plan_views(
     pin: &Pinhole,
     size: (u32, u32),
 ) -> Vec<Vec<f64>> {
-    let steps = [-1.0, 0.0, 1.0];
     let mut candidates: Vec<(Vec<f64>, Isometry3<f64>)> = Vec::new();
-    for a in steps {
-        for b in steps {
-            for c in steps {
-                for d in steps {
-                    let mut q = observation.to_vec();
-                    q[0] += 0.10 * a;
-                    q[3] += 0.25 * b;
-                    q[4] += 0.15 * c;
-                    q[5] += 0.35 * d;
-                    if kinematics.check_joints(&q).is_err() {
-                        continue;
-                    }
-                    let Some(camera) = kinematics.camera_pose(&q) else {
-                        continue;
-                    };
-                    let inside = markers.iter().all(|m| {
-                        let p = camera
-                            .inverse_transform_point(&nalgebra::Point3::new(m[0], m[1], table_z_m));
-                        let (u, v) = (pin.fx * p.x / p.z + pin.cx, pin.fy * p.y / p.z + pin.cy);
-                        p.z > 0.05
-                            && (PLAN_MARGIN_PX..=size.0 as f64 - PLAN_MARGIN_PX).contains(&u)
-                            && (PLAN_MARGIN_PX..=size.1 as f64 - PLAN_MARGIN_PX).contains(&v)
-                    });
-                    if inside {
-                        candidates.push((q, camera));
-                    }
-                }
-            }
+    // Every joint by -1, 0 or +1 step: 729 postures, each a forward kinematics away.
+    for code in 0..3usize.pow(JOINT_STEPS_RAD.len() as u32) {
+        let mut q = observation.to_vec();
+        let mut rest = code;
+        for (joint, step) in JOINT_STEPS_RAD.iter().enumerate() {
+            q[joint] += step * ((rest % 3) as f64 - 1.0);
+            rest /= 3;
+        }
+        if kinematics.check_joints(&q).is_err() {
+            continue;
+        }
+        let Some(camera) = kinematics.camera_pose(&q) else {
+            continue;
+        };
+        let inside = markers.iter().all(|m| {
+            let p = camera.inverse_transform_point(&nalgebra::Point3::new(m[0], m[1], table_z_m));
+            let (u, v) = (pin.fx * p.x / p.z + pin.cx, pin.fy * p.y / p.z + pin.cy);
+            p.z > 0.05
+                && (PLAN_MARGIN_PX..=size.0 as f64 - PLAN_MARGIN_PX).contains(&u)
+                && (PLAN_MARGIN_PX..=size.1 as f64 - PLAN_MARGIN_PX).contains(&v)
+        });
+        if inside {
+            candidates.push((q, camera));
         }
     }
     // The observation pose first, then each time the candidate whose camera differs most
@@ -187,6 +189,53 @@ struct RawView {
     markers: Vec<([f64; 2], [f64; 2])>,
 }
 
+/// Two frames in a row must put every marker within this many pixels of each other for a
+/// view to count: a frame from while the arm still moved (a camera's latency is an estimate)
+/// does not.
+const STEADY_PX: f64 = 0.35;
+
+/// The four markers of the sheet in a steady picture, with the joints the arm rests at;
+/// `Ok(Err(reason))` when the picture shows no sheet or does not settle.
+async fn steady_markers(
+    session: &mut Session,
+    pipeline: &mut Pipeline,
+    workspace: &WorkspaceInfo,
+) -> Result<Result<(Vec<f64>, [MarkerObservation; 4]), String>> {
+    let mut previous: Option<[MarkerObservation; 4]> = None;
+    for _ in 0..8 {
+        let frame = session.still_frame(Duration::from_secs(10)).await?;
+        let view = FrameView {
+            rgb: &frame.rgb,
+            width: frame.width as usize,
+            height: frame.height as usize,
+            frame_id: frame.frame_id,
+            timestamp_unix_ns: 0,
+        };
+        let markers = pipeline.find_markers(&view);
+        let four = match pipeline.plane_from_markers(&view, &markers, workspace) {
+            Ok((_, four)) => four,
+            Err(status) => return Ok(Err(status.to_string())),
+        };
+        if let Some(before) = previous {
+            let moved = before
+                .iter()
+                .zip(&four)
+                .map(|(a, b)| {
+                    (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1])
+                })
+                .fold(0.0, f64::max);
+            if moved < STEADY_PX {
+                return Ok(Ok((frame.joints, four)));
+            }
+        }
+        previous = Some(four);
+    }
+    Ok(Err(
+        "the picture did not settle: 8 frames in a row moved by more than a third of a pixel"
+            .into(),
+    ))
+}
+
 /// Runs the step on `session`. Leaves the arm at the workspace's observation pose.
 pub async fn run(
     session: &mut Session,
@@ -242,23 +291,14 @@ pub async fn run(
             skipped.push(format!("view {i} at joints {target:.3?}: {reason}"));
             continue;
         }
-        let frame = session.still_frame(Duration::from_secs(10)).await?;
-        let view = FrameView {
-            rgb: &frame.rgb,
-            width: frame.width as usize,
-            height: frame.height as usize,
-            frame_id: frame.frame_id,
-            timestamp_unix_ns: 0,
-        };
-        let markers = pipeline.find_markers(&view);
-        let four = match pipeline.plane_from_markers(&view, &markers, &workspace) {
-            Ok((_, four)) => four,
-            Err(status) => {
-                skipped.push(format!("view {i}: {status}"));
+        let (joints, four) = match steady_markers(session, &mut pipeline, &workspace).await? {
+            Ok(found) => found,
+            Err(reason) => {
+                skipped.push(format!("view {i}: {reason}"));
                 continue;
             }
         };
-        let Some(parent) = kinematics.camera_parent_pose(&frame.joints) else {
+        let Some(parent) = kinematics.camera_parent_pose(&joints) else {
             skipped.push(format!(
                 "view {i}: the arm reports joints outside its limits"
             ));
@@ -309,13 +349,14 @@ pub async fn run(
         })
         .collect();
     let has_lens = lens.distortion.iter().any(|k| *k != 0.0);
-    let raw = handeye::solve(&pin, &as_raw, &believed.transform, 0.0);
+    let raw = handeye::solve(&pin, &as_raw, &believed.transform, 0.0, false);
     let rectified = if has_lens {
         Some(handeye::solve(
             &pin,
             &as_rectified,
             &believed.transform,
             0.0,
+            false,
         ))
     } else {
         None
@@ -338,6 +379,15 @@ pub async fn run(
     let measured = CameraMount {
         transform: chosen.mount,
     };
+    // The table's height, fitted with the mount free too: a check of robotd's table at z = 0.
+    let views_chosen = if images_rectified == Some(true) {
+        &as_rectified
+    } else {
+        &as_raw
+    };
+    let table_z_m = handeye::solve(&pin, views_chosen, &chosen.mount, 0.0, true)
+        .map(|s| s.table_z_m)
+        .unwrap_or(f64::NAN);
     let (change_m, change_deg) = believed.difference(&measured);
     Ok(CameraReport {
         workspace: workspace.id,
@@ -348,7 +398,7 @@ pub async fn run(
         configured_mount: believed.to_xyz_rpy_deg(),
         mount_change_mm: change_m * 1000.0,
         mount_change_deg: change_deg,
-        table_z_m: chosen.table_z_m,
+        table_z_m,
         residual_mm_rms: chosen.residual_mm_rms,
         residual_mm_max: chosen.residual_mm_max,
         images_rectified: if model == RobotModel::Ned2 {

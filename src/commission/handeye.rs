@@ -6,16 +6,21 @@
 //! `u_ij` where its centre appears. The markers lie on the table at the configured corners of
 //! the workspace, at the unknown table height `h`. With the mount `X` (link → optical frame)
 //! the camera is at `C_i = P_i · X`, and a marker should appear at `π(C_i⁻¹ · (x_j, y_j, h))`
-//! for the pinhole projection `π`. [`solve`] finds the `X` and `h` that make the predicted
-//! pixels closest to the measured ones (least squares, Levenberg–Marquardt on 7 unknowns:
-//! a small motion of the camera in its own frame and `h`), starting from the believed mount.
+//! for the pinhole projection `π`. [`solve`] finds the `X` (and `h`) that make the predicted
+//! pixels closest to the measured ones (least squares, Levenberg–Marquardt on 6 or 7
+//! unknowns: a small motion of the camera in its own frame, and `h`), starting from the
+//! believed mount.
 //!
 //! The leftover disagreement is reported in **millimetres on the table** (a pixel's size where
 //! the marker is): a good calibration leaves a fraction of a millimetre; several millimetres
 //! mean the views disagree (the sheet moved, the arm does not stand where it says, a marker
 //! was mistaken), and the caller refuses the result. Only views whose viewing directions
 //! differ (tilted about the sheet) separate the camera's height on its link from the table's:
-//! the planner in `camera.rs` turns the wrist and the base between views.
+//! the planner in `camera.rs` turns the wrist and the base between views. With the few degrees
+//! of tilt that keep a sheet in view, that separation is weak: a millimetre of noise in the
+//! arm's joints (a servo's tick is 1.5 mrad) moves the two together by millimetres. So the
+//! camera step fits the mount with the table where robotd's model puts it (z = 0, where the
+//! workspaces are defined) and fits the table height separately, as a check.
 
 use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
@@ -118,13 +123,15 @@ fn residuals(pin: &Pinhole, views: &[View], mount: &Isometry3<f64>, h: f64) -> O
     Some(out)
 }
 
-/// The mount and table height that best explain `views`, from `start` (the believed mount)
-/// and `table_z_m` (the believed table height).
+/// The mount (and with `fit_table` the table height) that best explain `views`, from `start`
+/// (the believed mount) and `table_z_m` (the believed table height, kept without
+/// `fit_table`).
 pub fn solve(
     pin: &Pinhole,
     views: &[View],
     start: &Isometry3<f64>,
     table_z_m: f64,
+    fit_table: bool,
 ) -> Result<Solution, SolveError> {
     if views.len() < MIN_VIEWS {
         return Err(SolveError::TooFewViews(views.len()));
@@ -138,8 +145,9 @@ pub fn solve(
     for _ in 0..200 {
         // Numerical Jacobian: 6 camera motions and the table height.
         let n = r.len();
-        let mut jac = DMatrix::<f64>::zeros(n, 7);
-        for k in 0..7 {
+        let unknowns = if fit_table { 7 } else { 6 };
+        let mut jac = DMatrix::<f64>::zeros(n, unknowns);
+        for k in 0..unknowns {
             let eps = 1e-6;
             let (m2, h2) = if k < 6 {
                 let mut d = [0.0; 6];
@@ -161,7 +169,7 @@ pub fn solve(
         let mut improved = false;
         for _ in 0..10 {
             let mut a = jtj.clone();
-            for k in 0..7 {
+            for k in 0..unknowns {
                 a[(k, k)] += lambda * (1.0 + jtj[(k, k)]);
             }
             let Some(step) = a.lu().solve(&(-&jtr)) else {
@@ -169,7 +177,7 @@ pub fn solve(
                 continue;
             };
             let m2 = perturb(&mount, &step.as_slice()[..6]);
-            let h2 = h + step[6];
+            let h2 = if fit_table { h + step[6] } else { h };
             if let Some(r2) = residuals(pin, views, &m2, h2) {
                 if cost(&r2) < before {
                     mount = m2;
@@ -288,7 +296,7 @@ mod tests {
             UnitQuaternion::from_euler_angles(0.0, 3f64.to_radians(), 0.01),
         );
         let truth = believed * offset;
-        let found = solve(&PIN, &views(&truth, 0.002, 0.2), &believed, 0.0).unwrap();
+        let found = solve(&PIN, &views(&truth, 0.002, 0.2), &believed, 0.0, true).unwrap();
         let delta = truth.inverse() * found.mount;
         assert!(delta.translation.vector.norm() < 0.001, "{delta:?}");
         assert!(delta.rotation.angle().to_degrees() < 0.2, "{delta:?}");
@@ -308,9 +316,9 @@ mod tests {
         for (table, _) in &mut views[2].markers {
             table[0] += 0.01;
         }
-        let found = solve(&PIN, &views, &truth, 0.0).unwrap();
+        let found = solve(&PIN, &views, &truth, 0.0, true).unwrap();
         assert!(found.residual_mm_max > 3.0, "{found:?}");
-        let too_few = solve(&PIN, &views[..2], &truth, 0.0).unwrap_err();
+        let too_few = solve(&PIN, &views[..2], &truth, 0.0, true).unwrap_err();
         assert!(too_few.to_string().contains("at least"), "{too_few}");
     }
 }

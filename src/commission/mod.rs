@@ -206,7 +206,7 @@ async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
     if wanted("camera") {
         let result = if operator_agrees(
             args,
-            "camera: the arm visits 10 views of the workspace sheet around its observation \
+            "camera: the arm visits up to 10 views of the workspace sheet around its observation \
              pose, slowly, and ends at the observation pose",
         )? {
             camera::run(&mut session, config, args.workspace.as_deref()).await

@@ -22,6 +22,11 @@ use robotd_runtime::bus::{Bus, BusOptions, FrameSubscriber, Subscriber};
 use robotd_topics::{ARM_COMMAND, ARM_STATE, CAMERA_FRAMES};
 use std::time::{Duration, Instant};
 
+/// A frame counts as still when taken this long after the arm came to rest, ns: a camera
+/// stamps its frames with an estimate of their capture time (an MJPEG stream's latency is a
+/// configured guess), and an arm rings a little after it arrives.
+const SETTLE_NS: u64 = 300_000_000;
+
 /// One still camera frame and the joints it was taken at.
 pub struct StillFrame {
     /// RGB8 pixels, `width × height × 3`.
@@ -162,7 +167,7 @@ impl Session {
                 None => state,
             };
             let rest = state.still_since_unix_ns;
-            if state.moving || rest == 0 || header.timestamp_unix_ns < rest {
+            if state.moving || rest == 0 || header.timestamp_unix_ns < rest + SETTLE_NS {
                 continue;
             }
             return Ok(StillFrame {

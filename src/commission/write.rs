@@ -1,8 +1,9 @@
 //! The report of `robotd commission` for people, and the config file of measured values it
 //! writes with `--write FILE`.
 //!
-//! The file holds only what was measured — `[robot.camera.mount]`, and for a Ned2
-//! `[robot.niryo] images_rectified` — with a comment saying when and how well. Use it as the
+//! The file holds only what was measured — `[robot.camera.mount]` (with `measured_for`, the
+//! fingerprint of the robot it was measured on, which `robotd doctor` compares), and for a
+//! Ned2 `[robot.niryo] images_rectified` — with a comment saying how well. Use it as the
 //! config (`--config FILE`) or copy its tables into yours; commissioning never edits a file
 //! that exists.
 
@@ -55,12 +56,13 @@ pub fn write_config(path: &Path, config: &Config, camera: Option<&CameraReport>)
                 "\n# Hand-eye calibration on the sheet '{}': {} views, markers within {:.2} mm \
                  (rms {:.2} mm); table at z = {:.4} m.\n[robot.camera.mount]\nx_m = {x:.5}\n\
                  y_m = {y:.5}\nz_m = {z:.5}\nroll_deg = {roll:.3}\npitch_deg = {pitch:.3}\n\
-                 yaw_deg = {yaw:.3}\n",
+                 yaw_deg = {yaw:.3}\nmeasured_for = \"{}\"\n",
                 camera.workspace,
                 camera.views_used,
                 camera.residual_mm_max,
                 camera.residual_mm_rms,
                 camera.table_z_m,
+                config.robot.commissioning_fingerprint(),
             );
             if let Some(rectified) = camera.images_rectified {
                 let _ = write!(
@@ -75,7 +77,6 @@ pub fn write_config(path: &Path, config: &Config, camera: Option<&CameraReport>)
         }
         None => text.push_str("\n# The camera step did not run or failed: nothing measured.\n"),
     }
-    let _ = config;
     let mut file = std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)

@@ -50,6 +50,7 @@
 //! | [`camera`] | `camera` | with a V4L2 camera configured: the device opens and gives the intrinsics' size in MJPG or YUYV |
 //! | [`widowx`] | `widowx` | with the widowx driver: the serial port opens, the nine servos answer with the right models, no latched hardware error |
 //! | [`stt`] | `stt` | with `[actors.stt]`: the speech-to-text model is there and loads (the actor's own `--check`, through the configured Python) |
+//! | [`commissioning`] | `commissioning` | with the niryo or widowx driver: `robotd commission` measured the camera mount on this robot (missing, or stale when the robot changed since) |
 //! | [`replay`] | `replay` | with the replay driver: the recording opens and can be played (frames, arm states, robot model); what it holds |
 //! | [`secrets`] | — | `secrets.env`, shared by `redis` and `llm-keys` |
 //! | [`report`] | — | rows, the table and the JSON |
@@ -68,6 +69,7 @@
 //!     replay: None,
 //!     disk_places: Vec::new(),
 //!     stt: None,
+//!     robot: None,
 //! };
 //! let report = run(&opts)?;
 //! print!("{}", report.render_table());
@@ -78,6 +80,7 @@
 mod audio;
 mod bus;
 mod camera;
+mod commissioning;
 mod disk;
 mod espeak;
 mod health;
@@ -138,6 +141,8 @@ pub struct DoctorOptions {
     pub disk_places: Vec<(&'static str, PathBuf)>,
     /// `[actors.stt] command` when the STT actor runs as a process ([`stt_command`]).
     pub stt: Option<Vec<String>>,
+    /// `[robot]`, for the `commissioning` row (`None`: not checked).
+    pub robot: Option<robotd_driver::RobotConfig>,
 }
 
 /// Runs every check and returns the report. Takes a few seconds at most, whatever the network
@@ -160,6 +165,10 @@ pub fn run(opts: &DoctorOptions) -> Result<DoctorReport> {
         replay::check_replay(opts.replay.as_ref()),
         stt::check_stt(opts.stt.as_deref(), stt::LOAD_TIMEOUT),
     ];
+    let mut checks = checks;
+    if let Some(robot) = &opts.robot {
+        checks.push(commissioning::check_commissioning(robot));
+    }
     Ok(DoctorReport { checks })
 }
 
@@ -191,6 +200,7 @@ mod tests {
             replay: None,
             disk_places: vec![("log", std::env::temp_dir())],
             stt: None,
+            robot: None,
         };
         let start = Instant::now();
         let report = run(&opts).expect("doctor runs");

@@ -110,6 +110,27 @@ impl RobotConfig {
         self.workspaces().iter().map(|w| w.to_info(model)).collect()
     }
 
+    /// What identifies the physical robot a commissioning measured: the model, the driver and
+    /// where it is reached (host and port, servo device, camera source), as 16 hex digits
+    /// (FNV-1a). Written with the measured mount; `robotd doctor` compares it.
+    pub fn commissioning_fingerprint(&self) -> String {
+        let identity = format!(
+            "{:?}|{:?}|{:?}|{}|{}|{:?}",
+            self.model(),
+            self.driver,
+            self.host,
+            self.port,
+            self.widowx.device.display(),
+            self.widowx.camera_url,
+        );
+        let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+        for byte in identity.bytes() {
+            hash ^= u64::from(byte);
+            hash = hash.wrapping_mul(0x0100_0000_01b3);
+        }
+        format!("{hash:016x}")
+    }
+
     /// Where the wrist camera sits: `[robot.camera.mount]`, else the model's nominal mount.
     /// A mount the config checks refuse is an error naming the value.
     pub fn camera_mount(
@@ -151,7 +172,7 @@ pub struct CameraConfig {
 /// wrist, the WidowX's tool centre point) to the camera's optical frame (z = viewing
 /// direction, x = image right, y = image down). Translation in metres in the link's axes,
 /// rotation as roll, pitch, yaw in degrees (R = Rz(yaw)·Ry(pitch)·Rx(roll)).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraMountConfig {
     /// Translation along the link's x axis, metres.
@@ -166,11 +187,15 @@ pub struct CameraMountConfig {
     pub pitch_deg: f64,
     /// Rotation about z, degrees.
     pub yaw_deg: f64,
+    /// Written by `robotd commission`: the [`RobotConfig::commissioning_fingerprint`] of the
+    /// robot it was measured on, so that `robotd doctor` can tell when the robot changed since.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measured_for: Option<String>,
 }
 
 impl CameraMountConfig {
     /// `[x_m, y_m, z_m, roll_deg, pitch_deg, yaw_deg]`.
-    pub fn to_array(self) -> [f64; 6] {
+    pub fn to_array(&self) -> [f64; 6] {
         [
             self.x_m,
             self.y_m,
@@ -190,6 +215,7 @@ impl CameraMountConfig {
             roll_deg,
             pitch_deg,
             yaw_deg,
+            measured_for: None,
         }
     }
 
