@@ -69,13 +69,16 @@ fn a_killed_actor_process_is_restarted_and_its_in_flight_request_fails() {
         signal(first_pid, "-STOP");
         let in_flight = {
             let started = Instant::now();
-            let killer = tokio::spawn(async move {
-                tokio::time::sleep(Duration::from_millis(200)).await;
-                signal(first_pid, "-KILL");
-            });
-            let outcome = camera.request(&request, Duration::from_secs(10)).await;
-            killer.await.unwrap();
-            (outcome, started.elapsed())
+            let outcome = camera.request(&request, Duration::from_secs(10));
+            tokio::pin!(outcome);
+            // Its first poll sends the request (the frozen actor cannot answer it); the kill
+            // comes once it is sent, not after a guessed while.
+            tokio::select! {
+                biased;
+                early = &mut outcome => panic!("answered by a frozen actor: {early:?}"),
+                () = std::future::ready(()) => signal(first_pid, "-KILL"),
+            }
+            (outcome.await, started.elapsed())
         };
         match in_flight {
             (Err(BusError::ServerLost { .. }), took) => {
