@@ -48,7 +48,7 @@ pub const GRID: usize = 100;
 const PROBE_YAWS: usize = 12;
 
 /// Free rectangles [`placeable_free_space`] checks, largest first, before it gives up.
-const MAX_CHECKED: usize = 400;
+const MAX_CHECKED: usize = 4000;
 
 /// A free rectangle of the grid.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -183,10 +183,14 @@ pub fn largest_free_space(
 /// The largest free rectangle of `workspace` whose centre takes a place (module docs): the
 /// objects' footprints grown by `margin_m` and the corner markers' keep-out squares are
 /// occupied, and the centre passes the skills' placement check (`skills`' sizes) for any
-/// object that fits the rectangle. `None` when no free rectangle does.
+/// object that fits the rectangle. Of those, the largest that also takes each of `known`
+/// (the objects memory holds: on the table or in the gripper) whose footprint is no larger
+/// than the rectangle's area, as it lies, wins: a long pencil is not sent to a square it
+/// does not fit. `None` when no free rectangle takes a place.
 pub fn placeable_free_space(
     workspace: &WorkspaceInfo,
     objects: &[DetectedObject],
+    known: &[DetectedObject],
     margin_m: f64,
     skills: &SkillsSettings,
 ) -> Option<FreeRect> {
@@ -209,11 +213,46 @@ pub fn placeable_free_space(
     // Largest first; of equally large ones the first found (a stable sort).
     candidates.sort_by_key(|c| std::cmp::Reverse(c.0));
     candidates.dedup();
-    candidates
+    let mut placeable = candidates
         .into_iter()
         .take(MAX_CHECKED)
         .map(|c| grid.rect(c))
-        .find(|rect| takes_any_place(rect, objects, skills))
+        .filter(|rect| takes_any_place(rect, objects, skills));
+    let first = placeable.next()?;
+    if takes_known(&first, objects, known, skills) {
+        return Some(first);
+    }
+    Some(
+        placeable
+            .find(|rect| takes_known(rect, objects, known, skills))
+            .unwrap_or(first),
+    )
+}
+
+/// Whether the skills would put each of `known` no larger than `rect` down at its centre, as
+/// it lies (at either grasp yaw), among `objects` without itself.
+fn takes_known(
+    rect: &FreeRect,
+    objects: &[DetectedObject],
+    known: &[DetectedObject],
+    skills: &SkillsSettings,
+) -> bool {
+    known
+        .iter()
+        .filter(|o| o.dimensions.width_m * o.dimensions.height_m <= rect.area_m2)
+        .all(|o| {
+            let others: Vec<DetectedObject> =
+                objects.iter().filter(|p| p.id != o.id).cloned().collect();
+            // The grasp yaws the skills take: across the narrow side, and across the long
+            // side too when that fits the gripper.
+            let yaw = o.gripper_rotation_rad;
+            let long = o.dimensions.width_m.max(o.dimensions.height_m);
+            let turned = long <= skills.gripper_max_width_m - 0.002;
+            [Some(yaw), turned.then_some(yaw + PI / 2.0)]
+                .into_iter()
+                .flatten()
+                .any(|y| table_place_problem(skills, &others, o, y, rect.center).is_none())
+        })
 }
 
 /// A flat probe object at `at`: `size_x` along x, `size_y` along y, 2 mm high.
@@ -349,7 +388,7 @@ mod tests {
         assert_eq!(c, ws.center());
         let skills = SkillsSettings::new(RobotModel::Ned2, vec![ws.clone()]);
         let full = [object(0.25, 0.0, 0.5, 0.5)];
-        assert_eq!(placeable_free_space(&ws, &full, 0.0, &skills), None);
+        assert_eq!(placeable_free_space(&ws, &full, &full, 0.0, &skills), None);
     }
 
     /// A seeded xorshift: uniform in [lo, hi).
@@ -410,7 +449,7 @@ mod tests {
             }) {
                 plain_refused += 1;
             }
-            let Some(free) = placeable_free_space(&ws, &objects, 0.01, &skills) else {
+            let Some(free) = placeable_free_space(&ws, &objects, &[], 0.01, &skills) else {
                 continue;
             };
             // Objects that fit the rectangle, at its centre, at both grasp yaws.
@@ -436,6 +475,75 @@ mod tests {
         assert!(
             plain_refused > 10,
             "the plain answer was refused {plain_refused} times"
+        );
+    }
+
+    #[test]
+    fn the_answer_takes_the_objects_memory_holds_when_some_free_rectangle_does() {
+        let ws = niryo();
+        let skills = SkillsSettings::new(RobotModel::Ned2, vec![ws.clone()]);
+        let mut random = Random(0x0043_0043);
+        // A pencil in the gripper, lying along x: 120 mm × 12 mm.
+        let pencil = solid(999, 0.0, 0.0, 0.12, 0.012, 0.01);
+        let (mut asked, mut generic_takes, mut known_takes) = (0, 0, 0);
+        for _ in 0..200 {
+            let mut objects: Vec<DetectedObject> = Vec::new();
+            for id in 0..40 {
+                if objects.len() == 4 {
+                    break;
+                }
+                let side = random.next(0.02, 0.05);
+                let o = solid(
+                    id,
+                    random.next(0.18, 0.32),
+                    random.next(-0.07, 0.07),
+                    side,
+                    side,
+                    0.03,
+                );
+                let here = Rect::of_object(&o);
+                if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
+                    objects.push(o);
+                }
+            }
+            let takes_at =
+                |at: Point2| table_place_problem(&skills, &objects, &pencil, 0.0, at).is_none();
+            let takes = |free: &FreeRect| takes_at(free.center);
+            // Only scenes with a place for the pencil somewhere (every 5 mm) that keeps the
+            // free-space margin to every object and marker count.
+            let markers = marker_zones(&ws, skills.marker_keep_out_m);
+            let clear = |at: Point2| {
+                let area = Rect::of_object_at(&pencil, at).grown(0.01);
+                !objects
+                    .iter()
+                    .map(Rect::of_object)
+                    .chain(markers)
+                    .any(|r| r.overlaps(&area))
+            };
+            let somewhere = (0..35).any(|i| {
+                (0..35).any(|j| {
+                    let at = Point2::new(0.163 + 0.005 * i as f64, -0.087 + 0.005 * j as f64);
+                    clear(at) && takes_at(at)
+                })
+            });
+            if !somewhere {
+                continue;
+            }
+            let generic = placeable_free_space(&ws, &objects, &[], 0.01, &skills);
+            let known =
+                placeable_free_space(&ws, &objects, std::slice::from_ref(&pencil), 0.01, &skills);
+            let (Some(generic), Some(known)) = (generic, known) else {
+                continue;
+            };
+            asked += 1;
+            generic_takes += usize::from(takes(&generic));
+            known_takes += usize::from(takes(&known));
+        }
+        assert!(asked > 60, "{asked}");
+        assert!(known_takes * 100 >= asked * 95, "{known_takes} of {asked}");
+        assert!(
+            generic_takes < known_takes,
+            "{generic_takes} of {asked} without it"
         );
     }
 }

@@ -122,9 +122,12 @@ impl SceneMemory {
                         reason: "no workspace is configured".into(),
                     })?;
                 let objects: Vec<DetectedObject> = self.tracker.on_table(&ws.id).cloned().collect();
+                let known: Vec<DetectedObject> =
+                    objects.iter().chain(self.tracker.held()).cloned().collect();
                 match placeable_free_space(
                     ws,
                     &objects,
+                    &known,
                     self.settings.free_space_margin_m,
                     &self.skills,
                 ) {
