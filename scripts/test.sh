@@ -136,6 +136,10 @@ cargo fmt --all -- --check
 section "cargo clippy --workspace --all-targets -- -D warnings"
 cargo clippy --workspace --all-targets -- -D warnings
 
+# The service binary as the .deb and the image build it: without the default `bench` feature.
+section "cargo clippy -p robotd --no-default-features -- -D warnings"
+cargo clippy -p robotd --no-default-features -- -D warnings
+
 # The end-to-end tests start the example actor as a real process: build it fresh.
 section "cargo build --examples"
 cargo build --examples
