@@ -46,6 +46,16 @@ fn down(x: f64, y: f64, z: f64, yaw: f64) -> Pose {
     Pose::new(x, y, z, 0.0, FRAC_PI_2, yaw)
 }
 
+/// Waits until the simulated arm's joints have left `from`: the motion is under way (instead
+/// of guessing how long starting one takes).
+async fn wait_moving(joints: impl Fn() -> Vec<f64>, from: &[f64]) {
+    let deadline = Instant::now() + TIMEOUT;
+    while joints().iter().zip(from).all(|(a, b)| (a - b).abs() < 0.01) {
+        assert!(Instant::now() < deadline, "the arm never started moving");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
 fn pose_of(reply: ArmReply) -> Pose {
     match reply {
         ArmReply::Ok { pose } => pose,
@@ -167,6 +177,7 @@ async fn the_emergency_stop_halts_a_motion_within_one_control_tick() {
     let arm = bus.client(&ARM_COMMAND).unwrap();
     let estop = bus.publisher(&SAFETY_ESTOP).unwrap();
 
+    let from = sim.joints();
     let long_motion = {
         let arm = bus.client(&ARM_COMMAND).unwrap();
         tokio::spawn(async move {
@@ -174,7 +185,7 @@ async fn the_emergency_stop_halts_a_motion_within_one_control_tick() {
                 .await
         })
     };
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    wait_moving(|| sim.joints(), &from).await;
     let engaged_at = Instant::now();
     estop
         .publish(&EmergencyStop {
@@ -239,6 +250,8 @@ async fn stop_and_queries_are_answered_while_a_motion_runs() {
     let config = fresh_config(1.0);
     let (bus, hardware) = start(&config).await;
     let arm = bus.client(&ARM_COMMAND).unwrap();
+    let sim = hardware.sim.clone().unwrap();
+    let from = sim.joints();
     let motion = {
         let arm = bus.client(&ARM_COMMAND).unwrap();
         tokio::spawn(async move {
@@ -247,7 +260,7 @@ async fn stop_and_queries_are_answered_while_a_motion_runs() {
                 .await
         })
     };
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    wait_moving(|| sim.joints(), &from).await;
     let asked = Instant::now();
     let joints = arm.request(&ArmCommand::GetJoints, TIMEOUT).await.unwrap();
     assert!(matches!(joints, ArmReply::Joints { .. }));
