@@ -614,8 +614,16 @@ async fn the_emergency_stop_stays_engaged_across_a_restart_of_the_arm_actor() {
                 .await
         })
     };
-    // Engage while the doomed command hangs in the driver.
-    tokio::time::sleep(Duration::from_millis(100)).await;
+    // Engage while the doomed command hangs in the driver: once it is past the policy and
+    // its motion has begun (the arm is no longer still).
+    let deadline = Instant::now() + TIMEOUT;
+    while hardware.arm_context.still_since_ns() != 0 {
+        assert!(
+            Instant::now() < deadline,
+            "the command never reached the driver"
+        );
+        tokio::time::sleep(Duration::from_millis(2)).await;
+    }
     estop
         .publish(&EmergencyStop {
             engaged: true,
