@@ -507,7 +507,7 @@ async fn an_estop_during_the_descent_ends_the_pick_with_nothing_closed_and_the_n
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_motion_the_arm_does_not_answer_is_never_sent_again() {
-    let mut rig = rig("silent", vec![cube()], Duration::from_millis(300));
+    let mut rig = rig("silent", vec![cube()], Duration::from_secs(1));
     rig.script.grasps.store(true, Ordering::SeqCst);
     *rig.script.silent_motion.lock().unwrap() = Some(1);
     let reply = rig.run(1, pick()).await;
