@@ -28,6 +28,11 @@ pub enum BenchCommand {
     /// memory, descriptors or threads grow, a fault is not recovered, a call is lost or runs
     /// twice, or the robot stays stuck.
     Soak(BenchSoakArgs),
+    /// A long seeded random session of skill calls on the simulator (stacks, pushes, places
+    /// near every edge and at the free-space centre), the tools' view of the table checked
+    /// against the simulator's ground truth: phantoms, misnamed objects, stuck stacks, and the
+    /// share of placements at the answered free-space centre accepted (issue 43).
+    Table(BenchTableArgs),
     /// JPEG encoding of a 640×480 camera frame: robotd's encoder beside the `image` crate's,
     /// and a copy of the frame as the floor.
     Jpeg(BenchJpegArgs),
@@ -84,6 +89,22 @@ pub struct BenchSoakArgs {
     /// How long to run, minutes (2 … 10080).
     #[arg(long, default_value_t = 3.0)]
     pub minutes: f64,
+}
+
+#[derive(Debug, Args)]
+pub struct BenchTableArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Skill calls to make.
+    #[arg(long, default_value_t = 1000)]
+    pub calls: usize,
+    /// Seed of the session's choices.
+    #[arg(long, default_value_t = 43)]
+    pub seed: u64,
+    /// Motion time scale of the simulated arm (1 = real time).
+    #[arg(long, default_value_t = 0.05)]
+    pub time_scale: f64,
 }
 
 #[derive(Debug, Args)]

@@ -69,6 +69,11 @@ pub fn run(
                 ExitCode::from(1)
             })
         }
+        BenchCommand::Table(args) => {
+            let exe = std::env::current_exe().context("the robotd binary's path")?;
+            let figures = crate::table::run(&exe, args.calls.max(1), args.seed, args.time_scale)?;
+            print_figures(args.json, &figures, figures.table())
+        }
         BenchCommand::Ping(args) => {
             let figures = crate::ping::run(&args.namespace, args.round_trips.max(1))?;
             print_figures(args.json, &figures, figures.table())

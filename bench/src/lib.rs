@@ -28,6 +28,7 @@ pub mod sim;
 pub mod soak;
 pub mod stats;
 pub mod stopping;
+pub mod table;
 pub mod tcp_echo;
 pub mod widowx;
 
