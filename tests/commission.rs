@@ -2,7 +2,8 @@
 //! 8 mm and 3° away from where robotd's config says, and (Ned2) its images come rectified.
 //! Commissioning must find the true mount within 2 mm and 0.5°, say that the images are
 //! rectified, and write both to a new config file; with that file, commissioning again finds
-//! the mount where the file says.
+//! the mount where the file says. The whole run on the WidowX also reports the stopping time
+//! and distance after an e-stop at the capped speed, and the steps not built yet as such.
 
 mod common;
 
@@ -166,7 +167,7 @@ fn a_step_that_is_not_built_says_so_and_nothing_starts() {
 }
 
 #[test]
-fn commissioning_a_widowx_finds_its_camera_mount() {
+fn commissioning_a_widowx_finds_its_camera_mount_and_stopping_distance() {
     let namespace = common::fresh_namespace("commission-widowx");
     let dir = tempfile::tempdir().unwrap();
     let device = dir.path().join("ttyDXL");
@@ -198,10 +199,26 @@ fn commissioning_a_widowx_finds_its_camera_mount() {
             "--set",
             "robot.time_scale=0.2",
         ],
-        &["--only", "camera"],
+        &[],
     );
     let camera = step(&report, "camera");
     assert_eq!(code, Some(0), "{report:#}");
+    let stopping = &step(&report, "stopping")["measured"];
+    let distance = stopping["distance_mm_max"].as_f64().unwrap();
+    assert!((0.0..30.0).contains(&distance), "{report:#}");
+    assert!(
+        stopping["time_ms_max"].as_f64().unwrap() < 1000.0,
+        "{report:#}"
+    );
+    assert!(
+        stopping["mean_speed_m_s"].as_f64().unwrap() <= 0.12,
+        "{report:#}"
+    );
+    assert_eq!(
+        step(&report, "gripper")["status"],
+        "not built",
+        "{report:#}"
+    );
     let (mm, deg) = error_of(camera, &true_mount(RobotModel::WidowX250));
     eprintln!("WidowX mount error {mm:.2} mm {deg:.3}°: {camera:#}");
     assert!(

@@ -10,9 +10,11 @@
 //!    sits on the arm and how high the table is (hand-eye calibration on the workspace sheet,
 //!    [`handeye`]).
 //!
+//! 3. **stopping** ([`stopping`]): time and tool travel from an e-stop to standstill, at the
+//!    capped speed, from the arm's own reports.
+//!
 //! Not built yet (each says so when asked for with `--only`, and the report lists it):
-//! the gripper's range, the stopping distance on the real arm (`robotd bench safety --stops`
-//! measures it against the fakes), the supervised pick.
+//! the gripper's range and the supervised pick.
 //!
 //! Every motion is a request on `arm/command` from the origin `cli`, so the motion policy
 //! admits it (fence, joint margins, the speed cap this command lowers to `--speed`), audits
@@ -25,6 +27,7 @@ mod camera;
 mod connect;
 pub mod handeye;
 mod session;
+mod stopping;
 mod write;
 
 use anyhow::{bail, Context, Result};
@@ -39,7 +42,7 @@ use std::process::ExitCode;
 pub const STEPS: [&str; 5] = ["connect", "camera", "gripper", "stopping", "pick"];
 
 /// Steps that are not built yet.
-const NOT_BUILT: [&str; 3] = ["gripper", "stopping", "pick"];
+const NOT_BUILT: [&str; 2] = ["gripper", "pick"];
 
 /// Options of `robotd commission`.
 #[derive(Debug, Args)]
@@ -141,7 +144,7 @@ pub fn run(config: &Config, args: &CommissionArgs) -> Result<ExitCode> {
         if NOT_BUILT.contains(&only.as_str()) {
             bail!(
                 "the {only} step is not built yet (issue 45): robotd commission measures \
-                 connect and camera today"
+                 connect, camera and stopping today"
             );
         }
     }
@@ -218,6 +221,21 @@ async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
         }
         report.steps.push(outcome(
             "camera",
+            result.and_then(|c| Ok(serde_json::to_value(c)?)),
+        ));
+    }
+    if wanted("stopping") {
+        let result = if operator_agrees(
+            args,
+            "stopping: the arm swings the tool across the workspace 10 cm above the sheet and \
+             robotd engages the e-stop mid-swing, 3 times (it releases only its own e-stop)",
+        )? {
+            stopping::run(&mut session, config, args.workspace.as_deref(), args.speed).await
+        } else {
+            Err(anyhow::anyhow!("the operator declined; nothing moved"))
+        };
+        report.steps.push(outcome(
+            "stopping",
             result.and_then(|c| Ok(serde_json::to_value(c)?)),
         ));
     }

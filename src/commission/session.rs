@@ -16,10 +16,11 @@ use robotd_config::Config;
 use robotd_protocol::arm::{ArmCommand, ArmReply, ArmState};
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::geometry::Pose;
+use robotd_protocol::health::{EStopRelease, EmergencyStop};
 use robotd_protocol::safety::{Origin, OriginKind};
 use robotd_robot::Hardware;
 use robotd_runtime::bus::{Bus, BusOptions, FrameSubscriber, Subscriber};
-use robotd_topics::{ARM_COMMAND, ARM_STATE, CAMERA_FRAMES};
+use robotd_topics::{ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, SAFETY_ESTOP, SAFETY_RELEASE};
 use std::time::{Duration, Instant};
 
 /// A frame counts as still when taken this long after the arm came to rest, ns: a camera
@@ -132,6 +133,67 @@ impl Session {
             ArmReply::Ok { pose } => Ok(pose),
             other => Err(format!("unexpected reply {other:?}")),
         }
+    }
+
+    /// Starts moving the tool to `target` without waiting: the motion's reply comes from the
+    /// task.
+    pub fn spawn_move(&self, target: Pose) -> Result<tokio::task::JoinHandle<Result<(), String>>> {
+        let client = self.bus.client(&ARM_COMMAND)?;
+        let origin = Origin::new(OriginKind::Cli).session("robotd commission");
+        let timeout = self.motion_timeout;
+        Ok(tokio::spawn(robotd_runtime::origin::with_origin(
+            origin,
+            async move {
+                let reply = client
+                    .request(&ArmCommand::move_to(target), timeout)
+                    .await
+                    .map_err(|e| format!("the arm did not answer: {e}"))?;
+                reply.into_result().map(|_| ()).map_err(|e| e.to_string())
+            },
+        )))
+    }
+
+    /// The next arm state published, if one comes within `wait`.
+    pub async fn next_state(&mut self, wait: Duration) -> Result<Option<ArmState>> {
+        match tokio::time::timeout(wait, self.states.recv()).await {
+            Ok(envelope) => {
+                let state = envelope?.body;
+                self.last_state = Some(state.clone());
+                Ok(Some(state))
+            }
+            Err(_) => Ok(None),
+        }
+    }
+
+    /// Engages the e-stop on `safety/estop`, the path of every entry point.
+    pub fn engage_estop(&self, reason: &str) -> Result<()> {
+        self.bus.publisher(&SAFETY_ESTOP)?.publish(&EmergencyStop {
+            engaged: true,
+            reason: reason.into(),
+            source: "robotd commission".into(),
+        })?;
+        Ok(())
+    }
+
+    /// The e-stop's reason while it is engaged.
+    pub fn estop_reason(&self) -> Option<String> {
+        self.hardware.safety.estop()
+    }
+
+    /// Releases the e-stop through the motion policy's `safety/release` (origin `cli`).
+    pub async fn release_estop(&self, by: &str) -> Result<()> {
+        let client = self.bus.client(&SAFETY_RELEASE)?;
+        let origin = Origin::new(OriginKind::Cli).session("robotd commission");
+        let request = EStopRelease {
+            confirm: "release".into(),
+            by: by.into(),
+        };
+        robotd_runtime::origin::with_origin(origin, async move {
+            client.request(&request, Duration::from_secs(5)).await
+        })
+        .await
+        .context("releasing the e-stop")?;
+        Ok(())
     }
 
     /// Moves the joints to `positions_rad`, admitted by the motion policy.
