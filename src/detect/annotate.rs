@@ -6,11 +6,11 @@
 //! and each object as its pixel box with its number from the report (unknown-coloured objects
 //! in orange).
 
-use robotd_render::canvas::Canvas;
 use super::report::Report;
 use robotd_perception::plane::TablePlane;
 use robotd_perception::Pipeline;
 use robotd_protocol::workspace::WorkspaceInfo;
+use robotd_render::canvas::Canvas;
 
 /// Colours of the drawing.
 const REFERENCE: [u8; 3] = [255, 0, 255];
