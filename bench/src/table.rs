@@ -82,6 +82,8 @@ pub struct TableFigures {
     pub pushes: usize,
     /// Pushes done.
     pub pushes_done: usize,
+    /// The first phantoms, misnamed and misplaced detections, for the report.
+    pub wrong_views: Vec<String>,
     /// The first refusals of each kind of call, for the report.
     pub refusals: Vec<String>,
     /// Wall time, seconds.
@@ -136,6 +138,9 @@ impl TableFigures {
         ];
         for (what, value) in rows {
             out.push_str(&format!("  {what:<36} {value}\n"));
+        }
+        for wrong in &self.wrong_views {
+            out.push_str(&format!("  seen, {wrong}\n"));
         }
         for refusal in &self.refusals {
             out.push_str(&format!("  refused, {refusal}\n"));
@@ -271,16 +276,36 @@ impl Session {
                 .iter()
                 .filter(|o| distance(s.at, o) <= MATCH_M)
                 .collect();
-            match near.iter().find(|o| o.label == s.label) {
+            let wrong = match near.iter().find(|o| o.label == s.label) {
                 Some(o) => {
-                    if o.bottom_z_m > 0.005
-                        && (s.z - (o.bottom_z_m + o.top_z_m) / 2.0).abs() > HEIGHT_TOLERANCE_M
-                    {
-                        figures.wrong_heights += 1;
-                    }
+                    let off = o.bottom_z_m > 0.005
+                        && (s.z - (o.bottom_z_m + o.top_z_m) / 2.0).abs() > HEIGHT_TOLERANCE_M;
+                    figures.wrong_heights += usize::from(off);
+                    off.then_some("off its height")
                 }
-                None if near.is_empty() => figures.phantoms += 1,
-                None => figures.misnamed += 1,
+                None if near.is_empty() => {
+                    figures.phantoms += 1;
+                    Some("phantom")
+                }
+                None => {
+                    figures.misnamed += 1;
+                    Some("misnamed")
+                }
+            };
+            if let (Some(what), true) = (wrong, figures.wrong_views.len() < 6) {
+                let there: Vec<String> = near
+                    .iter()
+                    .map(|o| format!("{} (z {:.3})", o.label, (o.bottom_z_m + o.top_z_m) / 2.0))
+                    .collect();
+                figures.wrong_views.push(format!(
+                    "{what}: '{}' at [{:.3}, {:.3}] z {:.3} after call {}; there: {}",
+                    s.label,
+                    s.at[0],
+                    s.at[1],
+                    s.z,
+                    figures.calls,
+                    there.join(", ")
+                ));
             }
         }
         for o in &truth {
