@@ -231,3 +231,61 @@ fn commissioning_a_widowx_finds_its_camera_mount_and_stopping_distance() {
         "{camera:#}"
     );
 }
+
+#[test]
+fn a_robot_that_is_not_there_is_reported_within_seconds() {
+    // A port nobody listens on.
+    let port = format!("robot.port={}", common::free_port());
+    let started = std::time::Instant::now();
+    let (code, report) = commission(
+        &[
+            "--namespace",
+            &common::fresh_namespace("commission-absent"),
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
+            "--set",
+            "robot.host=127.0.0.1",
+            "--set",
+            &port,
+        ],
+        &["--only", "camera"],
+    );
+    assert_eq!(code, Some(1), "{report:#}");
+    let connect = step(&report, "connect");
+    assert_eq!(connect["status"], "failed", "{report:#}");
+    let reason = connect["reason"].as_str().unwrap();
+    assert!(reason.contains("does not answer"), "{reason}");
+    assert!(reason.contains("not connected"), "{reason}");
+    assert!(report["steps"].as_array().unwrap().len() == 1, "{report:#}");
+    assert!(started.elapsed() < std::time::Duration::from_secs(40));
+}
+
+#[test]
+fn a_sheet_out_of_view_is_refused_naming_why() {
+    // The simulator puts the sheet where the workspace says; this observation pose looks
+    // 25 cm to the side of it.
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("robot.toml");
+    std::fs::write(
+        &config,
+        "[robot]\ndriver = \"sim-ned2\"\ntime_scale = 0.1\n\n[[robot.workspaces]]\nid = \
+         \"niryo_ws\"\nupper_left = [0.337, 0.087]\nlower_right = [0.163, -0.087]\n\
+         observation_pose = [0.173, 0.25, 0.277, -3.042, 1.327, -3.027]\n",
+    )
+    .unwrap();
+    let (code, report) = commission(
+        &[
+            "--namespace",
+            &common::fresh_namespace("commission-nosheet"),
+            "--config",
+            config.to_str().unwrap(),
+        ],
+        &["--only", "camera"],
+    );
+    assert_eq!(code, Some(1), "{report:#}");
+    let camera = step(&report, "camera");
+    assert_eq!(camera["status"], "failed", "{report:#}");
+    let reason = camera["reason"].as_str().unwrap();
+    assert!(reason.contains("showed the workspace sheet"), "{reason}");
+    assert!(reason.contains("no workspace in view"), "{reason}");
+}

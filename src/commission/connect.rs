@@ -13,7 +13,11 @@ use robotd_config::Config;
 use serde::Serialize;
 use std::time::Duration;
 
-/// How long the robot has to answer: a Ned2 that calibrates on connecting takes ~30 s.
+/// How long the robot has to answer a joints query before it counts as not connected.
+const ANSWER_WAIT: Duration = Duration::from_secs(10);
+
+/// How long the arm has to publish its state: a Ned2 that calibrates on connecting takes
+/// ~30 s.
 const CONNECT_WAIT: Duration = Duration::from_secs(60);
 
 /// What the connect step found.
@@ -31,16 +35,25 @@ pub struct Connected {
 
 /// Runs the step: an error when the robot is not connected, not calibrated or e-stopped.
 pub async fn run(session: &mut Session, config: &Config) -> Result<Connected> {
-    let state = session.state(CONNECT_WAIT).await?;
-    if let Err(reason) = session
-        .command(robotd_protocol::arm::ArmCommand::GetJoints)
-        .await
-    {
-        bail!(
-            "the robot does not answer ({:?} driver): {reason}",
-            config.robot.driver
-        );
+    // A robot that is not there says so at once; one still connecting gets a few seconds.
+    let asked = std::time::Instant::now();
+    loop {
+        match session
+            .command(robotd_protocol::arm::ArmCommand::GetJoints)
+            .await
+        {
+            Ok(_) => break,
+            Err(reason) if asked.elapsed() < ANSWER_WAIT => {
+                tracing::debug!(%reason, "the robot does not answer yet");
+                tokio::time::sleep(Duration::from_millis(500)).await;
+            }
+            Err(reason) => bail!(
+                "the robot does not answer ({:?} driver, after {ANSWER_WAIT:?}): {reason}",
+                config.robot.driver
+            ),
+        }
     }
+    let state = session.state(CONNECT_WAIT).await?;
     if state.estop_engaged {
         bail!(
             "the emergency stop is engaged: nothing may move. Clear the arm's surroundings, \
