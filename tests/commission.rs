@@ -2,8 +2,10 @@
 //! 8 mm and 3° away from where robotd's config says, and (Ned2) its images come rectified.
 //! Commissioning must find the true mount within 2 mm and 0.5°, say that the images are
 //! rectified, and write both to a new config file; with that file, commissioning again finds
-//! the mount where the file says. The whole run on the WidowX also reports the stopping time
-//! and distance after an e-stop at the capped speed, and the steps not built yet as such.
+//! the mount where the file says. The whole run on the WidowX (whose fake gripper stops 100
+//! ticks from the configured ones) also finds the gripper's stops within 20 ticks, reports the
+//! stopping time and distance after an e-stop at the capped speed, and the step not built
+//! yet as such.
 
 mod common;
 
@@ -167,7 +169,7 @@ fn a_step_that_is_not_built_says_so_and_nothing_starts() {
 }
 
 #[test]
-fn commissioning_a_widowx_finds_its_camera_mount_and_stopping_distance() {
+fn commissioning_a_widowx_finds_its_camera_mount_gripper_stops_and_stopping_distance() {
     let namespace = common::fresh_namespace("commission-widowx");
     let dir = tempfile::tempdir().unwrap();
     let device = dir.path().join("ttyDXL");
@@ -182,7 +184,7 @@ fn commissioning_a_widowx_finds_its_camera_mount_and_stopping_distance() {
             "robot.time_scale=0.2",
         ],
         &device,
-        &["--mount-offset", OFFSET],
+        &["--mount-offset", OFFSET, "--gripper-ticks", "1700,2700"],
     );
     let device = format!("robot.widowx.device={}", device.display());
     let camera_url = format!("robot.widowx.camera_url={camera_url}");
@@ -214,11 +216,12 @@ fn commissioning_a_widowx_finds_its_camera_mount_and_stopping_distance() {
         stopping["mean_speed_m_s"].as_f64().unwrap() <= 0.12,
         "{report:#}"
     );
-    assert_eq!(
-        step(&report, "gripper")["status"],
-        "not built",
-        "{report:#}"
-    );
+    // The fake's gripper stops 100 ticks above the configured 1600..2600.
+    let gripper = &step(&report, "gripper")["measured"];
+    let ticks = |key: &str| gripper[key].as_i64().unwrap();
+    assert!((ticks("closed_ticks") - 1700).abs() <= 20, "{report:#}");
+    assert!((ticks("open_ticks") - 2700).abs() <= 20, "{report:#}");
+    assert_eq!(step(&report, "pick")["status"], "not built", "{report:#}");
     let (mm, deg) = error_of(camera, &true_mount(RobotModel::WidowX250));
     eprintln!("WidowX mount error {mm:.2} mm {deg:.3}°: {camera:#}");
     assert!(

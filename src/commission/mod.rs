@@ -13,8 +13,11 @@
 //! 3. **stopping** ([`stopping`]): time and tool travel from an e-stop to standstill, at the
 //!    capped speed, from the arm's own reports.
 //!
-//! Not built yet (each says so when asked for with `--only`, and the report lists it):
-//! the gripper's range and the supervised pick.
+//! 4. **gripper** ([`gripper`]): the WidowX gripper's closed and open ticks at its mechanical
+//!    stops (the Ned2 reports no finger position: skipped).
+//!
+//! Not built yet (says so when asked for with `--only`, and the report lists it): the
+//! supervised pick.
 //!
 //! Every motion is a request on `arm/command` from the origin `cli`, so the motion policy
 //! admits it (fence, joint margins, the speed cap this command lowers to `--speed`), audits
@@ -25,6 +28,7 @@
 
 mod camera;
 mod connect;
+mod gripper;
 pub mod handeye;
 mod session;
 mod stopping;
@@ -42,7 +46,7 @@ use std::process::ExitCode;
 pub const STEPS: [&str; 5] = ["connect", "camera", "gripper", "stopping", "pick"];
 
 /// Steps that are not built yet.
-const NOT_BUILT: [&str; 2] = ["gripper", "pick"];
+const NOT_BUILT: [&str; 1] = ["pick"];
 
 /// Options of `robotd commission`.
 #[derive(Debug, Args)]
@@ -144,7 +148,7 @@ pub fn run(config: &Config, args: &CommissionArgs) -> Result<ExitCode> {
         if NOT_BUILT.contains(&only.as_str()) {
             bail!(
                 "the {only} step is not built yet (issue 45): robotd commission measures \
-                 connect, camera and stopping today"
+                 connect, camera, gripper and stopping today"
             );
         }
     }
@@ -239,6 +243,33 @@ async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
             result.and_then(|c| Ok(serde_json::to_value(c)?)),
         ));
     }
+    let mut gripper_report = None;
+    if wanted("gripper") {
+        let outcome_of = if operator_agrees(
+            args,
+            "gripper: the fingers open, close on nothing and open again, slowly, past the \
+             configured ends until they stall (the fingers must be empty)",
+        )? {
+            gripper::run(&session, config).await
+        } else {
+            Err(anyhow::anyhow!("the operator declined; nothing moved"))
+        };
+        report.steps.push(match outcome_of {
+            Ok(None) => StepOutcome {
+                step: "gripper".into(),
+                status: "skipped".into(),
+                reason: Some(
+                    "the Ned2's TCP protocol reports no finger position: nothing to measure".into(),
+                ),
+                measured: None,
+            },
+            Ok(Some(measured)) => {
+                gripper_report = Some(measured.clone());
+                outcome("gripper", Ok(serde_json::to_value(measured)?))
+            }
+            Err(error) => outcome("gripper", Err(error)),
+        });
+    }
     if args.only.is_none() {
         for step in NOT_BUILT {
             report.steps.push(StepOutcome {
@@ -250,7 +281,12 @@ async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
         }
     }
     if let Some(path) = &args.write {
-        write::write_config(path, config, camera_report.as_ref())?;
+        write::write_config(
+            path,
+            config,
+            camera_report.as_ref(),
+            gripper_report.as_ref(),
+        )?;
         report.written = Some(path.clone());
     }
     Ok(report)

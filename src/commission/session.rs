@@ -9,18 +9,22 @@
 //! says so rather than fight it for the robot.
 //!
 //! Its speed is capped low: `safety.max_tcp_speed_m_s` is lowered to the `--speed` cap for
-//! this process (never raised).
+//! this process (never raised). The WidowX gripper runs with a widened tick range and a low
+//! PWM, for the gripper step (see `gripper.rs`).
 
 use anyhow::{bail, Context, Result};
 use robotd_config::Config;
 use robotd_protocol::arm::{ArmCommand, ArmReply, ArmState};
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::geometry::Pose;
+use robotd_protocol::gripper::{GripperCommand, GripperReply};
 use robotd_protocol::health::{EStopRelease, EmergencyStop};
 use robotd_protocol::safety::{Origin, OriginKind};
 use robotd_robot::Hardware;
 use robotd_runtime::bus::{Bus, BusOptions, FrameSubscriber, Subscriber};
-use robotd_topics::{ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, SAFETY_ESTOP, SAFETY_RELEASE};
+use robotd_topics::{
+    ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, GRIPPER_COMMAND, SAFETY_ESTOP, SAFETY_RELEASE,
+};
 use std::time::{Duration, Instant};
 
 /// A frame counts as still when taken this long after the arm came to rest, ns: a camera
@@ -70,6 +74,11 @@ impl Session {
         let safety = &mut config.safety;
         safety.max_tcp_speed_m_s = safety.max_tcp_speed_m_s.min(speed_m_s);
         safety.motions_per_minute = 0;
+        // The gripper step finds the fingers' real stops: let them go past the configured ends.
+        let widowx = &mut config.robot.widowx;
+        (widowx.gripper_closed_ticks, widowx.gripper_open_ticks) =
+            super::gripper::widened(widowx.gripper_closed_ticks, widowx.gripper_open_ticks);
+        widowx.gripper_pwm = widowx.gripper_pwm.min(super::gripper::LOW_PWM);
         let hardware = Hardware::start(&bus, &config.robot_sections(), |_| {
             robotd_runtime::supervision::observer_fn(
                 |_: &robotd_runtime::supervision::SupervisionEvent| {},
@@ -125,6 +134,18 @@ impl Session {
         .await
         .map_err(|e| format!("the arm did not answer: {e}"))?;
         reply.into_result().map_err(|e| e.to_string())
+    }
+
+    /// Sends `command` to the gripper as the operator's CLI would.
+    pub async fn gripper(&self, command: GripperCommand) -> Result<GripperReply> {
+        let client = self.bus.client(&GRIPPER_COMMAND)?;
+        let origin = Origin::new(OriginKind::Cli).session("robotd commission");
+        let timeout = self.motion_timeout;
+        Ok(robotd_runtime::origin::with_origin(origin, async move {
+            client.request(&command, timeout).await
+        })
+        .await
+        .context("the gripper did not answer")?)
     }
 
     /// Moves the tool to `target` (joint-space path), admitted by the motion policy.

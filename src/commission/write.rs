@@ -8,6 +8,7 @@
 //! that exists.
 
 use super::camera::CameraReport;
+use super::gripper::GripperReport;
 use super::Report;
 use anyhow::{Context, Result};
 use robotd_config::Config;
@@ -43,7 +44,12 @@ pub fn render(report: &Report) -> String {
 }
 
 /// Writes the measured values to `path`, a new file.
-pub fn write_config(path: &Path, config: &Config, camera: Option<&CameraReport>) -> Result<()> {
+pub fn write_config(
+    path: &Path,
+    config: &Config,
+    camera: Option<&CameraReport>,
+    gripper: Option<&GripperReport>,
+) -> Result<()> {
     let mut text = String::from(
         "# Measured by `robotd commission`. Use this file as the config (--config), or copy its\n\
          # tables into yours.\n",
@@ -76,6 +82,17 @@ pub fn write_config(path: &Path, config: &Config, camera: Option<&CameraReport>)
             }
         }
         None => text.push_str("\n# The camera step did not run or failed: nothing measured.\n"),
+    }
+    if let Some(gripper) = gripper {
+        let _ = write!(
+            text,
+            "\n# The gripper's mechanical stops (configured: {} closed, {} open).\n\
+             [robot.widowx]\ngripper_closed_ticks = {}\ngripper_open_ticks = {}\n",
+            gripper.configured_closed_ticks,
+            gripper.configured_open_ticks,
+            gripper.closed_ticks,
+            gripper.open_ticks,
+        );
     }
     let mut file = std::fs::OpenOptions::new()
         .write(true)

@@ -1,0 +1,111 @@
+//! The gripper step of `robotd commission`: where the WidowX gripper's mechanical stops are, in
+//! servo ticks (`robot.widowx.gripper_closed_ticks` and `gripper_open_ticks`, whose defaults
+//! are a guess).
+//!
+//! For the whole commissioning run the driver is started with the configured tick range
+//! widened by [`WIDEN_TICKS`] on each side and a low PWM (at most [`LOW_PWM`]): opening and
+//! closing then drive the fingers until they stall at the real stops instead of stopping at
+//! the configured ends, and the width the driver reports there, read back through the widened
+//! range, is the stop's tick. The step opens, closes on nothing (the fingers must be empty)
+//! and opens again, each through `gripper/command` from the origin `cli`, admitted by the
+//! motion policy; it leaves the gripper open.
+//!
+//! The Ned2's TCP protocol reports no finger position: there is nothing to measure, and the
+//! step says so (`skipped`).
+
+use super::session::Session;
+use anyhow::{bail, Result};
+use robotd_config::Config;
+use robotd_protocol::geometry::RobotModel;
+use robotd_protocol::gripper::{GripperCommand, GripperReply};
+use serde::Serialize;
+
+/// How far past each configured end the driver may drive the fingers while commissioning.
+pub const WIDEN_TICKS: i32 = 400;
+
+/// The PWM the fingers are driven with while commissioning (of 885).
+pub const LOW_PWM: u16 = 250;
+
+/// What the gripper step measured.
+#[derive(Debug, Clone, Serialize)]
+pub struct GripperReport {
+    /// Ticks at the closed stop.
+    pub closed_ticks: i32,
+    /// Ticks at the open stop.
+    pub open_ticks: i32,
+    /// The configured closed ticks.
+    pub configured_closed_ticks: u16,
+    /// The configured open ticks.
+    pub configured_open_ticks: u16,
+}
+
+/// The tick range the driver runs with while commissioning: the configured one widened.
+pub fn widened(closed: u16, open: u16) -> (u16, u16) {
+    let (closed, open) = (i32::from(closed), i32::from(open));
+    let sign = (open - closed).signum();
+    let clamp = |t: i32| t.clamp(0, 4095) as u16;
+    (
+        clamp(closed - sign * WIDEN_TICKS),
+        clamp(open + sign * WIDEN_TICKS),
+    )
+}
+
+/// Runs the step; `Ok(None)` when the robot's gripper cannot be measured (Ned2).
+pub async fn run(session: &Session, config: &Config) -> Result<Option<GripperReport>> {
+    if config.robot.model() != RobotModel::WidowX250 {
+        return Ok(None);
+    }
+    let widowx = &config.robot.widowx;
+    let (closed_w, open_w) = widened(widowx.gripper_closed_ticks, widowx.gripper_open_ticks);
+    let max = robotd_driver::hardware::gripper_max_width(RobotModel::WidowX250);
+    let ticks = |width_m: f64| {
+        (f64::from(closed_w) + width_m / max * (f64::from(open_w) - f64::from(closed_w))).round()
+            as i32
+    };
+    let width = |reply: GripperReply, what: &str| -> Result<f64> {
+        match reply {
+            GripperReply::State { width_m, .. } => Ok(width_m),
+            GripperReply::Error { error } => bail!("{what}: {error}"),
+        }
+    };
+    let open = width(session.gripper(GripperCommand::Open).await?, "opening")?;
+    let closed = width(session.gripper(GripperCommand::Close).await?, "closing")?;
+    width(
+        session.gripper(GripperCommand::Open).await?,
+        "opening again",
+    )?;
+    let (closed_ticks, open_ticks) = (ticks(closed), ticks(open));
+    let at_limit = |t: i32| t == i32::from(closed_w) || t == i32::from(open_w);
+    if at_limit(closed_ticks) || at_limit(open_ticks) {
+        bail!(
+            "the fingers reached the widened range's end ({closed_w}..{open_w} ticks) without \
+             stalling: the configured ticks are more than {WIDEN_TICKS} ticks off, or the \
+             servo is not the gripper; nothing was measured"
+        );
+    }
+    if (open_ticks - closed_ticks).abs() < 200 {
+        bail!(
+            "the fingers moved only {} ticks between closed and open: is something between \
+             them? The gripper step closes on nothing",
+            (open_ticks - closed_ticks).abs()
+        );
+    }
+    Ok(Some(GripperReport {
+        closed_ticks,
+        open_ticks,
+        configured_closed_ticks: widowx.gripper_closed_ticks,
+        configured_open_ticks: widowx.gripper_open_ticks,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_range_widens_outwards_either_way_round() {
+        assert_eq!(widened(1600, 2600), (1200, 3000));
+        assert_eq!(widened(2600, 1600), (3000, 1200));
+        assert_eq!(widened(100, 4000), (0, 4095));
+    }
+}
