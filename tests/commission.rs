@@ -4,8 +4,9 @@
 //! rectified, and write both to a new config file; with that file, commissioning again finds
 //! the mount where the file says. The whole run on the WidowX (whose fake gripper stops 100
 //! ticks from the configured ones) also finds the gripper's stops within 20 ticks, reports the
-//! stopping time and distance after an e-stop at the capped speed, and the step not built
-//! yet as such.
+//! stopping time and distance after an e-stop at the capped speed, and picks the cube near
+//! the sheet's centre and puts it back within 3 mm as the camera sees it (the Ned2 too, with
+//! the written config).
 
 mod common;
 
@@ -73,16 +74,28 @@ fn error_of(camera: &Value, truth: &CameraMount) -> (f64, f64) {
 #[test]
 fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
     let namespace = common::fresh_namespace("commission-ned2");
+    let dir = tempfile::tempdir().unwrap();
+    // The default scene with its red cube at the sheet's centre, for the supervised pick.
+    let scene = dir.path().join("scene.toml");
+    let default_scene = include_str!("../config/scenes/default.toml");
+    assert!(default_scene.contains("x_m = 0.28\ny_m = 0.04"));
+    std::fs::write(
+        &scene,
+        default_scene.replace("x_m = 0.28\ny_m = 0.04", "x_m = 0.25\ny_m = 0.0"),
+    )
+    .unwrap();
+    let scene = format!("robot.scene={}", scene.display());
     let (_fake, port) = common::start_fake_niryo(
         &[
             "--namespace",
             &format!("{namespace}-fake"),
             "--set",
             "robot.time_scale=0.2",
+            "--set",
+            &scene,
         ],
         &["--mount-offset", OFFSET, "--rectified"],
     );
-    let dir = tempfile::tempdir().unwrap();
     let written = dir.path().join("commissioned.toml");
     let port = format!("robot.port={port}");
     let robot = [
@@ -155,25 +168,45 @@ fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
         "{camera:#}"
     );
     assert_eq!(measured["images_rectified"], true, "{camera:#}");
+
+    // The supervised pick with the written values: the cube at the centre is picked, put
+    // back, and seen where it was.
+    let (code, report) = commission(&with_written, &["--only", "pick"]);
+    assert_eq!(code, Some(0), "{report:#}");
+    let pick = &step(&report, "pick")["measured"];
+    eprintln!("Ned2 supervised pick with the written config: {pick}");
+    assert_eq!(pick["label"], "red cube", "{report:#}");
+    assert_eq!(pick["held"], true, "{report:#}");
+    assert!(pick["error_mm"].as_f64().unwrap() < 3.0, "{report:#}");
 }
 
 #[test]
-fn a_step_that_is_not_built_says_so_and_nothing_starts() {
+fn an_unknown_step_is_refused_and_nothing_starts() {
     let output = run(
         &["--namespace", &common::fresh_namespace("commission-no")],
-        &["--only", "pick"],
+        &["--only", "grip"],
     );
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("not built yet"), "{stderr}");
+    assert!(stderr.contains("no such step"), "{stderr}");
 }
 
 #[test]
-fn commissioning_a_widowx_finds_its_camera_mount_gripper_stops_and_stopping_distance() {
+fn commissioning_a_widowx_measures_mount_gripper_stopping_and_a_pick() {
     let namespace = common::fresh_namespace("commission-widowx");
     let dir = tempfile::tempdir().unwrap();
     let device = dir.path().join("ttyDXL");
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/config/widowx.toml");
+    // The WidowX scene with its red cube near the sheet's centre, for the supervised pick.
+    let scene = dir.path().join("scene.toml");
+    let widowx_scene = include_str!("../config/scenes/widowx.toml");
+    assert!(widowx_scene.contains("x_m = 0.30\ny_m = 0.05"));
+    std::fs::write(
+        &scene,
+        widowx_scene.replace("x_m = 0.30\ny_m = 0.05", "x_m = 0.255\ny_m = 0.025"),
+    )
+    .unwrap();
+    let scene = format!("robot.scene={}", scene.display());
     let (_fake, camera_url) = common::start_fake_widowx(
         &[
             "--namespace",
@@ -182,6 +215,8 @@ fn commissioning_a_widowx_finds_its_camera_mount_gripper_stops_and_stopping_dist
             config,
             "--set",
             "robot.time_scale=0.2",
+            "--set",
+            &scene,
         ],
         &device,
         &["--mount-offset", OFFSET, "--gripper-ticks", "1700,2700"],
@@ -221,7 +256,10 @@ fn commissioning_a_widowx_finds_its_camera_mount_gripper_stops_and_stopping_dist
     let ticks = |key: &str| gripper[key].as_i64().unwrap();
     assert!((ticks("closed_ticks") - 1700).abs() <= 20, "{report:#}");
     assert!((ticks("open_ticks") - 2700).abs() <= 20, "{report:#}");
-    assert_eq!(step(&report, "pick")["status"], "not built", "{report:#}");
+    let pick = &step(&report, "pick")["measured"];
+    eprintln!("WidowX supervised pick: {pick}");
+    assert_eq!(pick["held"], true, "{report:#}");
+    assert!(pick["error_mm"].as_f64().unwrap() < 3.0, "{report:#}");
     let (mm, deg) = error_of(camera, &true_mount(RobotModel::WidowX250));
     eprintln!("WidowX mount error {mm:.2} mm {deg:.3}°: {camera:#}");
     assert!(

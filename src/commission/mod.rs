@@ -16,8 +16,8 @@
 //! 4. **gripper** ([`gripper`]): the WidowX gripper's closed and open ticks at its mechanical
 //!    stops (the Ned2 reports no finger position: skipped).
 //!
-//! Not built yet (says so when asked for with `--only`, and the report lists it): the
-//! supervised pick.
+//! 5. **pick** ([`pick`]): the object at the sheet's centre picked, put back and seen again;
+//!    how far it moved, as the camera measures it.
 //!
 //! Every motion is a request on `arm/command` from the origin `cli`, so the motion policy
 //! admits it (fence, joint margins, the speed cap this command lowers to `--speed`), audits
@@ -30,6 +30,7 @@ mod camera;
 mod connect;
 mod gripper;
 pub mod handeye;
+mod pick;
 mod session;
 mod stopping;
 mod write;
@@ -44,9 +45,6 @@ use std::process::ExitCode;
 
 /// The steps, in the order they run.
 pub const STEPS: [&str; 5] = ["connect", "camera", "gripper", "stopping", "pick"];
-
-/// Steps that are not built yet.
-const NOT_BUILT: [&str; 1] = ["pick"];
 
 /// Options of `robotd commission`.
 #[derive(Debug, Args)]
@@ -77,7 +75,7 @@ pub struct CommissionArgs {
 pub struct StepOutcome {
     /// The step's name.
     pub step: String,
-    /// `ok`, `failed`, `skipped` or `not built`.
+    /// `ok`, `failed` or `skipped`.
     pub status: String,
     /// Why it failed or was skipped.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -143,12 +141,6 @@ pub fn run(config: &Config, args: &CommissionArgs) -> Result<ExitCode> {
             bail!(
                 "--only {only}: no such step; the steps are {}",
                 STEPS.join(", ")
-            );
-        }
-        if NOT_BUILT.contains(&only.as_str()) {
-            bail!(
-                "the {only} step is not built yet (issue 45): robotd commission measures \
-                 connect, camera, gripper and stopping today"
             );
         }
     }
@@ -270,15 +262,20 @@ async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
             Err(error) => outcome("gripper", Err(error)),
         });
     }
-    if args.only.is_none() {
-        for step in NOT_BUILT {
-            report.steps.push(StepOutcome {
-                step: step.into(),
-                status: "not built".into(),
-                reason: Some(format!("the {step} step is not built yet (issue 45)")),
-                measured: None,
-            });
-        }
+    if wanted("pick") {
+        let result = if operator_agrees(
+            args,
+            "pick: robotd picks the object at the sheet's centre, puts it back where it found \
+             it and looks again (put a small cube at the sheet's centre first)",
+        )? {
+            pick::run(&mut session, config, args.workspace.as_deref()).await
+        } else {
+            Err(anyhow::anyhow!("the operator declined; nothing moved"))
+        };
+        report.steps.push(outcome(
+            "pick",
+            result.and_then(|c| Ok(serde_json::to_value(c)?)),
+        ));
     }
     if let Some(path) = &args.write {
         write::write_config(
