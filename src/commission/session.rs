@@ -141,11 +141,11 @@ impl Session {
         let client = self.bus.client(&GRIPPER_COMMAND)?;
         let origin = Origin::new(OriginKind::Cli).session("robotd commission");
         let timeout = self.motion_timeout;
-        Ok(robotd_runtime::origin::with_origin(origin, async move {
+        robotd_runtime::origin::with_origin(origin, async move {
             client.request(&command, timeout).await
         })
         .await
-        .context("the gripper did not answer")?)
+        .context("the gripper did not answer")
     }
 
     /// Moves the tool to `target` (joint-space path), admitted by the motion policy.
