@@ -7,7 +7,8 @@
 //!
 //! - **free space** (40 %): an object the gripper can hold, moved with `pick_place_object` to
 //!   the centre `get_largest_free_space_with_center` answers, when the object's footprint is
-//!   no larger than the answered area;
+//!   no larger than the answered area (a refusal of the pick itself, which does not name the
+//!   centre, is not a placement);
 //! - **stack** (20 %): an object put `on top of` a larger one; the next call takes the stack
 //!   apart again (its top moved to the free-space centre);
 //! - **push** (20 %): an object pushed 1–3 cm in a random direction;
@@ -408,12 +409,18 @@ impl Session {
             if area < what.area() {
                 return Ok(());
             }
-            self.figures.free_space_places += 1;
             let text = self.move_object(&what, center, "").await?;
+            // A refusal of the pick (the fingers would hit a neighbour where the object lies)
+            // says nothing about the place: the place's refusals name its coordinate.
+            let at = format!("[{:.3}, {:.3}]", center[0], center[1]);
             if text.starts_with('✓') {
+                self.figures.free_space_places += 1;
                 self.figures.free_space_accepted += 1;
-            } else {
+            } else if text.contains(&at) {
+                self.figures.free_space_places += 1;
                 self.note_refusal("free space", &text);
+            } else {
+                self.note_refusal("free space pick", &text);
             }
         } else if roll < 0.6 {
             // A smaller object onto a larger one.

@@ -7,9 +7,11 @@
 //! - the label differs but the detection lies at the track's place: the same detector that last
 //!   confirmed the track, centres within [`RELABEL_GATE_M`], and the same footprint
 //!   ([`same_footprint`]: long and short side within [`FOOTPRINT_RATIO`] of each other, and for
-//!   elongated objects the same orientation within [`ORIENTATION_TOLERANCE_RAD`]). Such a pair
-//!   costs [`RELABEL_PENALTY_M`] more than its distance, so a detection with the right label
-//!   nearby is preferred.
+//!   elongated objects the same orientation within [`ORIENTATION_TOLERANCE_RAD`]) — or, for an
+//!   object a skill moved, the detection's centre on its footprint (seen from another angle
+//!   where it was put, it may look like another shape). Such a pair costs
+//!   [`RELABEL_PENALTY_M`] more than its distance, so a detection with the right label nearby
+//!   is preferred.
 //!
 //! The caller takes the pairs greedily, cheapest first, each track and each detection at most
 //! once: of two objects close together each keeps its own detection.
@@ -62,7 +64,7 @@ pub(super) fn pairs(
                 }
             } else if track.source == source
                 && distance <= RELABEL_GATE_M
-                && same_footprint(&track.object, det)
+                && (same_footprint(&track.object, det) || (track.moved && covers(track, det)))
             {
                 pairs.push((distance + RELABEL_PENALTY_M, t, d));
             }
@@ -70,6 +72,15 @@ pub(super) fn pairs(
     }
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
     pairs
+}
+
+/// Whether the detection's centre lies on the track's footprint: two objects on a table never
+/// overlap, so it is that object seen differently (a skill put it where the camera sees it at
+/// another angle, as another shape).
+fn covers(track: &Track, det: &DetectedObject) -> bool {
+    robotd_skills::geometry::Rect::of_object(&track.object).contains(
+        &robotd_skills::geometry::Rect::footprint(det.xy(), (0.0, 0.0)),
+    )
 }
 
 /// Whether `a` and `b` cover the same footprint: long and short sides within

@@ -16,7 +16,10 @@
 //!
 //! **One name per object** ([`votes`]). An object's label is the one its detector gave most
 //! often over its last [`LABEL_VOTES`] views (a tie keeps the label it has): a detector calling
-//! the pencil "yellow bar" in one view neither renames it nor makes a second object of it.
+//! the pencil "yellow bar" in one view neither renames it nor makes a second object of it. An
+//! object a skill moved keeps the name it had: where it was put the camera may see it at
+//! another angle (near the sheet's edge, a cylinder's side shows and it reads as a "green
+//! box"), but it is the object the skill picked.
 //!
 //! **Agreement of views.** A detection of the built-in detector ([`BUILTIN_SOURCE`]) matching
 //! nothing starts a *candidate*: not reported (not in [`Tracker::on_table`], no id), until it is
@@ -174,6 +177,9 @@ struct Track {
     support: Option<String>,
     /// Height of the surface it stands on, metres (0: the table).
     base_z_m: f64,
+    /// A skill moved it: it is the object it was before, whatever the detector calls it where
+    /// it was put (its name no longer follows the votes).
+    moved: bool,
 }
 
 /// The remembered objects of every workspace.
@@ -264,7 +270,9 @@ impl Tracker {
             track.object = detections.objects[d].clone();
             track.object.id = id;
             track.votes.push(&track.object.label);
-            track.detected_as = track.votes.winner(&track.detected_as);
+            if !track.moved {
+                track.detected_as = track.votes.winner(&track.detected_as);
+            }
             track.object.label = if track.named {
                 name
             } else {
@@ -379,6 +387,7 @@ impl Tracker {
                 sightings: 1,
                 support: None,
                 base_z_m: 0.0,
+                moved: false,
             });
         }
 
@@ -538,6 +547,7 @@ impl Tracker {
             }
         }
         track.held = false;
+        track.moved = true;
         track.confirmed = false;
         track.missed = 0;
         track.object.workspace_id = workspace_id.to_owned();

@@ -541,3 +541,32 @@ fn another_object_put_where_a_picked_one_lay_is_a_new_object() {
     assert_eq!(ids(&t), [("obj-1", "red cube"), ("obj-2", "blue cube")]);
     assert_eq!(tracker.is_confirmed("obj-1"), Some(true));
 }
+
+#[test]
+fn an_object_a_skill_moved_keeps_its_name_where_the_camera_sees_it_as_another_shape() {
+    // The bench's case (issue 43, item 2): the green cylinder put down near the sheet's lower
+    // edge, where the detector sees its side too and calls it a "green box" of another size.
+    let mut tracker = Tracker::new(3);
+    twice(&mut tracker, 1, vec![object("green cylinder", 0.30, -0.06)]);
+    tracker.pick("obj-1").unwrap();
+    tracker
+        .place("obj-1", Point2::new(0.186, -0.024), "niryo_ws")
+        .unwrap();
+    let mut seen = object("green box", 0.183, -0.032);
+    seen.dimensions.width_m = 0.03;
+    seen.dimensions.height_m = 0.044;
+    for t in 2..10 {
+        let now = tracker.apply(&view(t, vec![seen.clone()])).unwrap();
+        assert_eq!(ids(&now), [("obj-1", "green cylinder")], "view {t}");
+        assert!(!tracker.has_candidates("niryo_ws"), "view {t}");
+    }
+    // An object never moved still takes the name its views agree on.
+    let mut tracker = Tracker::new(3);
+    twice(&mut tracker, 1, vec![object("pencil", 0.25, 0.0)]);
+    for t in 2..6 {
+        tracker
+            .apply(&view(t, vec![object("yellow bar", 0.25, 0.0)]))
+            .unwrap();
+    }
+    assert_eq!(tracker.get("obj-1").unwrap().label, "yellow bar");
+}
