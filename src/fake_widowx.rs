@@ -38,6 +38,10 @@ pub struct FakeWidowxArgs {
     /// `robot.widowx.gripper_closed_ticks` and `gripper_open_ticks`.
     #[arg(long, value_name = "CLOSED,OPEN")]
     pub gripper_ticks: Option<String>,
+    /// Wrong on purpose: the joints obey every goal this many milliseconds late, a stop
+    /// included (an arm that keeps going after the e-stop).
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub stopping_lag_ms: u64,
 }
 
 /// Serves until Ctrl-C.
@@ -84,6 +88,7 @@ pub fn run(mut config: Config, args: FakeWidowxArgs) -> Result<()> {
             (widowx.gripper_closed_ticks, widowx.gripper_open_ticks),
         )
         .with_context(|| format!("serving the servo bus at {}", args.device.display()))?;
+        fake.set_stopping_lag(std::time::Duration::from_millis(args.stopping_lag_ms));
         let listen = args
             .camera_listen
             .parse()

@@ -1,7 +1,8 @@
 //! What `robotd fake-niryo` and `robotd fake-widowx` can get wrong on purpose, so that
 //! `robotd commission` has something to measure: a camera mounted elsewhere than robotd
 //! believes (`--mount-offset`), images the robot already rectified (`fake-niryo --rectified`),
-//! a gripper whose mechanical range is not the configured one (`fake-widowx --gripper-ticks`).
+//! a gripper whose mechanical range is not the configured one (`fake-widowx --gripper-ticks`),
+//! joints that obey a stop late (`fake-widowx --stopping-lag-ms`, in the fake's crate).
 //!
 //! The fake simulates the *true* robot; robotd, started with the same config file, keeps
 //! believing the configured values. For the mount, the fake renders from the configured mount

@@ -115,6 +115,13 @@ impl FakeServoBus {
         Ok(bus)
     }
 
+    /// Makes the joints obey every goal position `lag` late, a stop included (0: at once): an
+    /// arm that keeps going after it was told to stop.
+    pub fn set_stopping_lag(&self, lag: std::time::Duration) {
+        let mut shared = self.shared.lock().unwrap_or_else(|p| p.into_inner());
+        shared.world.set_stopping_lag(lag);
+    }
+
     /// Where the controller opens it.
     pub fn path(&self) -> &Path {
         &self.link

@@ -14,7 +14,8 @@ use robotd_driver_widowx::control_table::{
     rad_to_ticks, ticks_to_rad, GRIPPER_ID, JOINT_IDS, SHADOWS,
 };
 use robotd_sim::GraspOutcome;
-use std::time::Instant;
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
 
 /// Top speed of an arm servo in the fake, ticks per second (≈ 6 rad/s).
 const JOINT_TICKS_PER_S: f64 = 4000.0;
@@ -37,6 +38,13 @@ pub struct FakeWorld {
     gripper_open_ticks: i32,
     gripper_max_width_m: f64,
     fingers: FingerMotion,
+    /// How late the joints obey goal positions, a stop included (0: at once): an arm that
+    /// keeps going a while after it was told to stop, for `robotd commission` to measure.
+    stopping_lag: Duration,
+    /// Goals written and not yet obeyed, oldest first (only with a lag).
+    written: VecDeque<(Instant, Vec<i32>)>,
+    /// The goals the joints obey now (only with a lag; empty: where they stand).
+    obeyed: Vec<i32>,
 }
 
 impl FakeWorld {
@@ -50,7 +58,40 @@ impl FakeWorld {
             gripper_closed_ticks: gripper_closed_ticks.into(),
             gripper_open_ticks: gripper_open_ticks.into(),
             fingers: FingerMotion::Still,
+            stopping_lag: Duration::ZERO,
+            written: VecDeque::new(),
+            obeyed: Vec::new(),
         }
+    }
+
+    /// Makes the joints obey every goal position `lag` late, a stop included.
+    pub fn set_stopping_lag(&mut self, lag: Duration) {
+        self.stopping_lag = lag;
+        self.written.clear();
+        self.obeyed.clear();
+    }
+
+    /// The goals the joints follow now: with a lag, the last ones written at least the lag
+    /// ago (a delay line), else those written.
+    fn lagged_goals(&mut self, written: Vec<i32>, present: &[i32]) -> Vec<i32> {
+        if self.stopping_lag.is_zero() {
+            return written;
+        }
+        let now = Instant::now();
+        if self.written.back().is_none_or(|(_, last)| *last != written) {
+            self.written.push_back((now, written));
+        }
+        while let Some((at, goals)) = self.written.front() {
+            if now.duration_since(*at) < self.stopping_lag {
+                break;
+            }
+            self.obeyed = goals.clone();
+            self.written.pop_front();
+        }
+        if self.obeyed.is_empty() {
+            self.obeyed = present.to_vec();
+        }
+        self.obeyed.clone()
     }
 
     /// The simulator behind the servos.
@@ -95,15 +136,24 @@ impl FakeWorld {
 
     fn advance_arm(&mut self, servos: &mut [Servo], dt: f64) {
         let step = (JOINT_TICKS_PER_S * dt).ceil() as i32;
-        let mut next = Vec::with_capacity(6);
-        let mut moved = false;
+        let (mut written, mut present) = (Vec::with_capacity(6), Vec::with_capacity(6));
         for id in JOINT_IDS {
             let Some(servo) = servos.iter().find(|s| s.id == id) else {
                 return;
             };
+            written.push(servo.goal_position());
+            present.push(servo.present_position());
+        }
+        let goals = self.lagged_goals(written, &present);
+        let mut next = Vec::with_capacity(6);
+        let mut moved = false;
+        for (id, goal) in JOINT_IDS.iter().zip(goals) {
+            let Some(servo) = servos.iter().find(|s| s.id == *id) else {
+                return;
+            };
             let here = servo.present_position();
             let to = if servo.torque_on() {
-                here + (servo.goal_position() - here).clamp(-step, step)
+                here + (goal - here).clamp(-step, step)
             } else {
                 here
             };
@@ -175,5 +225,29 @@ impl FakeWorld {
             pwm.signum() * 20
         };
         servo.set_present_load(load);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With a lag the joints obey a goal only once it is that old; until then the goals
+    /// before it (at first: where the joints stand).
+    #[test]
+    fn a_lag_is_a_delay_line_for_the_goals() {
+        let config: robotd_driver::RobotConfig = toml::from_str("driver = \"sim-widowx\"").unwrap();
+        let sim = robotd_driver_sim::open(&config).unwrap().robot;
+        let mut world = FakeWorld::new(sim, 1600, 2600);
+        assert_eq!(world.lagged_goals(vec![5; 6], &[1; 6]), vec![5; 6]);
+        world.set_stopping_lag(Duration::from_millis(50));
+        let here = [1; 6];
+        assert_eq!(world.lagged_goals(vec![7; 6], &here), vec![1; 6]);
+        let written = Instant::now();
+        while written.elapsed() < Duration::from_millis(60) {
+            std::hint::spin_loop();
+        }
+        // The stop, written now, is not obeyed yet; the goal of 60 ms ago is.
+        assert_eq!(world.lagged_goals(vec![2; 6], &here), vec![7; 6]);
     }
 }
