@@ -330,3 +330,94 @@ fn a_sheet_out_of_view_is_refused_naming_why() {
     assert!(reason.contains("showed the workspace sheet"), "{reason}");
     assert!(reason.contains("no workspace in view"), "{reason}");
 }
+
+#[test]
+fn connecting_reports_what_each_robot_tells_of_its_versions() {
+    // WidowX: every servo's model number and firmware, read from its control table.
+    let namespace = common::fresh_namespace("commission-versions-widowx");
+    let dir = tempfile::tempdir().unwrap();
+    let device = dir.path().join("ttyDXL");
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/config/widowx.toml");
+    let (_fake, camera_url) = common::start_fake_widowx(
+        &[
+            "--namespace",
+            &format!("{namespace}-fake"),
+            "--config",
+            config,
+        ],
+        &device,
+        &[],
+    );
+    let device = format!("robot.widowx.device={}", device.display());
+    let camera_url = format!("robot.widowx.camera_url={camera_url}");
+    let (code, report) = commission(
+        &[
+            "--namespace",
+            namespace.as_str(),
+            "--config",
+            config,
+            "--set",
+            device.as_str(),
+            "--set",
+            camera_url.as_str(),
+        ],
+        &["--only", "connect"],
+    );
+    assert_eq!(code, Some(0), "{report:#}");
+    let connect = &step(&report, "connect")["measured"];
+    let motors = connect["versions"]["motors"].as_array().unwrap();
+    assert_eq!(motors.len(), 9, "{connect:#}");
+    assert_eq!(motors[0]["name"], "1 waist", "{connect:#}");
+    assert_eq!(motors[0]["model"], "XM430-W350 (1020)", "{connect:#}");
+    // The fake's servos answer firmware 52 at address 6.
+    assert!(motors.iter().all(|m| m["firmware"] == "52"), "{connect:#}");
+
+    // Ned2: the hardware version and motor types of GET_HARDWARE_STATUS; no software version.
+    let namespace = common::fresh_namespace("commission-versions-ned2");
+    let (_fake, port) =
+        common::start_fake_niryo(&["--namespace", &format!("{namespace}-fake")], &[]);
+    let port = format!("robot.port={port}");
+    let (code, report) = commission(
+        &[
+            "--namespace",
+            namespace.as_str(),
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
+            "--set",
+            "robot.host=127.0.0.1",
+            "--set",
+            port.as_str(),
+        ],
+        &["--only", "connect"],
+    );
+    assert_eq!(code, Some(0), "{report:#}");
+    let connect = &step(&report, "connect")["measured"];
+    let versions = &connect["versions"];
+    assert_eq!(versions["hardware"], "ned2", "{connect:#}");
+    assert_eq!(versions["software"], Value::Null, "{connect:#}");
+    let motors = versions["motors"].as_array().unwrap();
+    assert_eq!(motors.len(), 7, "{connect:#}");
+    assert_eq!(motors[0]["name"], "Joint 1", "{connect:#}");
+    assert_eq!(motors[0]["model"], "Stepper", "{connect:#}");
+    let missing = connect["versions_not_reported"].to_string();
+    assert!(missing.contains("software version"), "{connect:#}");
+
+    // The simulator reports none and says so.
+    let (code, report) = commission(
+        &[
+            "--namespace",
+            &common::fresh_namespace("commission-versions-sim"),
+            "--set",
+            "robot.driver=sim-ned2",
+        ],
+        &["--only", "connect"],
+    );
+    assert_eq!(code, Some(0), "{report:#}");
+    let connect = &step(&report, "connect")["measured"];
+    assert_eq!(connect["versions"], Value::Null, "{connect:#}");
+    let missing = connect["versions_not_reported"].to_string();
+    assert!(
+        missing.contains("not reported by this driver"),
+        "{connect:#}"
+    );
+}

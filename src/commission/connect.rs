@@ -1,5 +1,9 @@
 //! The connect step of `robotd commission`: the driver reaches the robot and the robot tells
-//! where its joints are, whether it is calibrated and whether the e-stop is engaged.
+//! where its joints are, whether it is calibrated and whether the e-stop is engaged, and what it
+//! reports of its versions: a Ned2 its hardware version and motor types (`GET_HARDWARE_STATUS`;
+//! its TCP protocol reports no software or firmware version), a WidowX each servo's model number
+//! and firmware version (control table addresses 0 and 6). A driver that reports none (the
+//! simulator) leaves `versions` empty and says why in `versions_not_reported`.
 //!
 //! Nothing moves here. The niryo driver calibrates a robot that needs it on connecting when
 //! `robot.niryo.auto_calibrate` is true (a motion the policy admits like any other); with
@@ -31,6 +35,36 @@ pub struct Connected {
     pub image_size: [u32; 2],
     /// The camera's lens distortion as the driver reports it (all zero: rectified images).
     pub distortion: [f64; 5],
+    /// What the robot reports of its versions; `None` when the driver reports none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub versions: Option<Versions>,
+    /// What the robot does not report of its versions, and why.
+    pub versions_not_reported: Vec<String>,
+}
+
+/// The robot's versions as its driver reads them.
+#[derive(Debug, Clone, Serialize)]
+pub struct Versions {
+    /// The robot's hardware version (a Ned2: `ned2`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hardware: Option<String>,
+    /// The robot's software version.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub software: Option<String>,
+    /// Each motor, base to tool.
+    pub motors: Vec<Motor>,
+}
+
+/// One motor's model and firmware.
+#[derive(Debug, Clone, Serialize)]
+pub struct Motor {
+    /// What it moves.
+    pub name: String,
+    /// Its model or type.
+    pub model: String,
+    /// Its firmware version.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub firmware: Option<String>,
 }
 
 /// Runs the step: an error when the robot is not connected, not calibrated or e-stopped.
@@ -67,10 +101,31 @@ pub async fn run(session: &mut Session, config: &Config) -> Result<Connected> {
         );
     }
     let intrinsics = session.intrinsics();
+    let (versions, versions_not_reported) = match session.hardware_info().await {
+        Ok(info) => (
+            Some(Versions {
+                hardware: info.hardware_version,
+                software: info.software_version,
+                motors: info
+                    .motors
+                    .into_iter()
+                    .map(|m| Motor {
+                        name: m.name,
+                        model: m.model,
+                        firmware: m.firmware,
+                    })
+                    .collect(),
+            }),
+            info.not_reported,
+        ),
+        Err(reason) => (None, vec![reason.to_string()]),
+    };
     Ok(Connected {
         joints_rad: state.joints.positions_rad,
         calibrated: state.calibrated,
         image_size: [intrinsics.width, intrinsics.height],
         distortion: intrinsics.distortion,
+        versions,
+        versions_not_reported,
     })
 }

@@ -98,6 +98,13 @@ impl Session {
         })
     }
 
+    /// The robot's versions as its arm driver reads them.
+    pub async fn hardware_info(
+        &self,
+    ) -> Result<robotd_driver::HardwareInfo, robotd_driver::DriverError> {
+        self.hardware.arm_context.driver.hardware_info().await
+    }
+
     /// The camera's intrinsics as the driver reports them.
     pub fn intrinsics(&self) -> CameraIntrinsics {
         self.hardware.camera_intrinsics.clone()

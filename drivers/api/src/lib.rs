@@ -109,6 +109,35 @@ pub struct ArmFlags {
     pub calibrated: bool,
 }
 
+/// One motor as the robot reports it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotorInfo {
+    /// What it moves ("waist", "Joint 1").
+    pub name: String,
+    /// Its model or type ("XM430-W350 (1020)", "Stepper").
+    pub model: String,
+    /// Its firmware version, when the robot reports one.
+    pub firmware: Option<String>,
+}
+
+/// What the robot reports about its hardware and software versions.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct HardwareInfo {
+    /// The robot's hardware version, when it reports one (a Ned2: `ned2`).
+    pub hardware_version: Option<String>,
+    /// The robot's software version, when it reports one.
+    pub software_version: Option<String>,
+    /// Each motor, base to tool.
+    pub motors: Vec<MotorInfo>,
+    /// What this robot does not report over the driver's protocol, and why.
+    pub not_reported: Vec<String>,
+}
+
+/// The error of a driver that reports no hardware or firmware versions.
+pub fn versions_not_reported() -> DriverError {
+    DriverError::Hardware("hardware and firmware versions are not reported by this driver".into())
+}
+
 /// An arm: joint motions that finish when the arm has arrived, and cheap queries.
 pub trait ArmDriver: Send + Sync + 'static {
     /// Which robot this is.
@@ -141,6 +170,11 @@ pub trait ArmDriver: Send + Sync + 'static {
     /// Stops any motion now and holds position. Safe to call from any task, also while an
     /// [`execute`](Self::execute) is running elsewhere and after the arm actor died.
     fn halt(&self) -> Result<(), DriverError>;
+    /// The robot's hardware, software and motor firmware versions, as far as its protocol
+    /// reports them. The default (the simulator, a replay): [`versions_not_reported`].
+    fn hardware_info(&self) -> DriverFuture<'_, HardwareInfo> {
+        Box::pin(async { Err(versions_not_reported()) })
+    }
     /// Whether the robot can be used now: `Err(reason)` while a real robot is not connected
     /// (`/health`, `get_system_status` and the tools say why). The simulator always can.
     fn connection(&self) -> Result<(), String> {

@@ -20,7 +20,7 @@ use crate::link::{Link, LinkError, Session};
 use crate::wire::{self, Param};
 use robotd_driver::{
     nominal_travel_time_s, ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision,
-    DriverError, DriverFuture, Motion, MotionControl, Permit,
+    DriverError, DriverFuture, HardwareInfo, Motion, MotionControl, MotorInfo, Permit,
 };
 use robotd_protocol::geometry::RobotModel;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
@@ -337,5 +337,42 @@ impl ArmDriver for NiryoArm {
 
     fn connection(&self) -> Result<(), String> {
         self.link.status()
+    }
+
+    fn hardware_info(&self) -> DriverFuture<'_, HardwareInfo> {
+        Box::pin(async move {
+            let status = self.link.known().hardware.ok_or_else(|| {
+                DriverError::Hardware(match self.link.status() {
+                    Ok(()) => "the robot's hardware status is not read yet".into(),
+                    Err(reason) => format!("robot not connected: {reason}"),
+                })
+            })?;
+            Ok(hardware_info(&status))
+        })
+    }
+}
+
+/// What `GET_HARDWARE_STATUS` tells of the robot's versions: the hardware version and each
+/// motor's name and type. The TCP protocol (pyniryo 1.2.5, ned_ros) has no command that
+/// reports the robot's software version or the motors' firmware versions.
+pub fn hardware_info(status: &crate::link::HardwareStatus) -> HardwareInfo {
+    HardwareInfo {
+        hardware_version: Some(status.hardware_version.clone()),
+        software_version: None,
+        motors: status
+            .motors
+            .iter()
+            .map(|(name, kind)| MotorInfo {
+                name: name.clone(),
+                model: kind.clone(),
+                firmware: None,
+            })
+            .collect(),
+        not_reported: vec![
+            "software version and motor firmware versions: the Niryo TCP protocol has no \
+             command for them (GET_HARDWARE_STATUS reports the hardware version and the motor \
+             types only)"
+                .into(),
+        ],
     }
 }

@@ -113,6 +113,8 @@ pub struct HardwareStatus {
     pub calibration_needed: bool,
     /// Motors with a non-zero hardware error code: (name, code).
     pub motor_errors: Vec<(String, i64)>,
+    /// Each motor's name and type (items 6 and 7: `Joint 1`, `Stepper`).
+    pub motors: Vec<(String, String)>,
 }
 
 impl HardwareStatus {
@@ -164,6 +166,14 @@ impl HardwareStatus {
                 .trim_matches('\'')
                 .to_owned(),
             calibration_needed: flag(4)?,
+            motors: names
+                .iter()
+                .enumerate()
+                .map(|(i, name)| {
+                    let kind = items[7].get(i).and_then(Value::as_str).unwrap_or("?");
+                    (name.clone(), kind.to_owned())
+                })
+                .collect(),
             motor_errors,
         })
     }

@@ -12,8 +12,8 @@
 use crate::bus::ServoBus;
 use crate::control_table::{rad_to_ticks, ticks_to_rad};
 use robotd_driver::{
-    ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision, DriverError, DriverFuture, Motion,
-    MotionControl, Permit,
+    ArmDriver, ArmFlags, ArmMotion, Calibration, ClearCollision, DriverError, DriverFuture,
+    HardwareInfo, Motion, MotionControl, MotorInfo, Permit,
 };
 use robotd_kinematics::Kinematics;
 use robotd_protocol::geometry::RobotModel;
@@ -291,4 +291,44 @@ impl ArmDriver for WidowxArm {
     fn connection(&self) -> Result<(), String> {
         self.bus.connection()
     }
+
+    fn hardware_info(&self) -> DriverFuture<'_, HardwareInfo> {
+        Box::pin(async move {
+            let motors = self.bus.call(read_versions).await?;
+            Ok(HardwareInfo {
+                hardware_version: None,
+                software_version: None,
+                motors,
+                not_reported: vec![
+                    "hardware and software versions: a WidowX is servos on a bus, each reports \
+                     its own model and firmware only"
+                        .into(),
+                ],
+            })
+        })
+    }
+}
+
+/// Each servo's Model Number (address 0) and Firmware Version (address 6), in ID order.
+fn read_versions(bus: &mut crate::DxlBus) -> Result<Vec<MotorInfo>, String> {
+    use crate::control_table::{address, model_name, servo_name, ALL_IDS};
+    ALL_IDS
+        .iter()
+        .map(|&id| {
+            let what = || format!("servo {id} ({})", servo_name(id));
+            let model = bus
+                .read_u16(id, address::MODEL_NUMBER)
+                .map_err(|e| format!("reading {}'s model number: {e}", what()))?
+                .data;
+            let firmware = bus
+                .read_u8(id, address::FIRMWARE_VERSION)
+                .map_err(|e| format!("reading {}'s firmware version: {e}", what()))?
+                .data;
+            Ok(MotorInfo {
+                name: format!("{id} {}", servo_name(id)),
+                model: format!("{} ({model})", model_name(model)),
+                firmware: Some(firmware.to_string()),
+            })
+        })
+        .collect()
 }

@@ -58,6 +58,8 @@ pub fn model_name(model: u16) -> String {
 pub mod address {
     /// Model Number (2 bytes, read-only).
     pub const MODEL_NUMBER: u16 = 0;
+    /// Firmware Version (1 byte, read-only).
+    pub const FIRMWARE_VERSION: u16 = 6;
     /// Drive Mode (1 byte, EEPROM): bit 0 = reverse direction.
     pub const DRIVE_MODE: u16 = 10;
     /// Operating Mode (1 byte, EEPROM): 3 = position, 16 = PWM.
