@@ -47,7 +47,8 @@ pub const GRID: usize = 100;
 /// 15° of a half turn; the fingers are symmetric).
 const PROBE_YAWS: usize = 12;
 
-/// Free rectangles [`placeable_free_space`] checks, largest first, before it gives up.
+/// Free rectangles [`placeable_free_space`] checks for any object, largest first, before it
+/// gives up (for the objects memory holds it checks every one).
 const MAX_CHECKED: usize = 4000;
 
 /// A free rectangle of the grid.
@@ -195,10 +196,12 @@ pub fn placeable_free_space(
     margin_m: f64,
     skills: &SkillsSettings,
 ) -> Option<FreeRect> {
-    let mut placeable = free_rects(workspace, objects, margin_m, skills)
-        .into_iter()
-        .filter(|rect| takes_any_place(rect, objects, skills));
-    let first = placeable.next()?;
+    let rects = free_rects(workspace, objects, margin_m, skills);
+    let first = rects
+        .iter()
+        .take(MAX_CHECKED)
+        .find(|rect| takes_any_place(rect, objects, skills))
+        .copied()?;
     // The objects memory holds that fit the largest placeable rectangle's area.
     let known: Vec<DetectedObject> = known
         .iter()
@@ -208,24 +211,27 @@ pub fn placeable_free_space(
     if takes_known(&first, objects, &known, skills) {
         return Some(first);
     }
-    if let Some(rect) = placeable.find(|rect| takes_known(rect, objects, &known, skills)) {
-        return Some(rect);
+    // Every free rectangle, the cheap check first; then, since the skills need no margin,
+    // those nearer the objects than it.
+    let takes_all = |rect: &&FreeRect| {
+        takes_known(rect, objects, &known, skills) && takes_any_place(rect, objects, skills)
+    };
+    if let Some(rect) = rects.iter().find(takes_all) {
+        return Some(*rect);
     }
-    // The skills need no margin: nearer the objects than it, a known object may still fit.
     if margin_m > 0.0 {
-        let nearer = free_rects(workspace, objects, 0.0, skills)
-            .into_iter()
-            .filter(|rect| takes_any_place(rect, objects, skills))
-            .find(|rect| takes_known(rect, objects, &known, skills));
-        if nearer.is_some() {
-            return nearer;
+        if let Some(rect) = free_rects(workspace, objects, 0.0, skills)
+            .iter()
+            .find(takes_all)
+        {
+            return Some(*rect);
         }
     }
     Some(first)
 }
 
 /// The free rectangles of `workspace` (objects' footprints grown by `margin_m` and the
-/// markers' keep-out squares occupied), largest first, at most [`MAX_CHECKED`].
+/// markers' keep-out squares occupied), largest first.
 fn free_rects(
     workspace: &WorkspaceInfo,
     objects: &[DetectedObject],
@@ -251,11 +257,7 @@ fn free_rects(
     // Largest first; of equally large ones the first found (a stable sort).
     candidates.sort_by_key(|c| std::cmp::Reverse(c.0));
     candidates.dedup();
-    candidates
-        .into_iter()
-        .take(MAX_CHECKED)
-        .map(|c| grid.rect(c))
-        .collect()
+    candidates.into_iter().map(|c| grid.rect(c)).collect()
 }
 
 /// Whether the skills would put each of `known` down at `rect`'s centre, as it lies (at one of
