@@ -48,6 +48,10 @@ pub struct FakeNiryoArgs {
     /// report the lens's distortion).
     #[arg(long)]
     pub rectified: bool,
+    /// Wrong on purpose: every motion starts this many milliseconds after its command arrived,
+    /// so a motion sent just before the e-stop still runs (the Ned2 has no stop command).
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    pub stopping_lag_ms: u64,
 }
 
 /// Serves until Ctrl-C.
@@ -89,6 +93,7 @@ pub fn run(mut config: Config, args: FakeNiryoArgs) -> Result<()> {
                 only: args.only.clone(),
             },
         );
+        fake.set_stopping_lag(std::time::Duration::from_millis(args.stopping_lag_ms));
         let listener = tokio::net::TcpListener::bind(&args.listen)
             .await
             .with_context(|| format!("listening on {}", args.listen))?;

@@ -2,7 +2,8 @@
 //! `robotd commission` has something to measure: a camera mounted elsewhere than robotd
 //! believes (`--mount-offset`), images the robot already rectified (`fake-niryo --rectified`),
 //! a gripper whose mechanical range is not the configured one (`fake-widowx --gripper-ticks`),
-//! joints that obey a stop late (`fake-widowx --stopping-lag-ms`, in the fake's crate).
+//! joints that obey a stop late (`fake-widowx --stopping-lag-ms`), motions that start late
+//! (`fake-niryo --stopping-lag-ms`; both in the fakes' crates).
 //!
 //! The fake simulates the *true* robot; robotd, started with the same config file, keeps
 //! believing the configured values. For the mount, the fake renders from the configured mount

@@ -421,3 +421,48 @@ fn connecting_reports_what_each_robot_tells_of_its_versions() {
         "{connect:#}"
     );
 }
+
+#[test]
+fn a_ned2_that_starts_its_motions_late_is_still_until_its_last_segment_ran() {
+    // Every motion of the fake Ned2 starts 1 s after its command: the segment under way at
+    // the e-stop reports nothing for longer than the step's 600 ms quiet window, so the step
+    // must wait for the arm to report its motion over before it calls it still.
+    let namespace = common::fresh_namespace("commission-ned2-lag");
+    let (_fake, port) = common::start_fake_niryo(
+        &[
+            "--namespace",
+            &format!("{namespace}-fake"),
+            "--set",
+            "robot.time_scale=0.5",
+        ],
+        &["--stopping-lag-ms", "1000"],
+    );
+    let port = format!("robot.port={port}");
+    let (code, report) = commission(
+        &[
+            "--namespace",
+            namespace.as_str(),
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
+            "--set",
+            "robot.host=127.0.0.1",
+            "--set",
+            port.as_str(),
+            "--set",
+            "robot.time_scale=0.5",
+        ],
+        &["--only", "stopping"],
+    );
+    assert_eq!(code, Some(0), "{report:#}");
+    let stopping = &step(&report, "stopping")["measured"];
+    eprintln!("Ned2 with 1 s of lag: {stopping}");
+    let times: Vec<f64> = stopping["times_ms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_f64().unwrap())
+        .collect();
+    assert_eq!(times.len(), 3, "{stopping:#}");
+    // No stop is reported as instant: each waited for its segment's end.
+    assert!(times.iter().all(|t| *t > 20.0), "{stopping:#}");
+}

@@ -10,8 +10,9 @@
 //! from the joints it reads), so the time to standstill is known to one report period, and
 //! the travel is counted from the last report before the e-stop — an upper bound (on a Ned2,
 //! from the end of the segment before the one under way). Standstill is the last report whose
-//! tool position changed by more than 0.05 mm; the arm counts as still after 600 ms without
-//! such a change (longer than a Ned2 segment).
+//! tool position changed by more than 0.05 mm; the arm counts as still once it reports its
+//! motion over (`moving` false on `arm/state`) and 600 ms have passed without such a change
+//! (a WidowX's joints can still coast after its driver stopped commanding them).
 //!
 //! The e-stop this step engaged is released by it (through the motion policy's
 //! `safety/release`, origin `cli`) once the arm stands still — but only when the e-stop is
@@ -31,6 +32,9 @@ const REASON: &str = "robotd commission: stopping distance";
 /// Stops measured.
 pub const TRIALS: usize = 3;
 
+/// Once the arm reports its motion over, how long its tool must not move to count as still.
+const QUIET: Duration = Duration::from_millis(600);
+
 /// What the stopping step measured.
 #[derive(Debug, Clone, Serialize)]
 pub struct StoppingReport {
@@ -49,6 +53,8 @@ pub struct StoppingReport {
     pub distance_mm_max: f64,
     /// The speed cap the swings ran at, m/s.
     pub speed_cap_m_s: f64,
+    /// Each stop's time to standstill, ms, in the order run.
+    pub times_ms: Vec<f64>,
 }
 
 fn position(pose: &Pose) -> [f64; 3] {
@@ -126,7 +132,11 @@ pub async fn run(
             distance(at_stop, from) / sent.duration_since(t).as_secs_f64()
         });
         let (mut last, mut last_change) = (at_stop, sent);
-        while last_change.elapsed() < Duration::from_millis(600) {
+        // Standstill waits for the arm's own word that its motion is over (`moving` false on
+        // `arm/state`): a robot that starts a segment late (a Ned2 plans before it moves)
+        // reports nothing for longer than the quiet window while that segment is still to run.
+        let mut over = false;
+        while !over || last_change.elapsed() < QUIET {
             if sent.elapsed() > Duration::from_secs(10) {
                 bail!(
                     "trial {trial}: the arm still reported motion 10 s after the e-stop; it \
@@ -134,6 +144,7 @@ pub async fn run(
                 );
             }
             if let Some(state) = session.next_state(Duration::from_millis(100)).await? {
+                over = !state.moving;
                 let p = position(&state.tool_pose);
                 if distance(p, last) > 5e-5 {
                     last = p;
@@ -170,7 +181,9 @@ pub async fn run(
         values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
     };
     let max = |values: &[f64]| values.iter().copied().fold(0.0, f64::max);
+    let times_ms = times.clone();
     Ok(StoppingReport {
+        times_ms,
         trials: TRIALS,
         mean_speed_m_s: median(&mut speeds),
         time_ms_max: max(&times),

@@ -265,6 +265,11 @@ impl FakeNiryo {
             );
             return ok(vec![]);
         }
+        let lag = *lock(&self.stopping_lag);
+        if !lag.is_zero() {
+            // The fake's model of a late robot: the motion starts this much later.
+            tokio::time::sleep(lag).await;
+        }
         self.arm
             .controller_move(Motion::Joints(q), speed, &self.control)
             .await

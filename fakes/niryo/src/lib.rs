@@ -82,6 +82,8 @@ pub struct FakeNiryo {
     log: Mutex<Vec<String>>,
     /// A reply the previous client left without reading.
     stale: Mutex<Option<Vec<u8>>>,
+    /// How late every motion starts after its command arrived (0: at once).
+    stopping_lag: Mutex<std::time::Duration>,
 }
 
 impl std::fmt::Debug for FakeNiryo {
@@ -115,7 +117,16 @@ impl FakeNiryo {
             counted: AtomicU64::new(0),
             log: Mutex::new(Vec::new()),
             stale: Mutex::new(None),
+            stopping_lag: Mutex::new(std::time::Duration::ZERO),
         })
+    }
+
+    /// Makes every motion start `lag` after its command arrived (0: at once), as a robot whose
+    /// controller plans or buffers before it moves: a motion sent just before robotd's e-stop
+    /// still runs to its end, so the arm keeps going up to `lag` plus a segment after it. The
+    /// Ned2 has no stop command; robotd stops it by sending no further segment.
+    pub fn set_stopping_lag(&self, lag: std::time::Duration) {
+        *lock(&self.stopping_lag) = lag;
     }
 
     /// The simulated robot (ground truth for tests).

@@ -540,3 +540,42 @@ async fn rectified_images_are_described_without_distortion() {
         "the camera matrix is still the robot's"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_a_stopping_lag_a_segment_sent_before_the_estop_still_runs() {
+    // Real time, segments of 0.2 rad; every motion starts 300 ms after its command.
+    let (fake, address) = fake_on(0, 1.0, FakeFaults::default()).await;
+    fake.set_stopping_lag(Duration::from_millis(300));
+    let niryo = open(address.port(), "segment_rad = 0.2").await;
+    let arm = niryo.drivers.arm.clone();
+    let mut target = arm.joints().unwrap();
+    target[3] += 1.5;
+    let start = fake.sim().joints()[3];
+    let control = MotionControl::default();
+    let before = count(&fake.command_log(), "MOVE_JOINTS");
+    let motion = {
+        let (arm, control) = (arm.clone(), control.clone());
+        tokio::spawn(async move { execute(&arm, Motion::Joints(target), &control).await })
+    };
+    until("the first segment sent", Duration::from_secs(5), || {
+        count(&fake.command_log(), "MOVE_JOINTS") > before
+    })
+    .await;
+    control.set_estop(true, "test");
+    let still_for = until(
+        "the arm moving after the e-stop",
+        Duration::from_secs(5),
+        || fake.sim().joints()[3] != start,
+    )
+    .await;
+    let result = motion.await.unwrap();
+    assert!(
+        matches!(result, Err(DriverError::Stopped { .. })),
+        "{result:?}"
+    );
+    // The segment sent before the e-stop started late, then ran to its end; no other did.
+    assert!(still_for >= Duration::from_millis(250), "{still_for:?}");
+    let parked = fake.sim().joints()[3] - start;
+    assert!((0.1..0.3).contains(&parked), "turned {parked} rad");
+    assert_eq!(count(&fake.command_log(), "MOVE_JOINTS"), before + 1);
+}
