@@ -223,6 +223,7 @@ fn commissioning_a_widowx_measures_mount_gripper_stopping_and_a_pick() {
     );
     let device = format!("robot.widowx.device={}", device.display());
     let camera_url = format!("robot.widowx.camera_url={camera_url}");
+    let written = dir.path().join("commissioned.toml");
     let (code, report) = commission(
         &[
             "--namespace",
@@ -236,7 +237,7 @@ fn commissioning_a_widowx_measures_mount_gripper_stopping_and_a_pick() {
             "--set",
             "robot.time_scale=0.2",
         ],
-        &[],
+        &["--write", written.to_str().unwrap()],
     );
     let camera = step(&report, "camera");
     assert_eq!(code, Some(0), "{report:#}");
@@ -253,9 +254,19 @@ fn commissioning_a_widowx_measures_mount_gripper_stopping_and_a_pick() {
     );
     // The fake's gripper stops 100 ticks above the configured 1600..2600.
     let gripper = &step(&report, "gripper")["measured"];
+    eprintln!("WidowX gripper: {gripper}");
     let ticks = |key: &str| gripper[key].as_i64().unwrap();
     assert!((ticks("closed_ticks") - 1700).abs() <= 20, "{report:#}");
     assert!((ticks("open_ticks") - 2700).abs() <= 20, "{report:#}");
+    // The fake's stalled gripper reports a load of PWM × 1000 / 885: 282 at the commissioning
+    // PWM 250, so 395 at the configured 350, and half of it counts as holding.
+    assert_eq!(ticks("empty_close_pwm"), 250, "{report:#}");
+    assert!((ticks("empty_close_load") - 282).abs() <= 2, "{report:#}");
+    assert!((ticks("holding_load") - 197).abs() <= 2, "{report:#}");
+    let file = std::fs::read_to_string(&written).unwrap();
+    let table: toml::Value = toml::from_str(&file).unwrap();
+    let written_load = table["robot"]["widowx"]["gripper_holding_load"].as_integer();
+    assert_eq!(written_load, Some(ticks("holding_load")), "{file}");
     let pick = &step(&report, "pick")["measured"];
     eprintln!("WidowX supervised pick: {pick}");
     assert_eq!(pick["held"], true, "{report:#}");

@@ -115,6 +115,8 @@ pub struct Hardware {
     pub arm: Supervised<ArmActor>,
     /// The supervised gripper actor.
     pub gripper: Supervised<GripperActor>,
+    /// The gripper's driver, for what only commissioning asks of it (the load at its stop).
+    pub gripper_driver: std::sync::Arc<dyn robotd_driver::GripperDriver>,
     /// The supervised camera actor.
     pub camera: Supervised<CameraActor>,
     /// Shared arm state (driver, kinematics, stop signals).
@@ -271,6 +273,7 @@ impl Hardware {
         )
         .await
         .map_err(failed("arm"))?;
+        let gripper_driver = drivers.gripper.clone();
         let (gripper, task) =
             robotd_gripper::start(bus, supervisor("gripper"), drivers.gripper, safety.clone())
                 .await
@@ -289,6 +292,7 @@ impl Hardware {
             sim: None,
             arm,
             gripper,
+            gripper_driver,
             camera,
             arm_context: context,
             safety,

@@ -10,6 +10,15 @@
 //! and opens again, each through `gripper/command` from the origin `cli`, admitted by the
 //! motion policy; it leaves the gripper open.
 //!
+//! **Grasp threshold.** The driver says "holding something" when the fingers stopped more than
+//! 25 ticks short of closed with a Present Load of at least `robot.widowx.gripper_holding_load`
+//! (`drivers/widowx/src/gripper.rs`). On the empty close the driver reads the load at the
+//! closed stop: the servo stalled there at the commissioning PWM, as it stalls on an object.
+//! A stalled motor's load follows its drive, so the stall load at the configured
+//! `gripper_pwm` is that load × `gripper_pwm` / the commissioning PWM; the threshold is half
+//! of it: well under what fingers stalled on an object report, well over the few percent of
+//! fingers that move freely. (The load while moving freely is not measured.)
+//!
 //! The Ned2's TCP protocol reports no finger position: there is nothing to measure, and the
 //! step says so (`skipped`).
 
@@ -37,6 +46,25 @@ pub struct GripperReport {
     pub configured_closed_ticks: u16,
     /// The configured open ticks.
     pub configured_open_ticks: u16,
+    /// Present Load (0.1 % units) at the closed stop on the empty close.
+    pub empty_close_load: u16,
+    /// The PWM the empty close drove the fingers with.
+    pub empty_close_pwm: u16,
+    /// The derived `gripper_holding_load`: half the stall load at the configured PWM.
+    pub holding_load: u16,
+    /// The configured `gripper_holding_load`.
+    pub configured_holding_load: u16,
+}
+
+/// The load below which a stall at the closed stop is no measurement: the fingers did not
+/// push there (the driver gave up after 300 ms still without load).
+const MIN_STALL_LOAD: u16 = 20;
+
+/// `gripper_holding_load` from the load `load` at the closed stop when driven with `pwm`:
+/// half of the stall load at the operating PWM `operating_pwm`, within 1..=1000.
+pub fn holding_threshold(load: u16, pwm: u16, operating_pwm: u16) -> u16 {
+    let stall = f64::from(load) * f64::from(operating_pwm) / f64::from(pwm.max(1));
+    (stall / 2.0).round().clamp(1.0, 1000.0) as u16
 }
 
 /// The tick range the driver runs with while commissioning: the configured one widened.
@@ -70,6 +98,17 @@ pub async fn run(session: &Session, config: &Config) -> Result<Option<GripperRep
     };
     let open = width(session.gripper(GripperCommand::Open).await?, "opening")?;
     let closed = width(session.gripper(GripperCommand::Close).await?, "closing")?;
+    let stop = session
+        .last_close()
+        .map_err(|e| anyhow::anyhow!("the load at the closed stop: {e}"))?;
+    if stop.load < MIN_STALL_LOAD {
+        bail!(
+            "the fingers stopped at the closed stop with a load of {} (0.1 %), under {}: they \
+             did not push there, so no grasp threshold can be derived",
+            stop.load,
+            MIN_STALL_LOAD
+        );
+    }
     width(
         session.gripper(GripperCommand::Open).await?,
         "opening again",
@@ -95,6 +134,10 @@ pub async fn run(session: &Session, config: &Config) -> Result<Option<GripperRep
         open_ticks,
         configured_closed_ticks: widowx.gripper_closed_ticks,
         configured_open_ticks: widowx.gripper_open_ticks,
+        empty_close_load: stop.load,
+        empty_close_pwm: stop.pwm,
+        holding_load: holding_threshold(stop.load, stop.pwm, widowx.gripper_pwm),
+        configured_holding_load: widowx.gripper_holding_load,
     }))
 }
 
@@ -107,5 +150,14 @@ mod tests {
         assert_eq!(widened(1600, 2600), (1200, 3000));
         assert_eq!(widened(2600, 1600), (3000, 1200));
         assert_eq!(widened(100, 4000), (0, 4095));
+    }
+
+    #[test]
+    fn the_threshold_is_half_the_stall_load_at_the_operating_pwm() {
+        // Stalled with 282 at PWM 250: 395 at PWM 350, so 197.
+        assert_eq!(holding_threshold(282, 250, 350), 197);
+        assert_eq!(holding_threshold(300, 300, 300), 150);
+        assert_eq!(holding_threshold(1000, 100, 885), 1000);
+        assert_eq!(holding_threshold(1, 885, 100), 1);
     }
 }

@@ -14,7 +14,8 @@
 //!    capped speed, from the arm's own reports.
 //!
 //! 4. **gripper** ([`gripper`]): the WidowX gripper's closed and open ticks at its mechanical
-//!    stops (the Ned2 reports no finger position: skipped).
+//!    stops and the load that counts as holding (the Ned2 reports no finger position:
+//!    skipped).
 //!
 //! 5. **pick** ([`pick`]): the object at the sheet's centre picked, put back and seen again;
 //!    how far it moved, as the camera measures it.

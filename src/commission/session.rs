@@ -105,6 +105,11 @@ impl Session {
         self.hardware.arm_context.driver.hardware_info().await
     }
 
+    /// Where the gripper's fingers stopped on its last close and the load there.
+    pub fn last_close(&self) -> Result<robotd_driver::CloseStop, robotd_driver::DriverError> {
+        self.hardware.gripper_driver.last_close()
+    }
+
     /// The camera's intrinsics as the driver reports them.
     pub fn intrinsics(&self) -> CameraIntrinsics {
         self.hardware.camera_intrinsics.clone()

@@ -3,7 +3,8 @@
 //!
 //! The file holds only what was measured — `[robot.camera.mount]` (with `measured_for`, the
 //! fingerprint of the robot it was measured on, which `robotd doctor` compares), and for a
-//! Ned2 `[robot.niryo] images_rectified` — with a comment saying how well. Use it as the
+//! Ned2 `[robot.niryo] images_rectified`, for a WidowX `[robot.widowx]` gripper ticks and
+//! `gripper_holding_load` — with a comment saying how well. Use it as the
 //! config (`--config FILE`) or copy its tables into yours; commissioning never edits a file
 //! that exists.
 
@@ -86,12 +87,18 @@ pub fn write_config(
     if let Some(gripper) = gripper {
         let _ = write!(
             text,
-            "\n# The gripper's mechanical stops (configured: {} closed, {} open).\n\
-             [robot.widowx]\ngripper_closed_ticks = {}\ngripper_open_ticks = {}\n",
+            "\n# The gripper's mechanical stops (configured: {} closed, {} open), and the load \
+             that counts as holding: half the stall load at the closed stop ({} at PWM {}), \
+             scaled to gripper_pwm (configured: {}).\n[robot.widowx]\n\
+             gripper_closed_ticks = {}\ngripper_open_ticks = {}\ngripper_holding_load = {}\n",
             gripper.configured_closed_ticks,
             gripper.configured_open_ticks,
+            gripper.empty_close_load,
+            gripper.empty_close_pwm,
+            gripper.configured_holding_load,
             gripper.closed_ticks,
             gripper.open_ticks,
+            gripper.holding_load,
         );
     }
     let mut file = std::fs::OpenOptions::new()

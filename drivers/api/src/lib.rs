@@ -191,6 +191,19 @@ pub struct GripperStatus {
     pub width_m: f64,
 }
 
+/// Where the fingers stopped on the last close, and how hard the motor pushed there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CloseStop {
+    /// The servo's position, ticks.
+    pub ticks: i32,
+    /// The motor's load there (a DYNAMIXEL's Present Load, 0.1 % units, unsigned).
+    pub load: u16,
+    /// The drive (PWM, of 885) the fingers were closed with.
+    pub pwm: u16,
+    /// Whether the driver decided it holds something.
+    pub holding: bool,
+}
+
 /// A gripper.
 pub trait GripperDriver: Send + Sync + 'static {
     /// Widest opening, metres.
@@ -203,6 +216,13 @@ pub trait GripperDriver: Send + Sync + 'static {
     fn set_width(&self, permit: Permit<SetWidth>) -> DriverFuture<'_, GripperStatus>;
     /// Reads the state.
     fn status(&self) -> Result<GripperStatus, DriverError>;
+    /// Where the fingers stopped on the last close and the load there, for commissioning's
+    /// grasp threshold. The default: an error, the driver does not report it.
+    fn last_close(&self) -> Result<CloseStop, DriverError> {
+        Err(DriverError::Hardware(
+            "the fingers' stop and load are not reported by this driver".into(),
+        ))
+    }
 }
 
 /// Where and when a frame was taken.

@@ -13,10 +13,11 @@
 use crate::bus::ServoBus;
 use crate::control_table::{address, GRIPPER_ID};
 use robotd_driver::{
-    Close, DriverError, DriverFuture, GripperDriver, GripperStatus, Open, Permit, SetWidth,
+    Close, CloseStop, DriverError, DriverFuture, GripperDriver, GripperStatus, Open, Permit,
+    SetWidth,
 };
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 /// How the gripper moves.
@@ -52,6 +53,7 @@ pub struct WidowxGripper {
     bus: Arc<ServoBus>,
     settings: GripperSettings,
     holding: AtomicBool,
+    last_close: Mutex<Option<CloseStop>>,
 }
 
 impl WidowxGripper {
@@ -61,6 +63,7 @@ impl WidowxGripper {
             bus,
             settings,
             holding: AtomicBool::new(false),
+            last_close: Mutex::new(None),
         }
     }
 
@@ -162,9 +165,16 @@ impl GripperDriver for WidowxGripper {
             let pwm = self.closing_sign() * self.settings.pwm;
             let stopped_at = self.drive(pwm, self.settings.closed_ticks).await?;
             let short_of_closed = (stopped_at - self.settings.closed_ticks).abs() > AT_END_TICKS;
-            let holding = short_of_closed
-                && self.present_load().await?.unsigned_abs()
-                    >= self.settings.holding_load.unsigned_abs();
+            // Read at every stop (not only short of closed): commissioning derives the
+            // threshold from the load at the closed stop.
+            let load = self.present_load().await?.unsigned_abs();
+            let holding = short_of_closed && load >= self.settings.holding_load.unsigned_abs();
+            *self.last_close.lock().unwrap_or_else(|p| p.into_inner()) = Some(CloseStop {
+                ticks: stopped_at,
+                load,
+                pwm: self.settings.pwm.unsigned_abs(),
+                holding,
+            });
             let keep = if holding {
                 self.closing_sign() * self.settings.hold_pwm
             } else {
@@ -188,5 +198,12 @@ impl GripperDriver for WidowxGripper {
 
     fn status(&self) -> Result<GripperStatus, DriverError> {
         self.status_now()
+    }
+
+    fn last_close(&self) -> Result<CloseStop, DriverError> {
+        self.last_close
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .ok_or_else(|| DriverError::Hardware("the gripper has not closed yet".into()))
     }
 }
