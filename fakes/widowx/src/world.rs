@@ -73,11 +73,10 @@ impl FakeWorld {
 
     /// The goals the joints follow now: with a lag, the last ones written at least the lag
     /// ago (a delay line), else those written.
-    fn lagged_goals(&mut self, written: Vec<i32>, present: &[i32]) -> Vec<i32> {
+    fn lagged_goals(&mut self, written: Vec<i32>, present: &[i32], now: Instant) -> Vec<i32> {
         if self.stopping_lag.is_zero() {
             return written;
         }
-        let now = Instant::now();
         if self.written.back().is_none_or(|(_, last)| *last != written) {
             self.written.push_back((now, written));
         }
@@ -144,7 +143,7 @@ impl FakeWorld {
             written.push(servo.goal_position());
             present.push(servo.present_position());
         }
-        let goals = self.lagged_goals(written, &present);
+        let goals = self.lagged_goals(written, &present, Instant::now());
         let mut next = Vec::with_capacity(6);
         let mut moved = false;
         for (id, goal) in JOINT_IDS.iter().zip(goals) {
@@ -239,15 +238,16 @@ mod tests {
         let config: robotd_driver::RobotConfig = toml::from_str("driver = \"sim-widowx\"").unwrap();
         let sim = robotd_driver_sim::open(&config).unwrap().robot;
         let mut world = FakeWorld::new(sim, 1600, 2600);
-        assert_eq!(world.lagged_goals(vec![5; 6], &[1; 6]), vec![5; 6]);
+        let t0 = Instant::now();
+        let at = |ms: u64| t0 + Duration::from_millis(ms);
+        assert_eq!(world.lagged_goals(vec![5; 6], &[1; 6], at(0)), vec![5; 6]);
         world.set_stopping_lag(Duration::from_millis(50));
         let here = [1; 6];
-        assert_eq!(world.lagged_goals(vec![7; 6], &here), vec![1; 6]);
-        let written = Instant::now();
-        while written.elapsed() < Duration::from_millis(60) {
-            std::hint::spin_loop();
-        }
-        // The stop, written now, is not obeyed yet; the goal of 60 ms ago is.
-        assert_eq!(world.lagged_goals(vec![2; 6], &here), vec![7; 6]);
+        assert_eq!(world.lagged_goals(vec![7; 6], &here, at(0)), vec![1; 6]);
+        assert_eq!(world.lagged_goals(vec![7; 6], &here, at(49)), vec![1; 6]);
+        // The stop, written at 60 ms, is not obeyed yet; the goal of 0 ms is.
+        assert_eq!(world.lagged_goals(vec![2; 6], &here, at(60)), vec![7; 6]);
+        assert_eq!(world.lagged_goals(vec![2; 6], &here, at(109)), vec![7; 6]);
+        assert_eq!(world.lagged_goals(vec![2; 6], &here, at(110)), vec![2; 6]);
     }
 }
