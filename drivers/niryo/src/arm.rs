@@ -371,7 +371,7 @@ pub fn hardware_info(status: &crate::link::HardwareStatus) -> HardwareInfo {
         not_reported: vec![
             "software version and motor firmware versions: the Niryo TCP protocol has no \
              command for them (GET_HARDWARE_STATUS reports the hardware version and the motor \
-             types only)"
+             types only; the robot publishes them on its ROS topic software_version)"
                 .into(),
         ],
     }
