@@ -214,3 +214,22 @@ fn failure_texts_name_objects_as_the_detection_tools_do() {
         assert!(refusals >= 4, "{texts:#?}");
     });
 }
+
+#[test]
+fn robotd_bench_table_checks_a_short_session_against_the_ground_truth() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["bench", "table", "--calls", "6", "--seed", "1", "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let figures: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(figures["calls"], 6, "{figures}");
+    assert!(figures["views"].as_u64().unwrap() >= 6, "{figures}");
+    for zero in ["phantoms", "misnamed", "wrong_heights", "stuck_stacks"] {
+        assert_eq!(figures[zero], 0, "{zero}: {figures}");
+    }
+}
