@@ -119,11 +119,6 @@ const SIDEWAYS: &[(&str, &str, &str)] = &[
         "robotd-camera",
         "robot starts the hardware actors on the chosen driver",
     ),
-    (
-        "robotd-workspace-model",
-        "robotd-skills",
-        "stacks and free space are judged by the skills' own table geometry and placement check",
-    ),
 ];
 
 /// Drivers of real hardware: none of them may depend on a crate of [`SIMULATOR`], directly or

@@ -11,7 +11,7 @@
 //! What the tool answers is [`placeable_free_space`]: the same search, but with the skills'
 //! footprints (turned as the objects lie) and the corner markers' keep-out squares taken as
 //! occupied, and a rectangle's centre answered only when the skills' own placement check
-//! ([`robotd_skills::geometry::table_place_problem`]) accepts there an object as large as the
+//! ([`robotd_placement::geometry::table_place_problem`]) accepts there an object as large as the
 //! rectangle and, for every gripper yaw, the smallest object (released lowest, its opening
 //! fingers reaching furthest beyond it): whatever fits the rectangle can be put down at its
 //! centre. Of the free rectangles, the largest whose centre passes is answered.
@@ -33,11 +33,11 @@
 //! assert!((center.x_m - 0.25).abs() < 1e-12);
 //! ```
 
+use robotd_placement::geometry::{marker_zones, table_place_problem, Rect};
+use robotd_placement::SkillsSettings;
 use robotd_protocol::geometry::{Point2, Point3};
 use robotd_protocol::objects::DetectedObject;
 use robotd_protocol::workspace::WorkspaceInfo;
-use robotd_skills::geometry::{marker_zones, table_place_problem, Rect};
-use robotd_skills::SkillsSettings;
 use std::f64::consts::PI;
 
 /// Cells along each side of the grid.

@@ -99,7 +99,7 @@ pub struct SceneMemory {
     current: Option<usize>,
     /// The skills' sizes (gripper, markers' keep-out) for the free-space answer, defaults of
     /// the first workspace's robot.
-    skills: robotd_skills::SkillsSettings,
+    skills: robotd_placement::SkillsSettings,
 }
 
 impl SceneMemory {
@@ -115,7 +115,7 @@ impl SceneMemory {
             .first()
             .map_or(robotd_protocol::RobotModel::Ned2, |w| w.robot);
         Self {
-            skills: robotd_skills::SkillsSettings::new(robot, workspaces.clone()),
+            skills: robotd_placement::SkillsSettings::new(robot, workspaces.clone()),
             tracker: Tracker::new(settings.expire_after_frames),
             labels: LabelRegistry::with_limits(labels, builtin, settings.label_limits),
             settings,

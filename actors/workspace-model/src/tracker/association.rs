@@ -78,8 +78,8 @@ pub(super) fn pairs(
 /// overlap, so it is that object seen differently (a skill put it where the camera sees it at
 /// another angle, as another shape).
 fn covers(track: &Track, det: &DetectedObject) -> bool {
-    robotd_skills::geometry::Rect::of_object(&track.object).contains(
-        &robotd_skills::geometry::Rect::footprint(det.xy(), (0.0, 0.0)),
+    robotd_placement::geometry::Rect::of_object(&track.object).contains(
+        &robotd_placement::geometry::Rect::footprint(det.xy(), (0.0, 0.0)),
     )
 }
 

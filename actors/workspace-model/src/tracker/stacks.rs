@@ -23,13 +23,13 @@
 //!   puts it (on the table, or on another stack).
 //!
 //! The skills read a stack from the reported heights alone
-//! ([`robotd_skills::geometry::rests_on`]): an object whose centre lies on a lower object's
+//! ([`robotd_placement::geometry::rests_on`]): an object whose centre lies on a lower object's
 //! footprint stands on that one's top.
 
 use super::Track;
+use robotd_placement::geometry::Rect;
+pub use robotd_placement::geometry::STACK_SUPPORT_TOLERANCE_M;
 use robotd_protocol::geometry::Point2;
-use robotd_skills::geometry::Rect;
-pub use robotd_skills::geometry::STACK_SUPPORT_TOLERANCE_M;
 
 /// A detection matching nothing whose centre lies this far beyond a stack's footprint is still
 /// a piece of that stack, metres.

@@ -41,23 +41,23 @@ const SHEET_BORDER_M: f64 = 0.012;
 /// How far a stacked object may reach beyond the edge of the one below, metres.
 const STACK_OVERHANG_M: f64 = 0.005;
 /// Room kept between the pushing gripper's path and objects it must not touch, metres.
-const PUSH_TOOL_CLEARANCE_M: f64 = 0.002;
+pub const PUSH_TOOL_CLEARANCE_M: f64 = 0.002;
 /// Clearances tried when ranking grasp yaws (the largest that fits wins), metres.
-const CLEARANCE_STEPS_M: [f64; 6] = [0.0, 0.002, 0.004, 0.007, 0.01, 0.015];
+pub const CLEARANCE_STEPS_M: [f64; 6] = [0.0, 0.002, 0.004, 0.007, 0.01, 0.015];
 
 /// The object the gripper will hold, and how.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct HeldPlan<'a> {
+pub struct HeldPlan<'a> {
     /// The object as seen before the pick.
-    pub(crate) object: &'a DetectedObject,
+    pub object: &'a DetectedObject,
     /// Gripper yaw of the grasp, radians.
-    pub(crate) yaw_rad: f64,
+    pub yaw_rad: f64,
     /// Height of the tool centre above the object's base while held, metres.
-    pub(crate) tcp_above_base_m: f64,
+    pub tcp_above_base_m: f64,
 }
 
 /// The workspace `p` lies in, or the error naming the nearest one.
-pub(crate) fn workspace_of(
+pub fn workspace_of(
     settings: &SkillsSettings,
     what: &str,
     p: Point2,
@@ -102,23 +102,19 @@ fn first_in<'a>(
 }
 
 /// Gap kept between a grasped object's top and the palm, metres.
-pub(crate) const PALM_CLEARANCE_M: f64 = 0.003;
+pub const PALM_CLEARANCE_M: f64 = 0.003;
 
 /// The tool height for grasping `object` with the caller's `z_offset_m` above its centre of
 /// mass: never below the lowest commanded height, and high enough that the palm, on top of
 /// the fingers, clears the object's own top (a tall object is held by its upper part).
 #[cfg(test)]
-pub(crate) fn grasp_height(
-    settings: &SkillsSettings,
-    object: &DetectedObject,
-    z_offset_m: f64,
-) -> f64 {
+pub fn grasp_height(settings: &SkillsSettings, object: &DetectedObject, z_offset_m: f64) -> f64 {
     grasp_height_on(settings, object, 0.0, z_offset_m)
 }
 
 /// [`grasp_height`] for an object standing on a surface at `base_z` (the top of the object it
 /// is stacked on; 0 on the table): its top is its base plus twice its centre of mass above it.
-pub(crate) fn grasp_height_on(
+pub fn grasp_height_on(
     settings: &SkillsSettings,
     object: &DetectedObject,
     base_z: f64,
@@ -133,7 +129,7 @@ pub(crate) fn grasp_height_on(
 
 /// The gripper yaw for grasping `object` at tool height `grasp_z` among `others` (the object
 /// itself may be among them): the fitting yaw with the most room for the open fingers.
-pub(crate) fn grasp_yaw(
+pub fn grasp_yaw(
     settings: &SkillsSettings,
     object: &DetectedObject,
     others: &[DetectedObject],
@@ -297,7 +293,7 @@ fn marker_problem(
 /// What is wrong with the closed gripper going down at `start` behind `object` and
 /// travelling to `end` at tool height `low_z` (turned by `yaw_rad`): `None` when it touches
 /// nothing but `object` on the way.
-pub(crate) fn push_tool_problem(
+pub fn push_tool_problem(
     settings: &SkillsSettings,
     object: &DetectedObject,
     others: &[DetectedObject],
@@ -337,7 +333,7 @@ pub(crate) fn push_tool_problem(
 
 /// What is wrong with pushing `object` so that it ends at `end`, among `others`: `None` when
 /// nothing is.
-pub(crate) fn push_problem(
+pub fn push_problem(
     settings: &SkillsSettings,
     object: &DetectedObject,
     others: &[DetectedObject],
@@ -373,11 +369,7 @@ pub(crate) fn push_problem(
 /// Tool height for releasing the held object onto a surface at `surface_z`: a stacked
 /// object is released higher by [`SkillsSettings::stack_height_margin_m`], as the height of
 /// what it goes onto is measured by the camera.
-pub(crate) fn release_height(
-    settings: &SkillsSettings,
-    held: &HeldPlan<'_>,
-    surface_z: f64,
-) -> f64 {
+pub fn release_height(settings: &SkillsSettings, held: &HeldPlan<'_>, surface_z: f64) -> f64 {
     let margin = if surface_z > 0.0 {
         settings.stack_height_margin_m
     } else {
@@ -388,7 +380,7 @@ pub(crate) fn release_height(
 
 /// A spot on the table where the held object fits (no placement problem among `others`),
 /// nearest the centre of its workspace: what a failure that leaves it held suggests.
-pub(crate) fn free_spot(
+pub fn free_spot(
     settings: &SkillsSettings,
     others: &[DetectedObject],
     held: &HeldPlan<'_>,
@@ -420,7 +412,7 @@ pub(crate) fn free_spot(
 /// Where the held object goes for a placement at `at` with `location`, among `others` (the
 /// objects on the table without the held one): its centre and the height of the surface it
 /// rests on.
-pub(crate) fn place_target(
+pub fn place_target(
     settings: &SkillsSettings,
     others: &[DetectedObject],
     held: &HeldPlan<'_>,
