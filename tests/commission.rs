@@ -51,6 +51,18 @@ fn commission(settings: &[&str], args: &[&str]) -> (Option<i32>, Value) {
     (output.status.code(), report)
 }
 
+/// Writes `scene` into `dir` with its red cube's position `from` replaced by `to`; returns the
+/// `robot.scene=…` setting that loads it.
+fn scene_with_cube_moved(dir: &std::path::Path, scene: &str, from: &str, to: &str) -> String {
+    assert!(
+        scene.contains(from),
+        "the scene no longer has its cube at {from:?}"
+    );
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, scene.replace(from, to)).unwrap();
+    format!("robot.scene={}", path.display())
+}
+
 fn step<'a>(report: &'a Value, name: &str) -> &'a Value {
     report["steps"]
         .as_array()
@@ -76,15 +88,12 @@ fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
     let namespace = common::fresh_namespace("commission-ned2");
     let dir = tempfile::tempdir().unwrap();
     // The default scene with its red cube at the sheet's centre, for the supervised pick.
-    let scene = dir.path().join("scene.toml");
-    let default_scene = include_str!("../config/scenes/default.toml");
-    assert!(default_scene.contains("x_m = 0.28\ny_m = 0.04"));
-    std::fs::write(
-        &scene,
-        default_scene.replace("x_m = 0.28\ny_m = 0.04", "x_m = 0.25\ny_m = 0.0"),
-    )
-    .unwrap();
-    let scene = format!("robot.scene={}", scene.display());
+    let scene = scene_with_cube_moved(
+        dir.path(),
+        include_str!("../config/scenes/default.toml"),
+        "x_m = 0.28\ny_m = 0.04",
+        "x_m = 0.25\ny_m = 0.0",
+    );
     let (_fake, port) = common::start_fake_niryo(
         &[
             "--namespace",
@@ -198,15 +207,12 @@ fn commissioning_a_widowx_measures_mount_gripper_stopping_and_a_pick() {
     let device = dir.path().join("ttyDXL");
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/config/widowx.toml");
     // The WidowX scene with its red cube near the sheet's centre, for the supervised pick.
-    let scene = dir.path().join("scene.toml");
-    let widowx_scene = include_str!("../config/scenes/widowx.toml");
-    assert!(widowx_scene.contains("x_m = 0.30\ny_m = 0.05"));
-    std::fs::write(
-        &scene,
-        widowx_scene.replace("x_m = 0.30\ny_m = 0.05", "x_m = 0.255\ny_m = 0.025"),
-    )
-    .unwrap();
-    let scene = format!("robot.scene={}", scene.display());
+    let scene = scene_with_cube_moved(
+        dir.path(),
+        include_str!("../config/scenes/widowx.toml"),
+        "x_m = 0.30\ny_m = 0.05",
+        "x_m = 0.255\ny_m = 0.025",
+    );
     let (_fake, camera_url) = common::start_fake_widowx(
         &[
             "--namespace",
