@@ -523,4 +523,4 @@ pub fn place_target(
 mod against_sim;
 #[cfg(test)]
 #[path = "plan/tests.rs"]
-mod tests;
+pub(crate) mod tests;

@@ -7,10 +7,10 @@ use crate::plan::{
     grasp_height, place_target, push_tool_problem, release_height, workspace_of, HeldPlan,
 };
 use crate::SkillsSettings;
-use robotd_protocol::objects::{DetectedObject, Dimensions, ObjectPosition};
+use robotd_protocol::objects::DetectedObject;
 use robotd_protocol::skills::SkillError;
 use robotd_protocol::workspace::WorkspaceInfo;
-use robotd_protocol::{Location, Point2, Point3, Pose, RobotModel};
+use robotd_protocol::{Location, Point2, Pose, RobotModel};
 
 fn sheet(id: &str, upper_left: Point2, lower_right: Point2) -> WorkspaceInfo {
     WorkspaceInfo {
@@ -40,21 +40,7 @@ fn settings() -> SkillsSettings {
 
 /// A box `side` × `side` and `tall` high, standing on the table at (x, y).
 fn object(id: &str, label: &str, x: f64, y: f64, side: f64, tall: f64) -> DetectedObject {
-    DetectedObject {
-        id: id.into(),
-        label: label.into(),
-        workspace_id: "niryo_ws".into(),
-        position: ObjectPosition {
-            center_of_mass: Point3::new(x, y, tall / 2.0),
-            center: Point3::new(x, y, tall / 2.0),
-        },
-        dimensions: Dimensions {
-            width_m: side,
-            height_m: side,
-            size_m2: side * side,
-        },
-        ..Default::default()
-    }
+    crate::plan::tests::object(id, label, x, y, side, side, tall)
 }
 
 fn held(o: &DetectedObject, tcp_above_base_m: f64) -> HeldPlan<'_> {

@@ -22,7 +22,7 @@ fn settings() -> SkillsSettings {
 /// An object `along_x` × `along_y` metres and `tall` high, standing on the table at (x, y)
 /// (footprints lie along their long side, turned by the gripper rotation: a quarter turn when
 /// the long side is along y).
-fn object(
+pub(crate) fn object(
     id: &str,
     label: &str,
     x: f64,
