@@ -11,36 +11,10 @@
 
 mod common;
 
+use common::{start_redis, start_redis_with};
 use serde_json::Value;
-use std::net::TcpStream;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
-
-/// A `redis-server` on `port`, without persistence; killed when dropped.
-fn start_redis(port: u16) -> common::Running {
-    start_redis_with(port, &[])
-}
-
-/// [`start_redis`] with extra server options.
-fn start_redis_with(port: u16, options: &[&str]) -> common::Running {
-    let child = Command::new("redis-server")
-        .args(["--port", &port.to_string()])
-        .args(["--bind", "127.0.0.1", "--save", "", "--appendonly", "no"])
-        .args(options)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start redis-server (./scripts/test.sh installs it)");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            Instant::now() < deadline,
-            "redis-server did not listen on {port}"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    common::Running::new(child, "redis-server")
-}
 
 fn redis_conn(port: u16) -> redis::Connection {
     redis::Client::open(format!("redis://127.0.0.1:{port}/0"))

@@ -6,8 +6,9 @@ mod common;
 #[path = "common/lab.rs"]
 mod lab;
 
-use lab::{assert_near, lab, runtime, seen_in, Lab};
+use lab::{assert_near, lab, lab_with, runtime, seen_in, Lab};
 use serde_json::{json, Value};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// The detected objects' data, after a fresh view.
 async fn detected(lab: &Lab) -> Vec<Value> {
@@ -41,12 +42,72 @@ fn labels(objects: &[Value]) -> Vec<String> {
     l
 }
 
+/// `(id, label)` of each object, sorted.
+fn names(objects: &[Value]) -> Vec<(String, String)> {
+    let mut v: Vec<(String, String)> = objects
+        .iter()
+        .map(|o| {
+            let text = |key: &str| o[key].as_str().unwrap_or_default().to_owned();
+            (text("id"), text("label"))
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+/// The objects of the newest `detected_objects` entry robotd wrote to Redis after `since_s`
+/// (Unix seconds), waiting for one.
+fn redis_objects(conn: &mut redis::Connection, since_s: f64) -> Vec<Value> {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let newest: Vec<(String, Vec<String>)> = redis::cmd("XREVRANGE")
+            .arg("detected_objects")
+            .arg("+")
+            .arg("-")
+            .arg("COUNT")
+            .arg(1)
+            .query(conn)
+            .expect("XREVRANGE detected_objects");
+        if let Some((_, fields)) = newest.first() {
+            let field = |name: &str| {
+                let at = fields.iter().position(|f| f == name)?;
+                fields.get(at + 1).cloned()
+            };
+            let time: f64 = field("timestamp")
+                .and_then(|t| t.parse().ok())
+                .unwrap_or(0.0);
+            if time > since_s {
+                let objects = field("objects").expect("an objects field");
+                return serde_json::from_str(&objects).expect("objects JSON");
+            }
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no detected_objects entry after {since_s}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn now_s() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
+}
+
 const DEFAULT_LABELS: [&str; 4] = ["blue square", "green cylinder", "pencil", "red cube"];
 
 #[test]
 fn a_stack_is_one_object_on_another_and_comes_apart_again() {
+    let redis_port = common::free_port();
+    let _redis = common::start_redis(redis_port);
+    let url = format!("redis://127.0.0.1:{redis_port}/0");
+    let mut conn = redis::Client::open(url.as_str())
+        .and_then(|c| c.get_connection())
+        .expect("connect to the test redis-server");
     runtime().block_on(async {
-        let lab = lab(None).await;
+        let lab = lab_with(0.05, &[format!("redis.url={url}")]).await;
         let objects = detected(&lab).await;
         assert_eq!(labels(&objects), DEFAULT_LABELS);
         let cylinder_at = xy(one(&objects, "green cylinder"));
@@ -79,6 +140,19 @@ fn a_stack_is_one_object_on_another_and_comes_apart_again() {
             let these = (cyl["id"].clone(), cube["id"].clone());
             assert_eq!(*ids.get_or_insert(these.clone()), these, "ids kept");
         }
+        // Redis: the stack's top as the tools have it (at its height); what shows of the cube
+        // around it, if anything, is the cube; nothing else.
+        let tools = detected(&lab).await;
+        let from_redis = redis_objects(&mut conn, now_s());
+        let tool_names = names(&tools);
+        for name in names(&from_redis) {
+            assert!(tool_names.contains(&name), "{name:?} not in {tool_names:?}");
+        }
+        let top = one(&from_redis, "green cylinder");
+        assert!(
+            (z(top) - z(one(&tools, "green cylinder"))).abs() < 1e-9,
+            "{top:#}"
+        );
 
         // Take the stack apart: the cylinder first, then the cube.
         let objects = detected(&lab).await;
@@ -107,8 +181,14 @@ fn a_stack_is_one_object_on_another_and_comes_apart_again() {
 
 #[test]
 fn a_cylinder_at_the_sheets_lower_edge_has_no_phantom_neighbour() {
+    let redis_port = common::free_port();
+    let _redis = common::start_redis(redis_port);
+    let url = format!("redis://127.0.0.1:{redis_port}/0");
+    let mut conn = redis::Client::open(url.as_str())
+        .and_then(|c| c.get_connection())
+        .expect("connect to the test redis-server");
     runtime().block_on(async {
-        let lab = lab(None).await;
+        let lab = lab_with(0.05, &[format!("redis.url={url}")]).await;
         let objects = detected(&lab).await;
         let cylinder_at = xy(one(&objects, "green cylinder"));
         // Issue 43 saw a phantom "green box" beside it at [0.185, 0.013] (here 5 mm further
@@ -132,6 +212,14 @@ fn a_cylinder_at_the_sheets_lower_edge_has_no_phantom_neighbour() {
                 these.sort();
                 assert_eq!(*ids.get_or_insert(these.clone()), these, "view {view}");
             }
+            // The Redis stream names every object as the tools do, and shows nothing else.
+            let since = now_s();
+            let tools = names(&detected(&lab).await);
+            assert_eq!(
+                names(&redis_objects(&mut conn, since)),
+                tools,
+                "at {edge:?}"
+            );
             from = xy(one(&detected(&lab).await, "green cylinder"));
         }
         // Nothing the camera made up stands in the way of taking it back.

@@ -76,6 +76,7 @@ pub mod gripper;
 pub mod gripper_geometry;
 pub mod health;
 pub mod location;
+pub mod named_view;
 pub mod objects;
 pub mod pixels;
 pub mod safety;

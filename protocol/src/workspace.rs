@@ -598,20 +598,15 @@ pub struct TrackedObjects {
     pub timestamp_unix_ns: u64,
     /// The objects on the table (held ones excluded).
     pub objects: Vec<DetectedObject>,
-    /// The objects of `objects` named by `label_object`, with what the detector calls them:
-    /// a view's detections are matched to these by that label. Empty (and left out of the
-    /// message) when nothing was named.
+    /// The `source` of the view just applied (the detector that sent it).
+    #[serde(default)]
+    pub source: String,
+    /// One entry per object of the view just applied (`perception/detections` of `frame_id`,
+    /// in order): the id of the object the model took it for, or `""` when it is none the model
+    /// reports (a candidate no second view has confirmed yet, or a piece of a stack showing
+    /// around its top). The edges name a view's boxes by it ([`TrackedObjects::named_view`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub renamed: Vec<RenamedObject>,
-}
-
-/// A tracked object named by `label_object`.
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-pub struct RenamedObject {
-    /// The object's id.
-    pub id: String,
-    /// What the detector calls it (its label in `perception/detections`).
-    pub detected_as: String,
+    pub detection_ids: Vec<String>,
 }
 
 impl Message for TrackedObjects {

@@ -21,7 +21,7 @@ use robotd_protocol::objects::{
 };
 use robotd_protocol::speech::{OverlayKind, SpeakRequest, SpeechEvent, TextOverlay};
 use robotd_protocol::workspace::{
-    DetectableLabels, RenamedObject, TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceQuery,
+    DetectableLabels, TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceQuery,
     WorkspaceReply, WorkspaceRequest,
 };
 use std::fmt::Debug;
@@ -427,17 +427,17 @@ fn workspace_query() -> impl Strategy<Value = WorkspaceQuery> {
 }
 
 fn tracked_objects() -> impl Strategy<Value = TrackedObjects> {
-    let renamed = prop::collection::vec(
-        (text(), text()).prop_map(|(id, detected_as)| RenamedObject { id, detected_as }),
-        0..3,
-    );
-    (text(), any::<u64>(), any::<u64>(), objects(), renamed).prop_map(
-        |(workspace_id, frame_id, timestamp_unix_ns, objects, renamed)| TrackedObjects {
-            workspace_id,
-            frame_id,
-            timestamp_unix_ns,
-            objects,
-            renamed,
+    let ids = prop::collection::vec(text(), 0..3);
+    (text(), any::<u64>(), any::<u64>(), objects(), text(), ids).prop_map(
+        |(workspace_id, frame_id, timestamp_unix_ns, objects, source, detection_ids)| {
+            TrackedObjects {
+                workspace_id,
+                frame_id,
+                timestamp_unix_ns,
+                objects,
+                source,
+                detection_ids,
+            }
         },
     )
 }

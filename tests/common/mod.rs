@@ -456,3 +456,29 @@ pub async fn sim_world(
         .expect("the simulated world")
         .objects
 }
+
+/// A `redis-server` on `port`, without persistence; killed when dropped.
+pub fn start_redis(port: u16) -> Running {
+    start_redis_with(port, &[])
+}
+
+/// [`start_redis`] with extra server options.
+pub fn start_redis_with(port: u16, options: &[&str]) -> Running {
+    let child = Command::new("redis-server")
+        .args(["--port", &port.to_string()])
+        .args(["--bind", "127.0.0.1", "--save", "", "--appendonly", "no"])
+        .args(options)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start redis-server (./scripts/test.sh installs it)");
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "redis-server did not listen on {port}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Running::new(child, "redis-server")
+}

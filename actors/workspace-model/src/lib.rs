@@ -20,11 +20,12 @@
 //!   the table) and [`WorkspaceRequest::ObjectPlaced`] (back on the table where it was put,
 //!   until the camera confirms it or, not finding it, forgets it);
 //! - keeps the names `label_object` gives ([`WorkspaceRequest::LabelObject`]): the named
-//!   object answers to its name in every reply, in `workspace/objects` (which lists it among
-//!   the `renamed`, with what the detector calls it) and when the skills pick by name, until
-//!   it is forgotten or named again; the name joins the detectable labels;
+//!   object answers to its name in every reply, in `workspace/objects` and when the skills
+//!   pick by name, until it is forgotten or named again; the name joins the detectable labels;
 //! - publishes the remembered objects of the workspace in view on `workspace/objects`
-//!   ([`TrackedObjects`]) after every applied view, and the detectable labels on
+//!   ([`TrackedObjects`]) after every applied view, with the object each of the view's boxes
+//!   was taken for (`detection_ids`: how the dashboard and the Redis stream name a view's
+//!   boxes, one name per object everywhere), and the detectable labels on
 //!   `workspace/labels` ([`DetectableLabels`]) at start and whenever one is added.
 //!
 //! Workspaces come from configuration (the simulator's scene files), never from code.

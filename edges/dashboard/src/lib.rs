@@ -18,7 +18,6 @@
 pub mod api;
 pub mod config;
 pub mod live;
-pub mod overlay_ids;
 mod page;
 pub mod pictures;
 pub mod voice;

@@ -4,7 +4,9 @@
 //! them) and keeps:
 //!
 //! - the **camera**: at most `camera_fps` times a second the newest frame, with the newest
-//!   detections drawn on it (with the workspace model's stable ids), encoded as JPEG into a
+//!   steady view's boxes drawn on it as the workspace model named them (its ids and names,
+//!   [`named_view`](robotd_protocol::workspace::TrackedObjects::named_view); while the arm moves, the detector's boxes without ids),
+//!   encoded as JPEG into a
 //!   `watch` cell — each viewer takes the newest frame when it is ready for one, so a slow
 //!   browser skips frames and the camera never waits (drop, don't queue). Frames are encoded
 //!   only while someone watches: an open `/api/camera.mjpg` stream, or a `/api/camera.jpg`
@@ -22,7 +24,7 @@
 use crate::pictures::{PictureEvent, Pictures};
 use bytes::Bytes;
 use robotd_protocol::agent::AgentEvent;
-use robotd_protocol::objects::DetectedObject;
+use robotd_protocol::objects::{DetectedObject, Detections};
 use robotd_protocol::workspace::{WorkspaceQuery, WorkspaceReply, WorkspaceRequest};
 use robotd_runtime::bus::{Bus, BusError};
 use robotd_topics::{
@@ -303,9 +305,9 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
     let mut last_free_space: Option<Instant> = None;
     let every = Duration::from_secs_f64(1.0 / camera_fps);
     let mut last_encoded: Option<Instant> = None;
+    // The boxes on the picture, and the newest steady view until the model has named it.
     let mut drawn: Vec<DetectedObject> = Vec::new();
-    let mut tracked: Vec<DetectedObject> = Vec::new();
-    let mut renamed = Vec::new();
+    let mut pending: Option<Detections> = None;
     let (mut bus_rate, mut page_rate, mut detection_rate) = (Rate::new(), Rate::new(), Rate::new());
     let mut encode_ms: VecDeque<f64> = VecDeque::new();
     let mut last_rate_sample = Instant::now();
@@ -320,12 +322,23 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
         }
         while let Some(message) = detections.try_recv()? {
             detection_rate.tick();
-            drawn = message.body.objects;
+            let view = message.body;
+            if view.steady && !view.workspace_id.is_empty() {
+                pending = Some(view);
+            } else {
+                // The arm moves: the model names no view, the boxes show what the detector
+                // sees, without ids.
+                pending = None;
+                drawn = view.objects;
+            }
         }
         while let Some(message) = objects.try_recv()? {
-            tracked = message.body.objects.clone();
-            renamed = message.body.renamed.clone();
-            live.update(|s| s.objects = message.body.objects);
+            let tracked = message.body;
+            if let Some(named) = pending.as_ref().and_then(|v| tracked.named_view(v)) {
+                pending = None;
+                drawn = named;
+            }
+            live.update(|s| s.objects = tracked.objects);
         }
         while let Some(message) = overlays.try_recv()? {
             let mut value = to_json(&message.body);
@@ -384,8 +397,7 @@ async fn follow(bus: &Bus, live: &Live, camera_fps: f64, quality: u8) -> Result<
                 last_encoded = Some(Instant::now());
                 let mut rgb = sample.pixels()[..bytes].to_vec();
                 drop(sample);
-                let named = crate::overlay_ids::with_stable_ids(&drawn, &tracked, &renamed);
-                robotd_render::annotate::draw_objects(&mut rgb, w, h, &named);
+                robotd_render::annotate::draw_objects(&mut rgb, w, h, &drawn);
                 let started = Instant::now();
                 match robotd_render::encode_jpeg(&rgb, w as u32, h as u32, quality) {
                     Ok(jpeg) => {

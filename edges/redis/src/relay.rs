@@ -1,16 +1,18 @@
 //! Bus messages out to Redis: robotd's own detections, the label list, the overlay texts.
 //!
 //! - `perception/detections` from the built-in detector → `detected_objects` (at most
-//!   `objects_fps` entries a second), each object with
-//!   the id the workspace model tracks it under (taken from the newest `workspace/objects`:
-//!   same label, within the tracker's 3 cm gate; a frame-local id `f<frame>-<n>` until the model
-//!   has it), under the name `label_object` gave it if it has one. Detections that came in from
-//!   Redis are not sent back out.
+//!   `objects_fps` entries a second), once the workspace model's answer to that view is in
+//!   (`workspace/objects` of the same frame): each box the model took for an object goes out
+//!   as the model reports that object — its tracked id, its one name (the one the tools use,
+//!   `label_object`'s included), a stacked object at its true height. Boxes the model does not
+//!   report (a candidate seen once, a piece of a stack) stay out, and so do views the model
+//!   does not apply (taken while the arm moved). Detections that came in from Redis are not
+//!   sent back out.
 //! - `workspace/labels` → `detectable_labels`, at start, on every change, and every 30 s
 //!   (the Python side takes a list older than 60 s for stale).
 //! - `overlay/text` → `video_text_overlays`.
 
-use crate::wire::{detections_entry, labels_entry, overlay_entry};
+use crate::wire::{detections_entry, labels_entry, overlay_entry, Entry};
 use crate::writer::EntrySender;
 use robotd_protocol::objects::Detections;
 use robotd_protocol::workspace::{
@@ -36,49 +38,20 @@ fn now_s() -> f64 {
         .unwrap_or(0.0)
 }
 
-/// The tracked id of each of `detections`' objects, from `tracked` (same workspace and label,
-/// nearest within 3 cm), else `f<frame>-<n>`; and the name `label_object` gave it, if any (a
-/// named object is matched by what the detector calls it, `renamed`).
-pub fn tracked_ids(
-    detections: &Detections,
-    tracked: Option<&TrackedObjects>,
-) -> Vec<(String, Option<String>)> {
-    let mut taken: Vec<&str> = Vec::new();
-    detections
-        .objects
-        .iter()
-        .enumerate()
-        .map(|(n, object)| {
-            let candidate = tracked
-                .filter(|t| t.workspace_id == detections.workspace_id)
-                .and_then(|t| {
-                    let detected_as = |o: &robotd_protocol::objects::DetectedObject| {
-                        t.renamed
-                            .iter()
-                            .find(|r| r.id == o.id)
-                            .map(|r| r.detected_as.clone())
-                    };
-                    t.objects
-                        .iter()
-                        .filter(|o| !taken.contains(&o.id.as_str()))
-                        .filter_map(|o| match detected_as(o) {
-                            Some(label) => object.label_is(&label).then_some((o, true)),
-                            None => o.label_is(&object.label).then_some((o, false)),
-                        })
-                        .map(|(o, named)| (o.xy().distance_to(&object.xy()), o, named))
-                        .filter(|(d, _, _)| *d <= 0.03)
-                        .min_by(|a, b| a.0.total_cmp(&b.0))
-                        .map(|(_, o, named)| (o, named))
-                });
-            match candidate {
-                Some((o, named)) => {
-                    taken.push(&o.id);
-                    (o.id.clone(), named.then(|| o.label.clone()))
-                }
-                None => (format!("f{}-{n}", detections.frame_id), None),
-            }
-        })
-        .collect()
+/// The entry of `view` once `tracked` (the workspace model's answer to it) is in: the boxes the
+/// model took for an object, under its id and name ([`TrackedObjects::named_view`]). `None`
+/// when `tracked` is not the answer to `view`, or the view came in from Redis.
+pub fn named_entry(instance: &str, view: &Detections, tracked: &TrackedObjects) -> Option<Entry> {
+    if view.source != BUILTIN_SOURCE {
+        return None;
+    }
+    let objects = tracked.named_view(view)?;
+    let ids: Vec<String> = objects.iter().map(|o| o.id.clone()).collect();
+    let named = Detections {
+        objects,
+        ..view.clone()
+    };
+    Some(detections_entry(instance, &named, &ids))
 }
 
 /// Starts the relay task. Returns once its bus ports are open.
@@ -98,7 +71,8 @@ pub fn start(
         .then(|| Duration::from_secs_f64(1.0 / objects_fps));
     Ok(tokio::spawn(async move {
         let mut last_objects: Option<tokio::time::Instant> = None;
-        let mut tracked: Option<TrackedObjects> = None;
+        // The newest view of the built-in detector, until the model's answer to it is in.
+        let mut pending: Option<Detections> = None;
         let mut last_labels: Option<DetectableLabels> = None;
         // The list as it is now (its start-up publication may have gone before we listened).
         let ask = WorkspaceQuery {
@@ -123,33 +97,23 @@ pub fn start(
                 _ = stop.cancelled() => break,
                 received = detections.recv() => {
                     let Ok(message) = received else { continue };
-                    // Keep the ids current first.
-                    while let Ok(Some(t)) = objects.try_recv() {
-                        tracked = Some(t.body);
+                    let view = message.body;
+                    // The model names only the views it applies: steady ones of a workspace.
+                    if view.source == BUILTIN_SOURCE && view.steady && !view.workspace_id.is_empty() {
+                        pending = Some(view);
                     }
-                    let d = message.body;
-                    if d.source != BUILTIN_SOURCE || d.workspace_id.is_empty() {
-                        continue;
-                    }
+                }
+                received = objects.recv() => {
+                    let Ok(message) = received else { continue };
+                    let tracked = message.body;
+                    let Some(view) = pending.take_if(|v| tracked.answers(v)) else { continue };
                     let Some(every) = objects_every else { continue };
                     if last_objects.is_some_and(|t| t.elapsed() < every) {
                         continue;
                     }
-                    last_objects = Some(tokio::time::Instant::now());
-                    let matched = tracked_ids(&d, tracked.as_ref());
-                    // A named object goes out under its name, as the tools list it.
-                    let mut d = d;
-                    for (object, (_, name)) in d.objects.iter_mut().zip(&matched) {
-                        if let Some(name) = name {
-                            object.label.clone_from(name);
-                        }
-                    }
-                    let ids: Vec<String> = matched.into_iter().map(|(id, _)| id).collect();
-                    sender.offer(detections_entry(&instance, &d, &ids));
-                }
-                received = objects.recv() => {
-                    if let Ok(t) = received {
-                        tracked = Some(t.body);
+                    if let Some(entry) = named_entry(&instance, &view, &tracked) {
+                        last_objects = Some(tokio::time::Instant::now());
+                        sender.offer(entry);
                     }
                 }
                 received = labels.recv() => {
@@ -184,56 +148,70 @@ pub fn start(
 mod tests {
     use super::*;
     use robotd_protocol::objects::DetectedObject;
-    use robotd_protocol::workspace::RenamedObject;
-    use robotd_protocol::Point3;
+    use serde_json::Value;
 
-    fn object(id: &str, label: &str, x: f64, y: f64) -> DetectedObject {
-        let mut o = DetectedObject {
+    fn object(id: &str, label: &str) -> DetectedObject {
+        DetectedObject {
             id: id.into(),
             label: label.into(),
             workspace_id: "niryo_ws".into(),
             ..Default::default()
-        };
-        o.position.center_of_mass = Point3::new(x, y, 0.01);
-        o.position.center = o.position.center_of_mass;
-        o
+        }
+    }
+
+    fn view(source: &str) -> Detections {
+        Detections {
+            frame_id: 7,
+            workspace_id: "niryo_ws".into(),
+            source: source.into(),
+            steady: true,
+            objects: vec![object("", "unknown object"), object("", "red cube")],
+            ..Default::default()
+        }
+    }
+
+    fn answer() -> TrackedObjects {
+        TrackedObjects {
+            workspace_id: "niryo_ws".into(),
+            frame_id: 7,
+            source: BUILTIN_SOURCE.into(),
+            objects: vec![object("obj-3", "screwdriver"), object("obj-1", "red cube")],
+            detection_ids: vec!["obj-3".into(), "".into()],
+            ..Default::default()
+        }
     }
 
     #[test]
-    fn named_objects_keep_their_id_and_go_out_under_their_name() {
-        let detections = Detections {
-            frame_id: 7,
-            workspace_id: "niryo_ws".into(),
-            source: BUILTIN_SOURCE.into(),
-            objects: vec![
-                object("", "unknown object", 0.25, 0.0),
-                object("", "red cube", 0.28, 0.04),
-                object("", "red cube", 0.20, -0.06),
-            ],
-            ..Default::default()
-        };
-        let tracked = TrackedObjects {
-            workspace_id: "niryo_ws".into(),
-            objects: vec![
-                object("obj-3", "screwdriver", 0.251, 0.001),
-                object("obj-1", "red cube", 0.281, 0.04),
-            ],
-            renamed: vec![RenamedObject {
-                id: "obj-3".into(),
-                detected_as: "unknown object".into(),
-            }],
-            ..Default::default()
-        };
-        let matched = tracked_ids(&detections, Some(&tracked));
-        assert_eq!(
-            matched,
-            vec![
-                ("obj-3".to_owned(), Some("screwdriver".to_owned())),
-                ("obj-1".to_owned(), None),
-                ("f7-2".to_owned(), None),
-            ]
-        );
-        // Without the model's list: frame-local ids, no names.
-        assert_eq!(tracked_ids(&detections, None)[0], ("f7-0".to_owned(), None));
+    fn a_view_goes_out_as_the_model_names_it() {
+        let entry = named_entry("me", &view(BUILTIN_SOURCE), &answer()).expect("an entry");
+        let objects = &entry
+            .fields
+            .iter()
+            .find(|(k, _)| *k == "objects")
+            .unwrap()
+            .1;
+        let objects: Value = serde_json::from_str(objects).unwrap();
+        let named: Vec<(&str, &str, &str)> = objects
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|o| {
+                (
+                    o["id"].as_str().unwrap(),
+                    o["label"].as_str().unwrap(),
+                    o["class_name"].as_str().unwrap(),
+                )
+            })
+            .collect();
+        // The named object under its name; the box the model has not confirmed is left out.
+        assert_eq!(named, [("obj-3", "screwdriver", "screwdriver")]);
+    }
+
+    #[test]
+    fn views_from_redis_or_of_another_frame_do_not_go_out() {
+        assert!(named_entry("me", &view("external"), &answer()).is_none());
+        let mut later = answer();
+        later.frame_id = 8;
+        assert!(named_entry("me", &view(BUILTIN_SOURCE), &later).is_none());
     }
 }

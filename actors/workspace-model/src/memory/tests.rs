@@ -605,7 +605,11 @@ fn a_named_object_answers_to_its_name_and_the_name_follows_the_label_rules() {
     // Seen again as an unknown object: still the big mug, found by its name.
     let tracked = m.apply(&view(2, vec![unknown])).unwrap();
     assert_eq!(tracked.objects[0].label, "big mug");
-    assert_eq!(tracked.renamed[0].detected_as, "unknown object");
+    assert_eq!(
+        tracked.detection_ids,
+        ["obj-1"],
+        "the view's box is the big mug"
+    );
     let near = m.answer(&WorkspaceRequest::GetObjectNear {
         coordinate: Point2::new(0.25, 0.0),
         label: Some("BIG MUG".into()),

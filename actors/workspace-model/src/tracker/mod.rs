@@ -67,7 +67,7 @@ pub use votes::LABEL_VOTES;
 use robotd_protocol::geometry::{Point2, Point3};
 use robotd_protocol::objects::{DetectedObject, Detections};
 use robotd_protocol::validate::{Validate, ValidationError};
-use robotd_protocol::workspace::{RenamedObject, TrackedObjects};
+use robotd_protocol::workspace::TrackedObjects;
 use std::collections::HashMap;
 
 /// The built-in detector's `source` in its [`Detections`]: its new objects need agreeing views.
@@ -250,12 +250,15 @@ impl Tracker {
         let pairs = association::pairs(&self.tracks, ws, source, &detections.objects);
         let mut track_seen = vec![false; self.tracks.len()];
         let mut det_taken = vec![false; detections.objects.len()];
+        // Which track each detection was taken for (a piece of a stack: none).
+        let mut det_track: Vec<Option<usize>> = vec![None; detections.objects.len()];
         for (_, t, d) in pairs {
             if track_seen[t] || det_taken[d] {
                 continue;
             }
             track_seen[t] = true;
             det_taken[d] = true;
+            det_track[d] = Some(t);
             let track = &mut self.tracks[t];
             track.missed = 0;
             track.confirmed = true;
@@ -293,6 +296,10 @@ impl Tracker {
             }
             if let Some(t) = stacks::stack_under(&self.tracks, &stacked, det.xy(), ws) {
                 det_taken[d] = true;
+                // The first piece shows the object beneath; more pieces show nothing new.
+                if !track_seen[t] {
+                    det_track[d] = Some(t);
+                }
                 track_seen[t] = true;
                 self.tracks[t].missed = 0;
             }
@@ -321,20 +328,34 @@ impl Tracker {
         let limit = self.expire_after_frames;
         let candidate_limit = limit.min(CANDIDATE_MISSES);
         let mut index = 0;
+        // Where each track is after the forgotten ones are gone.
+        let mut kept_at: Vec<Option<usize>> = vec![None; self.tracks.len()];
+        let mut kept = 0;
         self.tracks.retain_mut(|track| {
             let i = index;
             index += 1;
-            if track_seen[i] || track.held || track.object.workspace_id != ws || !could_see[i] {
-                return true;
+            let keep = track_seen[i]
+                || track.held
+                || track.object.workspace_id != ws
+                || !could_see[i]
+                || {
+                    track.missed += 1;
+                    track.missed
+                        < if track.reported {
+                            limit
+                        } else {
+                            candidate_limit
+                        }
+                };
+            if keep {
+                kept_at[i] = Some(kept);
+                kept += 1;
             }
-            track.missed += 1;
-            track.missed
-                < if track.reported {
-                    limit
-                } else {
-                    candidate_limit
-                }
+            keep
         });
+        for t in det_track.iter_mut() {
+            *t = t.and_then(|t| kept_at[t]);
+        }
         // An object whose support was forgotten stands on the table as far as memory knows.
         for i in 0..self.tracks.len() {
             let Some(support) = &self.tracks[i].support else {
@@ -374,6 +395,7 @@ impl Tracker {
                 object.id.clear();
             }
             object.workspace_id = ws.to_owned();
+            det_track[d] = Some(self.tracks.len());
             self.tracks.push(Track {
                 detected_as: object.label.clone(),
                 votes: votes::LabelVotes::new(&object.label),
@@ -399,13 +421,12 @@ impl Tracker {
             frame_id,
             timestamp_unix_ns: now,
             objects: self.on_table(ws).cloned().collect(),
-            renamed: self
-                .tracks
+            source: source.to_owned(),
+            detection_ids: det_track
                 .iter()
-                .filter(|t| t.named && t.reported && !t.held && t.object.workspace_id == ws)
-                .map(|t| RenamedObject {
-                    id: t.object.id.clone(),
-                    detected_as: t.detected_as.clone(),
+                .map(|t| match t.map(|t| &self.tracks[t]) {
+                    Some(track) if track.on_table_of(ws) => track.object.id.clone(),
+                    _ => String::new(),
                 })
                 .collect(),
         })

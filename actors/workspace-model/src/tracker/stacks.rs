@@ -219,7 +219,10 @@ mod tests {
             if t % 3 == 0 {
                 v.objects.pop();
             }
-            tracker.apply(&v).unwrap();
+            let tracked = tracker.apply(&v).unwrap();
+            // The top face is the cylinder, the corners around it the cube beneath.
+            let boxes = ["obj-2", "obj-1"];
+            assert_eq!(tracked.detection_ids, boxes[..v.objects.len()], "view {t}");
             let now = table(&tracker);
             assert_eq!(now.len(), 2, "view {t}: {now:?}");
             for (got, want) in now.iter().zip(&want) {
@@ -242,7 +245,9 @@ mod tests {
             // A side face of another colour just beside the footprint.
             v.objects
                 .push(object("orange box", 0.28, 0.062, 0.012, 0.01));
-            tracker.apply(&v).unwrap();
+            let tracked = tracker.apply(&v).unwrap();
+            // One piece stands for the cube beneath; the other names nothing.
+            assert_eq!(tracked.detection_ids, ["obj-2", "obj-1", ""], "view {t}");
         }
         assert_eq!(table(&tracker).len(), 2, "{:?}", table(&tracker));
         // An object 3 cm beside the stack is an object.

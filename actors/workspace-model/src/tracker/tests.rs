@@ -570,3 +570,33 @@ fn an_object_a_skill_moved_keeps_its_name_where_the_camera_sees_it_as_another_sh
     }
     assert_eq!(tracker.get("obj-1").unwrap().label, "yellow bar");
 }
+
+#[test]
+fn each_box_of_a_view_names_the_object_it_was_taken_for() {
+    let mut tracker = Tracker::new(3);
+    let scene = vec![
+        object("red cube", 0.30, 0.05),
+        object("pencil", 0.20, -0.05),
+    ];
+    // Seen once: candidates, no box names an object yet.
+    let first = tracker.apply(&view(1, scene.clone())).unwrap();
+    assert_eq!(first.detection_ids, ["", ""]);
+    assert_eq!((first.frame_id, first.source.as_str()), (1, "robotd"));
+    let second = tracker.apply(&view(2, scene)).unwrap();
+    assert_eq!(second.detection_ids, ["obj-1", "obj-2"]);
+    // Read once as something else, the cube's box still names the cube; the new box beside
+    // it is a candidate; the pencil's box comes first now.
+    let third = tracker
+        .apply(&view(
+            3,
+            vec![
+                object("pencil", 0.201, -0.05),
+                object("red cylinder", 0.301, 0.05),
+                object("blue cube", 0.25, 0.0),
+            ],
+        ))
+        .unwrap();
+    assert_eq!(third.detection_ids, ["obj-2", "obj-1", ""]);
+    let cube = third.objects.iter().find(|o| o.id == "obj-1").unwrap();
+    assert_eq!(cube.label, "red cube");
+}
