@@ -17,11 +17,12 @@ RUN apt-get update \
 WORKDIR /src
 COPY . .
 # PROFILE=release builds in minutes instead (no whole-program optimisation). Without the
-# default `bench` feature: the service binary carries no benchmarks and no test-only parts.
+# `bench` feature (not a default one): the service binary carries no benchmarks and no
+# test-only parts.
 ARG PROFILE=dist
 RUN --mount=type=cache,target=/usr/local/cargo/registry \
     --mount=type=cache,target=/src/target \
-    cargo build --locked --profile "${PROFILE}" --bin robotd --no-default-features \
+    cargo build --locked --profile "${PROFILE}" --bin robotd \
     && cp "target/${PROFILE}/robotd" /usr/local/bin/robotd
 
 FROM ${RUNTIME_IMAGE}

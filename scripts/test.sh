@@ -6,8 +6,9 @@
 # tests/python/requirements.txt and requirements-nodeps.txt, and robotd's own Python package
 # python/robotd, editable), then runs, in this order, stopping at the first failure:
 #   cargo fmt --all -- --check
-#   cargo clippy --workspace --all-targets -- -D warnings
-#   cargo nextest run --workspace + cargo test --workspace --doc  (or cargo test --workspace
+#   cargo clippy --workspace --all-targets --features bench -- -D warnings
+#   cargo clippy -p robotd -- -D warnings  (the service binary alone, as a lab builds it)
+#   cargo nextest run --workspace --features bench + cargo test --workspace --doc  (or cargo test --workspace
 #   when cargo-nextest is not installed; nextest runs every test in its own process, which
 #   keeps iceoryx2 nodes of different tests apart)
 #   the real-photo tests of robotd detect, when the photos are there (REAL_IMAGES_DIR or
@@ -133,26 +134,30 @@ export RUST_BACKTRACE="${RUST_BACKTRACE:-1}"
 section "cargo fmt --all -- --check"
 cargo fmt --all -- --check
 
-section "cargo clippy --workspace --all-targets -- -D warnings"
-cargo clippy --workspace --all-targets -- -D warnings
+# The tests drive `robotd bench`: the binary is built with its `bench` feature throughout
+# (FEATURES), so clippy, the examples, the tests and the soak share one build.
+FEATURES=(--features bench)
 
-# The service binary as the .deb and the image build it: without the default `bench` feature.
-section "cargo clippy -p robotd --no-default-features -- -D warnings"
-cargo clippy -p robotd --no-default-features -- -D warnings
+section "cargo clippy --workspace --all-targets ${FEATURES[*]} -- -D warnings"
+cargo clippy --workspace --all-targets "${FEATURES[@]}" -- -D warnings
+
+# The service binary as a lab, the .deb and the image build it: without `bench`.
+section "cargo clippy -p robotd -- -D warnings"
+cargo clippy -p robotd -- -D warnings
 
 # The end-to-end tests start the example actor as a real process: build it fresh.
 section "cargo build --examples"
-cargo build --examples
+cargo build --examples "${FEATURES[@]}"
 
 if cargo nextest --version >/dev/null 2>&1; then
     section "cargo nextest run --workspace"
-    cargo nextest run --workspace --no-fail-fast --no-tests=warn
+    cargo nextest run --workspace "${FEATURES[@]}" --no-fail-fast --no-tests=warn
 
     section "cargo test --workspace --doc"
-    cargo test --workspace --doc
+    cargo test --workspace --doc "${FEATURES[@]}"
 else
     section "cargo test --workspace (cargo-nextest not installed)"
-    cargo test --workspace --no-fail-fast
+    cargo test --workspace "${FEATURES[@]}" --no-fail-fast
 fi
 
 # The real photos are not part of the repository: their tests are #[ignore]d and run here
@@ -160,7 +165,7 @@ fi
 PHOTOS="${REAL_IMAGES_DIR:-$ROOT/../shared/real_images}"
 if [ -d "$PHOTOS" ]; then
     section "robotd detect on the real photos ($PHOTOS)"
-    REAL_IMAGES_DIR="$PHOTOS" cargo test --quiet --test cli_detect -- --ignored
+    REAL_IMAGES_DIR="$PHOTOS" cargo test --quiet "${FEATURES[@]}" --test cli_detect -- --ignored
 fi
 
 # The soak: the service under a realistic mix with faults, for SOAK_MINUTES (3 by default;
@@ -169,7 +174,7 @@ fi
 SOAK_MINUTES="${SOAK_MINUTES:-3}"
 if [ "$SOAK_MINUTES" != "0" ]; then
     section "robotd bench soak --minutes $SOAK_MINUTES"
-    cargo run --quiet -- bench soak --minutes "$SOAK_MINUTES"
+    cargo run --quiet "${FEATURES[@]}" -- bench soak --minutes "$SOAK_MINUTES"
 fi
 
 section "done"

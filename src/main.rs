@@ -78,6 +78,12 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Measure robotd's machinery (not in this build: `cargo build --release --features bench`).
+    #[cfg(not(feature = "bench"))]
+    Bench {
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
+        args: Vec<String>,
+    },
     /// Commission a real arm: measure what no simulator can (the camera's mount on the arm,
     /// rectified images, …) slowly and under the motion policy, and write it as config
     /// (docs/commissioning.md).
@@ -506,6 +512,11 @@ fn run() -> Result<std::process::ExitCode> {
         Command::Bench { what } => {
             robotd_bench::run(what, || Ok(load_config(&cli.config)?.redis.url))
         }
+        #[cfg(not(feature = "bench"))]
+        Command::Bench { .. } => anyhow::bail!(
+            "this robotd was built without its benchmarks (the `bench` feature); build them with \
+             `cargo build --release --features bench` (BENCHMARKS.md)"
+        ),
         #[cfg(feature = "bench")]
         Command::BenchPeer {
             role,
