@@ -6,9 +6,10 @@
 //! (`sim/world`), then makes `--calls` skill calls drawn from a seeded generator:
 //!
 //! - **free space** (40 %): an object the gripper can hold, moved with `pick_place_object` to
-//!   the centre `get_largest_free_space_with_center` answers, when the object's footprint is
-//!   no larger than the answered area (a refusal of the pick itself, which does not name the
-//!   centre, is not a placement);
+//!   the centre `get_largest_free_space_with_center` answers, when the object fits a square of
+//!   the answered area (its longest side at most the area's square root: the tool's promise);
+//!   the objects that do not are counted, not moved (a refusal of the pick itself, which does
+//!   not name the centre, is not a placement);
 //! - **stack** (20 %): an object put `on top of` a larger one; the next call takes the stack
 //!   apart again (its top moved to the free-space centre);
 //! - **push** (20 %): an object pushed 1–3 cm in a random direction;
@@ -75,6 +76,9 @@ pub struct TableFigures {
     pub free_space_places: usize,
     /// Of those, accepted and done.
     pub free_space_accepted: usize,
+    /// Objects drawn for a free-space placement that did not fit the answered square (not
+    /// moved).
+    pub free_space_too_large: usize,
     /// Places near an edge tried, and accepted.
     pub edge_places: usize,
     /// Places near an edge accepted.
@@ -127,6 +131,10 @@ impl TableFigures {
                     self.free_space_places,
                     self.free_space_share()
                 ),
+            ),
+            (
+                "free-space objects larger than the answered square (not moved)",
+                self.free_space_too_large.to_string(),
             ),
             (
                 "edge places accepted",
@@ -207,8 +215,9 @@ impl Seen {
         self.sides[0].min(self.sides[1]) <= GRIPPABLE_M
     }
 
-    fn area(&self) -> f64 {
-        self.sides[0] * self.sides[1]
+    /// Its footprint's longest side, metres.
+    fn longest(&self) -> f64 {
+        self.sides[0].max(self.sides[1])
     }
 }
 
@@ -406,7 +415,8 @@ impl Session {
                 return Ok(());
             };
             let (area, center) = self.free_space().await?;
-            if area < what.area() {
+            if what.longest() > area.sqrt() {
+                self.figures.free_space_too_large += 1;
                 return Ok(());
             }
             let text = self.move_object(&what, center, "").await?;

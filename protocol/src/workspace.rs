@@ -444,7 +444,8 @@ pub enum WorkspaceReply {
         /// The object, or `None` when nothing matched.
         object: Option<DetectedObject>,
     },
-    /// The largest free rectangle of the workspace.
+    /// The largest free square of the workspace (its area and centre): anything that fits in a
+    /// square of that area can be put down at its centre.
     FreeSpace {
         /// Its area, square metres.
         area_m2: f64,

@@ -492,8 +492,9 @@ async fn workspace_questions_labels_and_bad_queries() {
     );
     match rig.ask(WorkspaceRequest::GetLargestFreeSpace).await {
         WorkspaceReply::FreeSpace { area_m2, center } => {
-            // The sheet less its corner markers' keep-out squares (memory/tests.rs).
-            assert!((area_m2 - 0.76 * 0.174 * 0.174).abs() < 1e-12, "{area_m2}");
+            // The largest square clear of its corner markers' keep-out squares (memory/tests.rs).
+            let side = 0.76 * 0.174;
+            assert!((area_m2 - side * side).abs() < 1e-12, "{area_m2}");
             assert!((center.x_m - 0.25).abs() < 1e-9 && center.y_m.abs() < 1e-9);
         }
         other => panic!("{other:?}"),

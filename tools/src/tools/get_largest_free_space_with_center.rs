@@ -1,5 +1,6 @@
-//! `get_largest_free_space_with_center`: the largest empty rectangle of the workspace, a good
-//! place to put something down.
+//! `get_largest_free_space_with_center`: the largest free square of the workspace, a good
+//! place to put something down: anything that fits in a square of the answered area can be put
+//! down at its centre (the workspace model's `free_space` module).
 
 use super::{pt, xy, NoArguments, Reply, Tool};
 use crate::view::{ask_fresh, unexpected};
@@ -13,7 +14,7 @@ pub(crate) struct GetLargestFreeSpaceWithCenter;
 /// The data of `get_largest_free_space_with_center`.
 #[derive(Debug, Serialize, JsonSchema)]
 pub(crate) struct Data {
-    /// Area of the free rectangle, m².
+    /// Area of the free square, m²: anything whose longest side is at most its square root fits.
     area_m2: f64,
     /// Its centre, `[x, y]` metres.
     center: [f64; 2],
@@ -22,8 +23,9 @@ pub(crate) struct Data {
 impl Tool for GetLargestFreeSpaceWithCenter {
     const NAME: &'static str = "get_largest_free_space_with_center";
     const DESCRIPTION: &'static str =
-        "The largest empty rectangle of the workspace: its area in m² and its centre [x, y], a \
-         good place to put something down.";
+        "The largest free square of the workspace: its area in m² and its centre [x, y]. \
+         Anything whose footprint fits in a square of that area (its longest side at most the \
+         square root of the area) can be put down at the centre.";
     type Args = NoArguments;
     type Data = Data;
 

@@ -417,9 +417,10 @@ fn free_space(m: &mut SceneMemory) -> (f64, Point2) {
 /// Free space of the empty niryo_ws: the markers' keep-out squares (20 mm each side of a
 /// corner, grown by half a cell's diagonal, 1.23 mm) take rows 0..=11 and 88..=99 at
 /// columns 0..=11 and 88..=99 (cell centres 0.87 … 20.0 mm from the edge); the largest free
-/// rectangles are rows 12..=87 × all columns and all rows × columns 12..=87, 7600 cells each,
-/// the first found (at row 87) answered: 0.76 × 0.174² m², centred at (0.25, 0).
-const EMPTY_SHEET_FREE_M2: f64 = 0.76 * 0.174 * 0.174;
+/// rectangles are rows 12..=87 × all columns and all rows × columns 12..=87, 7600 cells each;
+/// the square centred in the first found (at row 87) is answered: (0.76 × 0.174)² m², centred
+/// at (0.25, 0).
+const EMPTY_SHEET_FREE_M2: f64 = (0.76 * 0.174) * (0.76 * 0.174);
 
 #[test]
 fn free_space_counts_the_objects_on_the_table_of_the_current_workspace() {
@@ -428,9 +429,13 @@ fn free_space_counts_the_objects_on_the_table_of_the_current_workspace() {
     // The cube takes rows and columns 36..=63 (free_space::tests::
     // one_cube_in_the_middle_leaves_the_near_strip), the markers the corners (as on an empty
     // sheet): the near strip rows 0..=35 × columns 12..=87 (2736 cells) ties with the side
-    // strips rows 12..=87 × 36 columns and is found first: centre (0.19432, 0).
+    // strips rows 12..=87 × 36 columns and is found first; the square centred in it, 36 cells
+    // a side: centre (0.19432, 0).
     let (area, center) = free_space(&mut m);
-    assert!((area - 0.2736 * 0.174 * 0.174).abs() < 1e-9, "{area}");
+    assert!(
+        (area - (0.36 * 0.174) * (0.36 * 0.174)).abs() < 1e-9,
+        "{area}"
+    );
     assert!((center.x_m - 0.19432).abs() < 1e-9 && center.y_m.abs() < 1e-9);
     // Held: off the table, the whole sheet but its corners is free.
     m.answer(&WorkspaceRequest::ObjectPicked {
@@ -439,16 +444,17 @@ fn free_space_counts_the_objects_on_the_table_of_the_current_workspace() {
     let (area, _) = free_space(&mut m);
     assert!((area - EMPTY_SHEET_FREE_M2).abs() < 1e-12, "{area}");
     // Placed on the far-left corner: it blocks rows and columns 86..=99 there (free_space::
-    // tests::a_corner_object_leaves_an_l_whose_larger_arm_wins): rows 12..=85 × all columns
-    // (7400 cells, found at row 85) ties with all rows × columns 12..=85: centre
-    // x = 0.163 + (12 + 86) / 2 · 0.00174 = 0.24826.
+    // tests::a_corner_object_leaves_an_l_whose_larger_arm_wins). The largest rectangles, rows
+    // 12..=85 × all columns and all rows × columns 12..=85, hold squares of 74 cells; rows
+    // 12..=87 × columns 0..=85 (76 × 86 cells) holds one of 76, as on the empty sheet, centred
+    // at x = 0.163 + (12 + 88) / 2 · 0.00174 = 0.25.
     m.answer(&WorkspaceRequest::ObjectPlaced {
         object_id: "obj-1".into(),
         at: Point2::new(0.337, 0.087),
     });
     let (area, center) = free_space(&mut m);
-    assert!((area - 0.74 * 0.174 * 0.174).abs() < 1e-9, "{area}");
-    assert!((center.x_m - 0.24826).abs() < 1e-9, "{center:?}");
+    assert!((area - EMPTY_SHEET_FREE_M2).abs() < 1e-9, "{area}");
+    assert!((center.x_m - 0.25).abs() < 1e-9, "{center:?}");
 }
 
 #[test]
