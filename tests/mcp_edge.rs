@@ -297,7 +297,8 @@ async fn check_contract(client: &McpClient, tag: &str) {
     let (free, data) = call(client, "get_largest_free_space_with_center", json!({})).await;
     assert!(free.starts_with("✓ Largest free space: 0.0"), "{free}");
     assert!(free.contains(" m² at center coordinates ["), "{free}");
-    assert!(data["area_m2"].as_f64().unwrap() > 0.003, "{free}");
+    // A free square of at least 45 mm: the default scene's cube and cylinder fit it.
+    assert!(data["area_m2"].as_f64().unwrap() > 0.002, "{free}");
 
     // Status.
     let status = text(client, "get_system_status", json!({})).await;
