@@ -52,6 +52,18 @@
 //! placed object is back on the table where the skill put it, reported at once but
 //! *unconfirmed*: any steady view of its workspace may confirm it (match it near there) or miss
 //! it, and missed `expire_after_frames` times it is forgotten like any other.
+//!
+//! **While holding.** The held object hangs in the wrist camera's view, close to the lens, and
+//! hides the part of the table behind it; perception drops its image (and with it whatever
+//! merges with it), but an object partly behind it is measured by what shows of it: its centre
+//! shifted by millimetres, away from the hidden part. Places are planned from views taken
+//! while holding, so such a view must not move what it half sees (a free spot planned beside
+//! it would run the held object into it, or a spot suggested before the pick would be refused
+//! after it). While any object is held, a view therefore only confirms the reported objects on
+//! the table (their position, size and label stay those measured without the held object in
+//! view) and ages none of them (one wholly behind it is hidden, not gone); nothing on the
+//! table moves meanwhile, as the gripper cannot push while it holds. Candidates and new
+//! objects are measured as always.
 
 mod association;
 mod stacks;
@@ -247,6 +259,8 @@ impl Tracker {
 
         // Greedy association, cheapest pairs first (see `association`).
         let stacked = stacks::in_stack(&self.tracks);
+        // The held object hides part of the table (see "While holding" above).
+        let holding = self.tracks.iter().any(|t| t.held);
         let pairs = association::pairs(&self.tracks, ws, source, &detections.objects);
         let mut track_seen = vec![false; self.tracks.len()];
         let mut det_taken = vec![false; detections.objects.len()];
@@ -263,8 +277,9 @@ impl Tracker {
             track.missed = 0;
             track.confirmed = true;
             track.source = source.to_owned();
-            if stacked[t] {
-                // Part of a stack: seen, but not measurable there (see `stacks`).
+            if stacked[t] || (holding && track.reported) {
+                // Part of a stack (see `stacks`), or maybe half behind the held object: seen,
+                // but not measurable there.
                 track.object.timestamp_unix_s = detections.objects[d].timestamp_unix_s;
                 continue;
             }
@@ -336,6 +351,7 @@ impl Tracker {
             index += 1;
             let keep = track_seen[i]
                 || track.held
+                || (holding && track.reported)
                 || track.object.workspace_id != ws
                 || !could_see[i]
                 || {
