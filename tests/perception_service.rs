@@ -96,12 +96,14 @@ fn the_served_workspace_model_knows_the_default_scene_from_pixels() {
         );
         assert!(pencil.timestamp_unix_s * 1e9 > asked as f64);
 
-        // The same objects keep their ids from frame to frame: a view taken after this one.
+        // The same objects keep their ids from frame to frame: a view taken after this one
+        // (1 ms after: a time in f64 seconds is only good to ~0.2 µs, so "1 ns after" could
+        // name this very view again; frames come 66 ms apart).
         let again = workspace
             .request(
                 &WorkspaceQuery {
                     request: all(),
-                    fresh_after_unix_ns: Some((pencil.timestamp_unix_s * 1e9) as u64 + 1),
+                    fresh_after_unix_ns: Some((pencil.timestamp_unix_s * 1e9) as u64 + 1_000_000),
                     max_wait_ms: 3000,
                 },
                 Duration::from_secs(5),
