@@ -74,12 +74,18 @@ impl Running {
     }
 }
 
-/// A fresh temporary directory for a child's logs.
+/// A fresh temporary directory for a child's logs; kept after the test (its path printed) when
+/// `KEEP_TEST_LOGS` is set, to read what robotd logged and answered (`mcp_server_*.log`).
 fn log_dir() -> tempfile::TempDir {
-    tempfile::Builder::new()
+    let mut dir = tempfile::Builder::new()
         .prefix("robotd-test-logs-")
         .tempdir()
-        .expect("a temporary log directory")
+        .expect("a temporary log directory");
+    if std::env::var_os("KEEP_TEST_LOGS").is_some() {
+        dir.disable_cleanup(true);
+        eprintln!("robotd logs in {}", dir.path().display());
+    }
+    dir
 }
 
 impl Drop for Running {
