@@ -440,6 +440,11 @@ impl Session {
                 if t.starts_with('✓') || self.holding.is_none() {
                     return;
                 }
+                // A place that collided leaves the flag set: clear it before the next spot, or
+                // the arm refuses that one before the planner sees it.
+                if t.contains("collision detected") {
+                    self.call("clear_collision_detected", json!({})).await;
+                }
                 last = t;
             }
             self.tally.stuck.push(format!(
