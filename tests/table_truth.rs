@@ -96,16 +96,23 @@ fn now_s() -> f64 {
         .as_secs_f64()
 }
 
+/// A `redis-server` of its own (stopped when dropped), the `redis.url` robotd is given, and a
+/// connection to read its streams.
+fn redis_for_the_lab() -> (common::Running, String, redis::Connection) {
+    let port = common::free_port();
+    let server = common::start_redis(port);
+    let url = format!("redis://127.0.0.1:{port}/0");
+    let conn = redis::Client::open(url.as_str())
+        .and_then(|c| c.get_connection())
+        .expect("connect to the test redis-server");
+    (server, url, conn)
+}
+
 const DEFAULT_LABELS: [&str; 4] = ["blue square", "green cylinder", "pencil", "red cube"];
 
 #[test]
 fn a_stack_is_one_object_on_another_and_comes_apart_again() {
-    let redis_port = common::free_port();
-    let _redis = common::start_redis(redis_port);
-    let url = format!("redis://127.0.0.1:{redis_port}/0");
-    let mut conn = redis::Client::open(url.as_str())
-        .and_then(|c| c.get_connection())
-        .expect("connect to the test redis-server");
+    let (_redis, url, mut conn) = redis_for_the_lab();
     runtime().block_on(async {
         let lab = lab_with(0.05, &[format!("redis.url={url}")]).await;
         let objects = detected(&lab).await;
@@ -181,12 +188,7 @@ fn a_stack_is_one_object_on_another_and_comes_apart_again() {
 
 #[test]
 fn a_cylinder_at_the_sheets_lower_edge_has_no_phantom_neighbour() {
-    let redis_port = common::free_port();
-    let _redis = common::start_redis(redis_port);
-    let url = format!("redis://127.0.0.1:{redis_port}/0");
-    let mut conn = redis::Client::open(url.as_str())
-        .and_then(|c| c.get_connection())
-        .expect("connect to the test redis-server");
+    let (_redis, url, mut conn) = redis_for_the_lab();
     runtime().block_on(async {
         let lab = lab_with(0.05, &[format!("redis.url={url}")]).await;
         let objects = detected(&lab).await;
