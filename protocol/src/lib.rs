@@ -74,6 +74,7 @@ pub mod envelope;
 pub mod geometry;
 pub mod gripper;
 pub mod gripper_geometry;
+pub mod hardware;
 pub mod health;
 pub mod location;
 pub mod named_view;

@@ -95,6 +95,11 @@ pub struct Origin {
     /// The approval a human granted this work (0 = none), checked by the policy.
     #[serde(default)]
     pub approval_id: u64,
+    /// A lower tool speed cap this work asks for, mm/s (0 = none): the policy keeps the lower
+    /// of it and the origin's configured cap, so it can slow a client's motions, never speed
+    /// them up (`robotd commission` attached to a running robotd moves at its own low cap).
+    #[serde(default)]
+    pub speed_cap_mm_s: u32,
 }
 
 impl Origin {
@@ -115,6 +120,13 @@ impl Origin {
     /// Sets the request (builder style).
     pub fn request(mut self, request: impl Into<String>) -> Self {
         self.request = request.into();
+        self
+    }
+
+    /// Asks for a tool speed cap of `mm_s` for this work (builder style); see
+    /// [`Origin::speed_cap_mm_s`].
+    pub fn speed_cap(mut self, mm_s: u32) -> Self {
+        self.speed_cap_mm_s = mm_s;
         self
     }
 

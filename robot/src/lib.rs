@@ -36,6 +36,8 @@
 //! # Ok(()) }
 //! ```
 
+mod info_service;
+
 use robotd_arm::{ArmActor, ArmContext, RunningArm};
 use robotd_camera::CameraActor;
 use robotd_driver::{MotionControl, ObservationPose, RobotConfig, RobotDriver, RobotDrivers};
@@ -288,6 +290,13 @@ impl Hardware {
         .await
         .map_err(failed("camera"))?;
         tasks.push(task);
+        tasks.push(info_service::serve(
+            bus,
+            sections.robot.driver.name().to_owned(),
+            context.driver.clone(),
+            camera_intrinsics.clone(),
+            safety.clone(),
+        )?);
         Ok(Hardware {
             sim: None,
             arm,

@@ -19,6 +19,9 @@
 //! of it: well under what fingers stalled on an object report, well over the few percent of
 //! fingers that move freely. (The load while moving freely is not measured.)
 //!
+//! Attached to a robotd that was already running, the step is refused before anything moves:
+//! that robotd holds the gripper to its configured range.
+//!
 //! The Ned2's TCP protocol reports no finger position: there is nothing to measure, and the
 //! step says so (`skipped`).
 
@@ -82,6 +85,9 @@ pub fn widened(closed: u16, open: u16) -> (u16, u16) {
 pub async fn run(session: &Session, config: &Config) -> Result<Option<GripperReport>> {
     if config.robot.model() != RobotModel::WidowX250 {
         return Ok(None);
+    }
+    if session.attached() {
+        bail!(super::session::ATTACHED_GRIPPER);
     }
     let widowx = &config.robot.widowx;
     let (closed_w, open_w) = widened(widowx.gripper_closed_ticks, widowx.gripper_open_ticks);

@@ -22,7 +22,9 @@
 //!
 //! Every motion is a request on `arm/command` from the origin `cli`, so the motion policy
 //! admits it (fence, joint margins, the speed cap this command lowers to `--speed`), audits
-//! it, and the e-stop stops it ([`session`]). Each moving step says what it will do and, unless
+//! it, and the e-stop stops it ([`session`]). When a robotd already drives the arm on the
+//! configured bus namespace, commissioning works through it (attached) instead of connecting
+//! to the robot itself. Each moving step says what it will do and, unless
 //! `--yes`, waits for the operator's go. A step that cannot run says why and leaves the arm at
 //! rest. The report is printed (`--json` for machines); `--write FILE` writes the measured
 //! values as a config file — a new file, never over an existing one.
@@ -93,6 +95,9 @@ pub struct Report {
     pub robot: String,
     /// The configured driver.
     pub driver: String,
+    /// Whether commissioning worked through a robotd that was already running (see
+    /// `session.rs`).
+    pub attached: bool,
     /// Each step run or asked for.
     pub steps: Vec<StepOutcome>,
     /// The file written, if any.
@@ -181,6 +186,7 @@ async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
     let mut report = Report {
         robot: format!("{:?}", config.robot.model()),
         driver: format!("{:?}", config.robot.driver),
+        attached: false,
         steps: Vec::new(),
         written: None,
     };
@@ -191,6 +197,7 @@ async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
             return Ok(report);
         }
     };
+    report.attached = session.attached();
     let connected = connect::run(&mut session, config).await;
     let connected_ok = connected.is_ok();
     if wanted("connect") || !connected_ok {

@@ -1,16 +1,23 @@
-//! The arm `robotd commission` works with: robotd's own actors on the configured driver,
-//! started in this process, with every motion sent as a request on `arm/command` from the
-//! origin `cli` (session `robotd commission`) — so the motion policy admits, caps and audits
-//! each one, and the e-stop (`robotd estop`, the dashboard, the MCP tool) stops it, exactly as
-//! for any other motion.
+//! The arm `robotd commission` works with, and the bus to talk to it. Every motion is a
+//! request on `arm/command` from the origin `cli` (session `robotd commission`) — so the
+//! motion policy admits, caps and audits each one, and the e-stop (`robotd estop`, the
+//! dashboard, the MCP tool) stops it, exactly as for any other motion.
 //!
-//! Commissioning needs the robot to itself: a Ned2 serves one client, a servo bus one master.
-//! When a robotd already serves the configured bus namespace, [`Session::start`] refuses and
-//! says so rather than fight it for the robot.
+//! Two ways to reach the arm, chosen by [`Session::start`]:
 //!
-//! Its speed is capped low: `safety.max_tcp_speed_m_s` is lowered to the `--speed` cap for
-//! this process (never raised). The WidowX gripper runs with a widened tick range and a low
-//! PWM, for the gripper step (see `gripper.rs`).
+//! - **Fresh**: no robotd serves the configured bus namespace. Commissioning starts robotd's
+//!   arm, gripper and camera actors on the configured driver in this process. The WidowX
+//!   gripper runs with a widened tick range and a low PWM, for the gripper step (see
+//!   `gripper.rs`).
+//! - **Attached**: a robotd already drives the arm there (a Ned2 serves one client, a servo
+//!   bus one master, so commissioning must not connect to it too). Commissioning sends its
+//!   motions to that robotd and asks it what the robot is (`system/hardware`: intrinsics,
+//!   versions, e-stop). Its driver must be the configured one. The gripper step, which needs
+//!   the fingers driven past the configured ends, is refused there.
+//!
+//! Either way the speed is capped low: every request asks the policy for the `--speed` cap
+//! (the origin's `speed_cap_mm_s`, which lowers the configured cap and never raises it), and
+//! a fresh session also lowers `safety.max_tcp_speed_m_s` to it.
 
 use anyhow::{bail, Context, Result};
 use robotd_config::Config;
@@ -18,12 +25,14 @@ use robotd_protocol::arm::{ArmCommand, ArmReply, ArmState};
 use robotd_protocol::camera::CameraIntrinsics;
 use robotd_protocol::geometry::Pose;
 use robotd_protocol::gripper::{GripperCommand, GripperReply};
+use robotd_protocol::hardware::{HardwareInfo, HardwareQuery, HardwareReport};
 use robotd_protocol::health::{EStopRelease, EmergencyStop};
 use robotd_protocol::safety::{Origin, OriginKind};
 use robotd_robot::Hardware;
 use robotd_runtime::bus::{Bus, BusOptions, FrameSubscriber, Subscriber};
 use robotd_topics::{
     ARM_COMMAND, ARM_STATE, CAMERA_FRAMES, GRIPPER_COMMAND, SAFETY_ESTOP, SAFETY_RELEASE,
+    SYSTEM_HARDWARE,
 };
 use std::time::{Duration, Instant};
 
@@ -49,7 +58,12 @@ pub struct StillFrame {
 /// robotd's actors on the configured driver, and the bus to talk to them.
 pub struct Session {
     bus: Bus,
-    hardware: Hardware,
+    /// The actors this process started; `None` when attached to a running robotd.
+    hardware: Option<Hardware>,
+    /// The camera's intrinsics (from the driver, or the running robotd).
+    intrinsics: CameraIntrinsics,
+    /// Who every request comes from: the CLI, with the commissioning speed cap.
+    origin: Origin,
     states: Subscriber<ArmState>,
     frames: FrameSubscriber,
     last_state: Option<ArmState>,
@@ -58,39 +72,29 @@ pub struct Session {
 }
 
 impl Session {
-    /// Starts the actors on `config`'s driver, its speed capped at `speed_m_s`.
+    /// Reaches the arm of `config`'s driver, its speed capped at `speed_m_s`: attached to the
+    /// robotd that serves the configured bus namespace, or with actors started here.
     pub async fn start(config: &Config, speed_m_s: f64) -> Result<Session> {
         let namespace = &config.bus.namespace;
         let bus = Bus::open(BusOptions::new(namespace, "robotd-commission"))
             .with_context(|| format!("joining the bus '{namespace}'"))?;
-        if bus.client(&ARM_COMMAND)?.has_server() {
-            bail!(
-                "a robotd already drives the arm on bus namespace '{namespace}'; commissioning \
-                 needs the robot to itself (a Ned2 serves one client, a servo bus one master): \
-                 stop that robotd first"
-            );
-        }
-        let mut config = config.clone();
-        let safety = &mut config.safety;
-        safety.max_tcp_speed_m_s = safety.max_tcp_speed_m_s.min(speed_m_s);
-        safety.motions_per_minute = 0;
-        // The gripper step finds the fingers' real stops: let them go past the configured ends.
-        let widowx = &mut config.robot.widowx;
-        (widowx.gripper_closed_ticks, widowx.gripper_open_ticks) =
-            super::gripper::widened(widowx.gripper_closed_ticks, widowx.gripper_open_ticks);
-        widowx.gripper_pwm = widowx.gripper_pwm.min(super::gripper::LOW_PWM);
-        let hardware = Hardware::start(&bus, &config.robot_sections(), |_| {
-            robotd_runtime::supervision::observer_fn(
-                |_: &robotd_runtime::supervision::SupervisionEvent| {},
-            )
-        })
-        .await
-        .context("starting robotd's arm, gripper and camera on the configured driver")?;
+        let origin = Origin::new(OriginKind::Cli)
+            .session("robotd commission")
+            .speed_cap((speed_m_s * 1000.0).floor().max(1.0) as u32);
+        let (hardware, intrinsics) = if bus.client(&ARM_COMMAND)?.has_server() {
+            (None, attach(&bus, config).await?.intrinsics)
+        } else {
+            let hardware = start_actors(&bus, config, speed_m_s).await?;
+            let intrinsics = hardware.camera_intrinsics.clone();
+            (Some(hardware), intrinsics)
+        };
         let states = bus.subscriber(&ARM_STATE)?;
         let frames = bus.frame_subscriber(&CAMERA_FRAMES)?;
         Ok(Session {
             bus,
             hardware,
+            intrinsics,
+            origin,
             states,
             frames,
             last_state: None,
@@ -98,21 +102,43 @@ impl Session {
         })
     }
 
+    /// Whether commissioning works through a robotd that was already running.
+    pub fn attached(&self) -> bool {
+        self.hardware.is_none()
+    }
+
+    /// What the running robotd says about its robot (attached sessions).
+    async fn report(&self) -> Result<HardwareReport> {
+        ask_hardware(&self.bus).await
+    }
+
     /// The robot's versions as its arm driver reads them.
-    pub async fn hardware_info(
-        &self,
-    ) -> Result<robotd_driver::HardwareInfo, robotd_driver::DriverError> {
-        self.hardware.arm_context.driver.hardware_info().await
+    pub async fn hardware_info(&self) -> Result<HardwareInfo, String> {
+        match &self.hardware {
+            Some(hardware) => hardware
+                .arm_context
+                .driver
+                .hardware_info()
+                .await
+                .map_err(|e| e.to_string()),
+            None => self.report().await.map_err(|e| format!("{e:#}"))?.versions,
+        }
     }
 
     /// Where the gripper's fingers stopped on its last close and the load there.
-    pub fn last_close(&self) -> Result<robotd_driver::CloseStop, robotd_driver::DriverError> {
-        self.hardware.gripper_driver.last_close()
+    pub fn last_close(&self) -> Result<robotd_driver::CloseStop, String> {
+        match &self.hardware {
+            Some(hardware) => hardware
+                .gripper_driver
+                .last_close()
+                .map_err(|e| e.to_string()),
+            None => Err(ATTACHED_GRIPPER.into()),
+        }
     }
 
     /// The camera's intrinsics as the driver reports them.
     pub fn intrinsics(&self) -> CameraIntrinsics {
-        self.hardware.camera_intrinsics.clone()
+        self.intrinsics.clone()
     }
 
     /// The newest arm state, waiting up to `wait` for the first one.
@@ -138,7 +164,7 @@ impl Session {
     /// Sends `command` as the operator's CLI would, and returns the arm's reply.
     pub async fn command(&self, command: ArmCommand) -> Result<ArmReply, String> {
         let client = self.bus.client(&ARM_COMMAND).map_err(|e| e.to_string())?;
-        let origin = Origin::new(OriginKind::Cli).session("robotd commission");
+        let origin = self.origin.clone();
         let timeout = self.motion_timeout;
         let reply = robotd_runtime::origin::with_origin(origin, async move {
             client.request(&command, timeout).await
@@ -151,7 +177,7 @@ impl Session {
     /// Sends `command` to the gripper as the operator's CLI would.
     pub async fn gripper(&self, command: GripperCommand) -> Result<GripperReply> {
         let client = self.bus.client(&GRIPPER_COMMAND)?;
-        let origin = Origin::new(OriginKind::Cli).session("robotd commission");
+        let origin = self.origin.clone();
         let timeout = self.motion_timeout;
         robotd_runtime::origin::with_origin(origin, async move {
             client.request(&command, timeout).await
@@ -172,7 +198,7 @@ impl Session {
     /// task.
     pub fn spawn_move(&self, target: Pose) -> Result<tokio::task::JoinHandle<Result<(), String>>> {
         let client = self.bus.client(&ARM_COMMAND)?;
-        let origin = Origin::new(OriginKind::Cli).session("robotd commission");
+        let origin = self.origin.clone();
         let timeout = self.motion_timeout;
         Ok(tokio::spawn(robotd_runtime::origin::with_origin(
             origin,
@@ -209,14 +235,17 @@ impl Session {
     }
 
     /// The e-stop's reason while it is engaged.
-    pub fn estop_reason(&self) -> Option<String> {
-        self.hardware.safety.estop()
+    pub async fn estop_reason(&self) -> Result<Option<String>> {
+        match &self.hardware {
+            Some(hardware) => Ok(hardware.safety.estop()),
+            None => Ok(self.report().await?.estop),
+        }
     }
 
     /// Releases the e-stop through the motion policy's `safety/release` (origin `cli`).
     pub async fn release_estop(&self, by: &str) -> Result<()> {
         let client = self.bus.client(&SAFETY_RELEASE)?;
-        let origin = Origin::new(OriginKind::Cli).session("robotd commission");
+        let origin = self.origin.clone();
         let request = EStopRelease {
             confirm: "release".into(),
             by: by.into(),
@@ -274,4 +303,63 @@ impl Session {
             });
         }
     }
+}
+
+/// Why the gripper step does not run on a robotd that was already running.
+pub const ATTACHED_GRIPPER: &str = "the gripper step drives the fingers past the configured \
+    ends at a low PWM to find their stops, which a running robotd does not allow: stop robotd \
+    and run `robotd commission --only gripper`; nothing moved";
+
+/// Asks the robotd on `bus` what its robot is.
+async fn ask_hardware(bus: &Bus) -> Result<HardwareReport> {
+    let client = bus.client(&SYSTEM_HARDWARE)?;
+    if !client.wait_for_server(Duration::from_secs(2)).await {
+        bail!(
+            "the running robotd does not answer system/hardware (a robotd older than this \
+             one?): stop it and run robotd commission on its own"
+        );
+    }
+    client
+        .request(&HardwareQuery {}, Duration::from_secs(10))
+        .await
+        .context("asking the running robotd about its robot (system/hardware)")
+}
+
+/// Checks that the robotd already on the bus drives the configured robot, and returns what it
+/// says about it.
+async fn attach(bus: &Bus, config: &Config) -> Result<HardwareReport> {
+    let report = ask_hardware(bus).await?;
+    let configured = config.robot.driver.name();
+    if report.driver != configured {
+        bail!(
+            "the robotd running on bus namespace '{}' drives '{}', but this configuration \
+             names robot.driver = \"{configured}\": commission with the configuration that \
+             robotd runs with (--config), or stop it",
+            config.bus.namespace,
+            report.driver
+        );
+    }
+    tracing::info!(driver = configured, "attached to the running robotd");
+    Ok(report)
+}
+
+/// Starts robotd's arm, gripper and camera actors on `config`'s driver in this process, the
+/// speed capped at `speed_m_s` and the WidowX gripper free to find its stops.
+async fn start_actors(bus: &Bus, config: &Config, speed_m_s: f64) -> Result<Hardware> {
+    let mut config = config.clone();
+    let safety = &mut config.safety;
+    safety.max_tcp_speed_m_s = safety.max_tcp_speed_m_s.min(speed_m_s);
+    safety.motions_per_minute = 0;
+    // The gripper step finds the fingers' real stops: let them go past the configured ends.
+    let widowx = &mut config.robot.widowx;
+    (widowx.gripper_closed_ticks, widowx.gripper_open_ticks) =
+        super::gripper::widened(widowx.gripper_closed_ticks, widowx.gripper_open_ticks);
+    widowx.gripper_pwm = widowx.gripper_pwm.min(super::gripper::LOW_PWM);
+    Hardware::start(bus, &config.robot_sections(), |_| {
+        robotd_runtime::supervision::observer_fn(
+            |_: &robotd_runtime::supervision::SupervisionEvent| {},
+        )
+    })
+    .await
+    .context("starting robotd's arm, gripper and camera on the configured driver")
 }

@@ -83,7 +83,7 @@ pub async fn run(
     }) else {
         bail!("no such workspace configured: the stopping step swings across the workspace");
     };
-    if let Some(reason) = session.estop_reason() {
+    if let Some(reason) = session.estop_reason().await? {
         bail!("the emergency stop is engaged ({reason}): release it first, nothing moved");
     }
     let [x, _] = spec.centre();
@@ -156,7 +156,7 @@ pub async fn run(
         distances.push(distance(last, at_stop) * 1e3);
         speeds.push(speed);
         let _ = motion.await;
-        match session.estop_reason() {
+        match session.estop_reason().await? {
             Some(reason) if reason.contains(REASON) => {
                 session
                     .release_estop("robotd commission: the stopping trial ended")

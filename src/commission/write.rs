@@ -18,7 +18,11 @@ use std::path::Path;
 
 /// The report as lines for a terminal.
 pub fn render(report: &Report) -> String {
-    let mut out = format!("robotd commission: {} ({})\n", report.robot, report.driver);
+    let mut out = format!("robotd commission: {} ({})", report.robot, report.driver);
+    if report.attached {
+        out.push_str(", through the robotd already running");
+    }
+    out.push('\n');
     for step in &report.steps {
         let mark = match step.status.as_str() {
             "ok" => "✓",

@@ -27,6 +27,17 @@ pub enum RobotDriver {
 }
 
 impl RobotDriver {
+    /// The name configuration gives it (`robot.driver`): `sim-ned2`, `niryo`, ….
+    pub fn name(self) -> &'static str {
+        match self {
+            RobotDriver::SimNed2 => "sim-ned2",
+            RobotDriver::SimWidowx => "sim-widowx",
+            RobotDriver::Niryo => "niryo",
+            RobotDriver::Widowx => "widowx",
+            RobotDriver::Replay => "replay",
+        }
+    }
+
     /// The robot model this driver always drives; `None` for the replay driver, whose model is
     /// `[robot.replay] model` (use [`RobotConfig::model`], which knows both).
     pub fn fixed_model(self) -> Option<RobotModel> {
@@ -391,6 +402,23 @@ impl Section for RobotConfig {
                     format!("must be at most 600000 ms, got {}", fault.hang_ms),
                 );
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod name_tests {
+    use super::RobotDriver;
+
+    #[test]
+    fn a_driver_is_named_as_configuration_spells_it() {
+        #[derive(serde::Deserialize)]
+        struct Holder {
+            driver: RobotDriver,
+        }
+        for name in ["sim-ned2", "sim-widowx", "niryo", "widowx", "replay"] {
+            let holder: Holder = toml::from_str(&format!("driver = \"{name}\"")).unwrap();
+            assert_eq!(holder.driver.name(), name);
         }
     }
 }

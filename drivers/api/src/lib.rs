@@ -109,29 +109,9 @@ pub struct ArmFlags {
     pub calibrated: bool,
 }
 
-/// One motor as the robot reports it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MotorInfo {
-    /// What it moves ("waist", "Joint 1").
-    pub name: String,
-    /// Its model or type ("XM430-W350 (1020)", "Stepper").
-    pub model: String,
-    /// Its firmware version, when the robot reports one.
-    pub firmware: Option<String>,
-}
-
-/// What the robot reports about its hardware and software versions.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct HardwareInfo {
-    /// The robot's hardware version, when it reports one (a Ned2: `ned2`).
-    pub hardware_version: Option<String>,
-    /// The robot's software version, when it reports one.
-    pub software_version: Option<String>,
-    /// Each motor, base to tool.
-    pub motors: Vec<MotorInfo>,
-    /// What this robot does not report over the driver's protocol, and why.
-    pub not_reported: Vec<String>,
-}
+/// What the robot reports about its versions: the protocol's types, so that a running
+/// robotd can answer them on the bus (`system/hardware`).
+pub use robotd_protocol::hardware::{HardwareInfo, MotorInfo};
 
 /// The error of a driver that reports no hardware or firmware versions.
 pub fn versions_not_reported() -> DriverError {

@@ -236,10 +236,11 @@ impl Safety {
         control.estop_engaged().then(|| control.estop_reason())
     }
 
-    /// The speed and acceleration caps of `origin`.
+    /// The speed and acceleration caps of `origin`: its kind's configured caps, the speed
+    /// lowered to the cap the origin asks for (`speed_cap_mm_s`), never raised.
     pub fn caps(&self, origin: &Origin) -> Caps {
         let c = &self.inner.config;
-        if origin.is_llm() {
+        let mut caps = if origin.is_llm() {
             Caps {
                 speed_m_s: c.llm_max_tcp_speed_m_s,
                 acceleration_m_s2: c.llm_max_tcp_acceleration_m_s2,
@@ -249,7 +250,13 @@ impl Safety {
                 speed_m_s: c.max_tcp_speed_m_s,
                 acceleration_m_s2: c.max_tcp_acceleration_m_s2,
             }
+        };
+        if origin.speed_cap_mm_s > 0 {
+            caps.speed_m_s = caps
+                .speed_m_s
+                .min(f64::from(origin.speed_cap_mm_s) / 1000.0);
         }
+        caps
     }
 
     /// Whether `tool` must wait for a human's approval.
@@ -501,5 +508,37 @@ fn model_reach_m(kinematics: &Kinematics) -> f64 {
     match kinematics.model() {
         robotd_protocol::RobotModel::Ned2 => 0.44,
         robotd_protocol::RobotModel::WidowX250 => 0.65,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robotd_protocol::safety::OriginKind;
+
+    fn policy() -> Safety {
+        let config = SafetyConfig {
+            max_tcp_speed_m_s: 0.4,
+            llm_max_tcp_speed_m_s: 0.2,
+            ..SafetyConfig::default()
+        };
+        Safety::new(
+            config,
+            Kinematics::new(robotd_protocol::RobotModel::Ned2),
+            MotionControl::default(),
+            &[],
+            AuditLog::disabled(),
+        )
+    }
+
+    #[test]
+    fn an_origin_may_lower_its_speed_cap_but_never_raise_it() {
+        let policy = policy();
+        let cli = Origin::new(OriginKind::Cli);
+        assert_eq!(policy.caps(&cli).speed_m_s, 0.4);
+        assert_eq!(policy.caps(&cli.clone().speed_cap(100)).speed_m_s, 0.1);
+        assert_eq!(policy.caps(&cli.speed_cap(900)).speed_m_s, 0.4);
+        let llm = Origin::new(OriginKind::Mcp).speed_cap(5_000);
+        assert_eq!(policy.caps(&llm).speed_m_s, 0.2);
     }
 }

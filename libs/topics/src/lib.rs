@@ -18,6 +18,14 @@ use robotd_runtime::bus::{Description, Entry, FrameTopic, Overflow, Service};
 /// robotd's own liveness probe: any process can ping the running service.
 pub const SYSTEM_PING: Service<Ping, Pong> = Service::new("system/ping");
 
+/// What the robot the running robotd drives says about itself: driver, camera intrinsics,
+/// versions, e-stop. The robot answers one client, so a tool that attaches to a running
+/// robotd (`robotd commission`) asks here instead of connecting to it.
+pub const SYSTEM_HARDWARE: Service<
+    robotd_protocol::hardware::HardwareQuery,
+    robotd_protocol::hardware::HardwareReport,
+> = Service::new("system/hardware");
+
 /// The simulator's ground truth (served only with a simulated robot): for end-to-end tests
 /// and dashboards that compare what the camera sees with what is really there.
 pub const SIM_WORLD: Service<SimWorldRequest, SimWorldReply> = Service::new("sim/world");
@@ -176,6 +184,7 @@ pub const STT_STATUS: robotd_runtime::bus::Topic<robotd_protocol::stt::SttStatus
 pub fn entries() -> Vec<Entry> {
     vec![
         SYSTEM_PING.describe(),
+        SYSTEM_HARDWARE.describe(),
         SIM_WORLD.describe(),
         TEST_PATTERN.describe(),
         TEST_PATTERN_FRAMES.describe(),

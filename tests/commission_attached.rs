@@ -1,0 +1,149 @@
+//! `robotd commission` on a robotd that is already running: it does not connect to the robot
+//! (which answers one client) but works through that robotd — its motions on `arm/command`
+//! at commissioning's own low speed cap (the origin's cap, lower than the running robotd's),
+//! what the robot is from `system/hardware`. The running robotd here is the simulated Ned2
+//! with its camera where the defaults say; commissioning is given a configuration whose
+//! camera mount is 8 mm and 3° off, and must find the true one through the running robotd.
+
+mod common;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use robotd_kinematics::{CameraMount, RobotModel};
+use serde_json::Value;
+use std::process::Command;
+
+/// Runs `robotd commission --yes --json` with `settings` and `args`: exit code, JSON report,
+/// stderr.
+fn commission(settings: &[&str], args: &[&str]) -> (Option<i32>, Value, String) {
+    let logs = tempfile::tempdir().unwrap();
+    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .arg("--set")
+        .arg(format!("telemetry.log_dir={}", logs.path().display()))
+        .args(settings)
+        .args(["commission", "--yes", "--json"])
+        .args(args)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    let report = serde_json::from_str(&stdout)
+        .unwrap_or_else(|e| panic!("not a JSON report ({e}): {stdout}\nstderr: {stderr}"));
+    (output.status.code(), report, stderr)
+}
+
+fn step<'a>(report: &'a Value, name: &str) -> &'a Value {
+    report["steps"]
+        .as_array()
+        .and_then(|steps| steps.iter().find(|s| s["step"] == name))
+        .unwrap_or_else(|| panic!("no {name} step in {report:#}"))
+}
+
+/// `--set` arguments putting the camera mount at `mount`.
+fn mount_settings(mount: &CameraMount) -> Vec<String> {
+    let keys = ["x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg"];
+    keys.iter()
+        .zip(mount.to_xyz_rpy_deg())
+        .flat_map(|(key, value)| ["--set".into(), format!("robot.camera.mount.{key}={value}")])
+        .collect()
+}
+
+#[test]
+fn commissioning_works_through_the_running_robotd_at_its_own_speed_cap() {
+    let namespace = common::fresh_namespace("commission-attached");
+    let _robotd = common::start_robotd(&namespace, common::free_port(), &[]);
+
+    // A configuration that names another driver is refused before anything moves.
+    let (code, report, _) = commission(
+        &[
+            "--namespace",
+            &namespace,
+            "--set",
+            "robot.driver=niryo",
+            "--set",
+            "robot.host=127.0.0.1",
+        ],
+        &["--only", "connect"],
+    );
+    assert_eq!(code, Some(1), "{report:#}");
+    let reason = step(&report, "connect")["reason"].as_str().unwrap();
+    assert!(
+        reason.contains("drives 'sim-ned2'") && reason.contains("robot.driver = \"niryo\""),
+        "{reason}"
+    );
+
+    // The whole camera step through the running robotd, with a configured mount that is off.
+    let truth = CameraMount::default_for(RobotModel::Ned2);
+    let believed = truth.offset_by(&Isometry3::from_parts(
+        Translation3::new(0.008, 0.0, 0.0),
+        UnitQuaternion::from_euler_angles(0.0, 3f64.to_radians(), 0.0),
+    ));
+    let mut settings = vec!["--namespace".to_owned(), namespace.clone()];
+    settings.extend(mount_settings(&believed));
+    let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
+    let (code, report, stderr) = commission(&settings, &["--only", "camera"]);
+    assert_eq!(code, Some(0), "{report:#}\n{stderr}");
+    assert_eq!(report["attached"], true, "{report:#}");
+    let camera = step(&report, "camera");
+    let values: Vec<f64> = camera["measured"]["mount"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let measured = CameraMount::from_xyz_rpy_deg(values.try_into().unwrap()).unwrap();
+    let (metres, degrees) = truth.difference(&measured);
+    eprintln!(
+        "attached: mount error {:.2} mm {degrees:.3}°",
+        metres * 1000.0
+    );
+    assert!(
+        metres < 0.002 && degrees < 0.5,
+        "{:.2} mm {degrees:.3}° off: {camera:#}",
+        metres * 1000.0
+    );
+
+    // The stopping step at 5 cm/s: the running robotd's own cap is 1 m/s, so the speed the
+    // swings ran at is the origin's cap at work. Its e-stops are released again.
+    let (code, report, stderr) = commission(
+        &["--namespace", &namespace],
+        &["--only", "stopping", "--speed", "0.05"],
+    );
+    assert_eq!(code, Some(0), "{report:#}\n{stderr}");
+    let stopping = &step(&report, "stopping")["measured"];
+    let speed = stopping["mean_speed_m_s"].as_f64().unwrap();
+    eprintln!("attached: swings at {speed:.4} m/s under a 0.05 m/s cap");
+    assert!(speed > 0.01 && speed <= 0.05 * 1.05, "{stopping:#}");
+
+    // The gripper step needs the fingers past the configured ends: refused while attached
+    // (a Ned2's is skipped before that; a WidowX's says why).
+    let (_, report, _) = commission(&["--namespace", &namespace], &["--only", "gripper"]);
+    assert_eq!(step(&report, "gripper")["status"], "skipped", "{report:#}");
+}
+
+#[test]
+fn the_gripper_step_is_refused_on_a_running_widowx_robotd_before_anything_moves() {
+    let namespace = common::fresh_namespace("commission-attached-widowx");
+    let _robotd = common::start_robotd(
+        &namespace,
+        common::free_port(),
+        &["--set", "robot.driver=sim-widowx"],
+    );
+    let (code, report, _) = commission(
+        &[
+            "--namespace",
+            &namespace,
+            "--set",
+            "robot.driver=sim-widowx",
+        ],
+        &["--only", "gripper"],
+    );
+    assert_eq!(code, Some(1), "{report:#}");
+    assert_eq!(report["attached"], true, "{report:#}");
+    let gripper = step(&report, "gripper");
+    assert_eq!(gripper["status"], "failed", "{report:#}");
+    let reason = gripper["reason"].as_str().unwrap();
+    assert!(
+        reason.contains("stop robotd") && reason.contains("nothing moved"),
+        "{reason}"
+    );
+}
