@@ -459,7 +459,11 @@ fn run() -> Result<std::process::ExitCode> {
             Ok(std::process::ExitCode::SUCCESS)
         }
         Command::Detect(args) => detect::run(&args, &load_config(&cli.config)?),
-        Command::Commission(args) => commission::run(&load_config(&cli.config)?, &args),
+        Command::Commission(args) => commission::run(
+            &load_config(&cli.config)?,
+            cli.config.config.as_deref(),
+            &args,
+        ),
         Command::Doctor(args) => {
             let config = load_config(&cli.config)?;
             let config_dir = cli

@@ -141,6 +141,15 @@ fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
     let file = std::fs::read_to_string(&written).unwrap();
     assert!(file.contains("[robot.camera.mount]"), "{file}");
     assert!(file.contains("images_rectified = true"), "{file}");
+    // It is the config file commissioning ran with, comments and settings kept, plus the
+    // measured values: robotd runs from it alone.
+    let niryo = include_str!("../config/niryo.toml");
+    for kept in niryo
+        .lines()
+        .filter(|l| l.starts_with("segment_rad") || l.starts_with("# "))
+    {
+        assert!(file.contains(kept), "{kept:?} lost:\n{file}");
+    }
 
     // Never over an existing file: refused before anything moves.
     let again = run(&robot, &["--write", written.to_str().unwrap()]);
@@ -155,8 +164,6 @@ fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
         namespace.as_str(),
         "--config",
         written.to_str().unwrap(),
-        "--set",
-        "robot.driver=niryo",
         "--set",
         "robot.host=127.0.0.1",
         "--set",

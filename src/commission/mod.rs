@@ -26,10 +26,12 @@
 //! configured bus namespace, commissioning works through it (attached) instead of connecting
 //! to the robot itself. Each moving step says what it will do and, unless
 //! `--yes`, waits for the operator's go. A step that cannot run says why and leaves the arm at
-//! rest. The report is printed (`--json` for machines); `--write FILE` writes the measured
-//! values as a config file — a new file, never over an existing one.
+//! rest. The report is printed (`--json` for machines); `--write FILE` writes the config file
+//! commissioning ran with plus the measured values ([`config_file`]) — a new file, never over
+//! an existing one.
 
 mod camera;
+mod config_file;
 mod connect;
 mod gripper;
 pub mod handeye;
@@ -43,7 +45,7 @@ use clap::Args;
 use robotd_config::Config;
 use serde::Serialize;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// The steps, in the order they run.
@@ -61,7 +63,8 @@ pub struct CommissionArgs {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
-    /// Write the measured values to this new config file (never over an existing file).
+    /// Write the config file this ran with (--config), plus the measured values, to this new
+    /// file (never over an existing file): run robotd with it.
     #[arg(long, value_name = "FILE")]
     pub write: Option<PathBuf>,
     /// The workspace whose sheet the camera step uses (default: the first configured).
@@ -140,8 +143,9 @@ fn operator_agrees(args: &CommissionArgs, what: &str) -> Result<bool> {
     Ok(matches!(answer.trim(), "y" | "Y" | "yes"))
 }
 
-/// Runs `robotd commission`; the exit code is 0 when every step run succeeded.
-pub fn run(config: &Config, args: &CommissionArgs) -> Result<ExitCode> {
+/// Runs `robotd commission` on `config`, loaded from the file `config_path` (if any); the
+/// exit code is 0 when every step run succeeded.
+pub fn run(config: &Config, config_path: Option<&Path>, args: &CommissionArgs) -> Result<ExitCode> {
     if let Some(only) = &args.only {
         if !STEPS.contains(&only.as_str()) {
             bail!(
@@ -167,7 +171,7 @@ pub fn run(config: &Config, args: &CommissionArgs) -> Result<ExitCode> {
         .enable_all()
         .build()
         .context("starting the tokio runtime")?;
-    let report = runtime.block_on(run_steps(config, args))?;
+    let report = runtime.block_on(run_steps(config, config_path, args))?;
     let failed = report.steps.iter().any(|s| s.status == "failed");
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -181,7 +185,11 @@ pub fn run(config: &Config, args: &CommissionArgs) -> Result<ExitCode> {
     })
 }
 
-async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
+async fn run_steps(
+    config: &Config,
+    config_path: Option<&Path>,
+    args: &CommissionArgs,
+) -> Result<Report> {
     let wanted = |step: &str| args.only.as_deref().is_none_or(|only| only == step);
     let mut report = Report {
         robot: format!("{:?}", config.robot.model()),
@@ -286,8 +294,9 @@ async fn run_steps(config: &Config, args: &CommissionArgs) -> Result<Report> {
         ));
     }
     if let Some(path) = &args.write {
-        write::write_config(
+        config_file::write(
             path,
+            config_path,
             config,
             camera_report.as_ref(),
             gripper_report.as_ref(),
