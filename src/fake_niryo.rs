@@ -52,6 +52,10 @@ pub struct FakeNiryoArgs {
     /// so a motion sent just before the e-stop still runs (the Ned2 has no stop command).
     #[arg(long, value_name = "MS", default_value_t = 0)]
     pub stopping_lag_ms: u64,
+    /// The tool the robot says is mounted (GET_CURRENT_TOOL_ID): NONE, GRIPPER_1 … GRIPPER_4,
+    /// ELECTROMAGNET_1, VACUUM_PUMP_1, VACUUM_PUMP_2. The simulated gripper still grips.
+    #[arg(long, value_name = "TOOL", default_value = "GRIPPER_1")]
+    pub tool: String,
 }
 
 /// Serves until Ctrl-C.
@@ -94,6 +98,7 @@ pub fn run(mut config: Config, args: FakeNiryoArgs) -> Result<()> {
             },
         );
         fake.set_stopping_lag(std::time::Duration::from_millis(args.stopping_lag_ms));
+        fake.set_tool(&args.tool).map_err(anyhow::Error::msg)?;
         let listener = tokio::net::TcpListener::bind(&args.listen)
             .await
             .with_context(|| format!("listening on {}", args.listen))?;

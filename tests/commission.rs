@@ -425,6 +425,8 @@ fn connecting_reports_what_each_robot_tells_of_its_versions() {
     assert_eq!(motors[0]["model"], "Stepper", "{connect:#}");
     let missing = connect["versions_not_reported"].to_string();
     assert!(missing.contains("software version"), "{connect:#}");
+    // And the tool GET_CURRENT_TOOL_ID names: the fake's standard gripper.
+    assert_eq!(versions["tool"], "GRIPPER_1", "{connect:#}");
 
     // The simulator reports none and says so.
     let (code, report) = commission(
@@ -444,6 +446,51 @@ fn connecting_reports_what_each_robot_tells_of_its_versions() {
         missing.contains("not reported by this driver"),
         "{connect:#}"
     );
+}
+
+#[test]
+fn a_ned2s_gripper_step_names_its_tool_and_refuses_one_that_is_not_a_gripper() {
+    let run_with_tool = |tool: &str| {
+        let namespace = common::fresh_namespace("commission-ned2-tool");
+        let (_fake, port) = common::start_fake_niryo(
+            &["--namespace", &format!("{namespace}-fake")],
+            &["--tool", tool],
+        );
+        let port = format!("robot.port={port}");
+        commission(
+            &[
+                "--namespace",
+                namespace.as_str(),
+                "--config",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
+                "--set",
+                "robot.host=127.0.0.1",
+                "--set",
+                port.as_str(),
+            ],
+            &["--only", "gripper"],
+        )
+    };
+    let (code, report) = run_with_tool("GRIPPER_2");
+    assert_eq!(code, Some(0), "{report:#}");
+    let gripper = &step(&report, "gripper")["measured"];
+    assert_eq!(gripper["tool"], "GRIPPER_2", "{report:#}");
+    assert_eq!(gripper["cycle"].as_array().unwrap().len(), 3, "{report:#}");
+
+    for (tool, why) in [
+        ("VACUUM_PUMP_1", "not a gripper"),
+        ("NONE", "no tool mounted"),
+    ] {
+        let (code, report) = run_with_tool(tool);
+        assert_eq!(code, Some(1), "{report:#}");
+        let gripper = step(&report, "gripper");
+        assert_eq!(gripper["status"], "failed", "{report:#}");
+        let reason = gripper["reason"].as_str().unwrap();
+        assert!(
+            reason.contains(why) && reason.contains("nothing moved"),
+            "{tool}: {reason}"
+        );
+    }
 }
 
 #[test]

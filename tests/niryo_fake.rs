@@ -1,6 +1,6 @@
 //! `robotd fake-niryo` against Niryo's own client: pyniryo 1.2.5 (in the test venv) connects,
-//! calibrates, moves, grips, decodes an image, reads the intrinsics and gets a collision set
-//! and cleared — so the fake, which the niryo driver's tests and the scenarios run against,
+//! calibrates, names the mounted tool, moves, grips, decodes an image, reads the intrinsics and
+//! gets a collision set and cleared — so the fake, which the niryo driver's tests and the scenarios run against,
 //! speaks what the robot speaks.
 
 mod common;
@@ -27,6 +27,8 @@ fn pyniryo_drives_the_fake_ned2() {
     assert_eq!(seen["need_calibration_before"], "True", "{seen}");
     assert_eq!(seen["need_calibration_after"], "False", "{seen}");
     assert_eq!(seen["hardware_version"], "ned2");
+    // pyniryo turns the tool's name into its ToolID: the fake's standard gripper.
+    assert_eq!(seen["tool"], "GRIPPER_1", "{seen}");
     assert!(
         near(
             &numbers("joints_after_move"),

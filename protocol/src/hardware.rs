@@ -40,6 +40,10 @@ pub struct HardwareInfo {
     pub software_version: Option<String>,
     /// Each motor, base to tool.
     pub motors: Vec<MotorInfo>,
+    /// The tool the robot reports mounted, when it reports one (a Ned2: `GRIPPER_1`, `NONE`,
+    /// `VACUUM_PUMP_1`, … as its `GET_CURRENT_TOOL_ID` names them).
+    #[serde(default)]
+    pub tool: Option<String>,
     /// What this robot does not report over the driver's protocol, and why.
     pub not_reported: Vec<String>,
 }

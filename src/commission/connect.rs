@@ -53,6 +53,9 @@ pub struct Versions {
     pub software: Option<String>,
     /// Each motor, base to tool.
     pub motors: Vec<Motor>,
+    /// The tool the robot reports mounted (a Ned2: `GRIPPER_1`, `NONE`, …).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tool: Option<String>,
 }
 
 /// One motor's model and firmware.
@@ -115,6 +118,7 @@ pub async fn run(session: &mut Session, config: &Config) -> Result<Connected> {
                         firmware: m.firmware,
                     })
                     .collect(),
+                tool: info.tool,
             }),
             info.not_reported,
         ),

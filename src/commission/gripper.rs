@@ -22,8 +22,7 @@
 //! Attached to a robotd that was already running, the step is refused before anything moves:
 //! that robotd holds the gripper to its configured range.
 //!
-//! The Ned2's TCP protocol reports no finger position: there is nothing to measure, and the
-//! step says so (`skipped`).
+//! The Ned2's TCP protocol reports no finger position: its gripper step is `ned2_tool.rs`.
 
 use super::session::Session;
 use anyhow::{bail, Result};
@@ -81,10 +80,13 @@ pub fn widened(closed: u16, open: u16) -> (u16, u16) {
     )
 }
 
-/// Runs the step; `Ok(None)` when the robot's gripper cannot be measured (Ned2).
-pub async fn run(session: &Session, config: &Config) -> Result<Option<GripperReport>> {
+/// Runs the step on a WidowX.
+pub async fn run(session: &Session, config: &Config) -> Result<GripperReport> {
     if config.robot.model() != RobotModel::WidowX250 {
-        return Ok(None);
+        bail!(
+            "the gripper's ticks are a WidowX's; this robot is a {:?}",
+            config.robot.model()
+        );
     }
     if session.attached() {
         bail!(super::session::ATTACHED_GRIPPER);
@@ -135,7 +137,7 @@ pub async fn run(session: &Session, config: &Config) -> Result<Option<GripperRep
             (open_ticks - closed_ticks).abs()
         );
     }
-    Ok(Some(GripperReport {
+    Ok(GripperReport {
         closed_ticks,
         open_ticks,
         configured_closed_ticks: widowx.gripper_closed_ticks,
@@ -144,7 +146,7 @@ pub async fn run(session: &Session, config: &Config) -> Result<Option<GripperRep
         empty_close_pwm: stop.pwm,
         holding_load: holding_threshold(stop.load, stop.pwm, widowx.gripper_pwm),
         configured_holding_load: widowx.gripper_holding_load,
-    }))
+    })
 }
 
 #[cfg(test)]

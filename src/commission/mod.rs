@@ -14,8 +14,8 @@
 //!    capped speed, from the arm's own reports.
 //!
 //! 4. **gripper** ([`gripper`]): the WidowX gripper's closed and open ticks at its mechanical
-//!    stops and the load that counts as holding (the Ned2 reports no finger position:
-//!    skipped).
+//!    stops and the load that counts as holding; on a Ned2, which reports no finger position,
+//!    the tool it names and whether it opens and closes ([`ned2_tool`]).
 //!
 //! 5. **pick** ([`pick`]): the object at the sheet's centre picked, put back and seen again;
 //!    how far it moved, as the camera measures it.
@@ -35,6 +35,7 @@ mod config_file;
 mod connect;
 mod gripper;
 pub mod handeye;
+mod ned2_tool;
 mod pick;
 mod session;
 mod stopping;
@@ -43,6 +44,7 @@ mod write;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use robotd_config::Config;
+use robotd_protocol::geometry::RobotModel;
 use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -253,30 +255,24 @@ async fn run_steps(
     }
     let mut gripper_report = None;
     if wanted("gripper") {
-        let outcome_of = if operator_agrees(
+        let result = if operator_agrees(
             args,
-            "gripper: the fingers open, close on nothing and open again, slowly, past the \
-             configured ends until they stall (the fingers must be empty)",
+            "gripper: the fingers open, close on nothing and open again, slowly (the fingers \
+             must be empty); a WidowX's are driven past the configured ends until they stall",
         )? {
-            gripper::run(&session, config).await
+            match config.robot.model() {
+                RobotModel::Ned2 => ned2_tool::run(&session)
+                    .await
+                    .and_then(|t| Ok(serde_json::to_value(t)?)),
+                RobotModel::WidowX250 => gripper::run(&session, config).await.and_then(|g| {
+                    gripper_report = Some(g.clone());
+                    Ok(serde_json::to_value(g)?)
+                }),
+            }
         } else {
             Err(anyhow::anyhow!("the operator declined; nothing moved"))
         };
-        report.steps.push(match outcome_of {
-            Ok(None) => StepOutcome {
-                step: "gripper".into(),
-                status: "skipped".into(),
-                reason: Some(
-                    "the Ned2's TCP protocol reports no finger position: nothing to measure".into(),
-                ),
-                measured: None,
-            },
-            Ok(Some(measured)) => {
-                gripper_report = Some(measured.clone());
-                outcome("gripper", Ok(serde_json::to_value(measured)?))
-            }
-            Err(error) => outcome("gripper", Err(error)),
-        });
+        report.steps.push(outcome("gripper", result));
     }
     if wanted("pick") {
         let result = if operator_agrees(

@@ -29,6 +29,7 @@ robot.update_tool()
 status = robot.get_hardware_status()
 seen["hardware_version"] = status.hardware_version
 seen["motor_names"] = list(status.motor_names)
+seen["tool"] = robot.get_current_tool_id().name
 
 target = [0.2, 0.3, -0.4, 0.0, -0.5, 0.1]
 robot.move(JointsPosition(*target))

@@ -341,21 +341,35 @@ impl ArmDriver for NiryoArm {
 
     fn hardware_info(&self) -> DriverFuture<'_, HardwareInfo> {
         Box::pin(async move {
-            let status = self.link.known().hardware.ok_or_else(|| {
+            let known = self.link.known();
+            let status = known.hardware.ok_or_else(|| {
                 DriverError::Hardware(match self.link.status() {
                     Ok(()) => "the robot's hardware status is not read yet".into(),
                     Err(reason) => format!("robot not connected: {reason}"),
                 })
             })?;
-            Ok(hardware_info(&status))
+            Ok(hardware_info(&status, known.tool.as_ref()))
         })
     }
 }
 
 /// What `GET_HARDWARE_STATUS` tells of the robot's versions: the hardware version and each
-/// motor's name and type. The TCP protocol (pyniryo 1.2.5, ned_ros) has no command that
-/// reports the robot's software version or the motors' firmware versions.
-pub fn hardware_info(status: &crate::link::HardwareStatus) -> HardwareInfo {
+/// motor's name and type; and the mounted tool `GET_CURRENT_TOOL_ID` named (`tool`). The TCP
+/// protocol (pyniryo 1.2.5, ned_ros) has no command that reports the robot's software version
+/// or the motors' firmware versions.
+pub fn hardware_info(
+    status: &crate::link::HardwareStatus,
+    tool: Option<&Result<String, String>>,
+) -> HardwareInfo {
+    let mut not_reported = vec![
+        "software version and motor firmware versions: the Niryo TCP protocol has no \
+         command for them (GET_HARDWARE_STATUS reports the hardware version and the motor \
+         types only; the robot publishes them on its ROS topic software_version)"
+            .to_owned(),
+    ];
+    if let Some(Err(reason)) = tool {
+        not_reported.push(format!("the mounted tool: {reason}"));
+    }
     HardwareInfo {
         hardware_version: Some(status.hardware_version.clone()),
         software_version: None,
@@ -368,11 +382,7 @@ pub fn hardware_info(status: &crate::link::HardwareStatus) -> HardwareInfo {
                 firmware: None,
             })
             .collect(),
-        not_reported: vec![
-            "software version and motor firmware versions: the Niryo TCP protocol has no \
-             command for them (GET_HARDWARE_STATUS reports the hardware version and the motor \
-             types only; the robot publishes them on its ROS topic software_version)"
-                .into(),
-        ],
+        tool: tool.and_then(|t| t.clone().ok()),
+        not_reported,
     }
 }

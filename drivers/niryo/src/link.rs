@@ -98,6 +98,9 @@ pub struct Known {
     pub intrinsics: Option<([f64; 4], [f64; 5])>,
     /// The robot's hardware status at the last connect.
     pub hardware: Option<HardwareStatus>,
+    /// The tool the robot reported mounted at the last connect (`GET_CURRENT_TOOL_ID`, after
+    /// `UPDATE_TOOL`: `GRIPPER_1`, `NONE`, …), or why it could not be read.
+    pub tool: Option<Result<String, String>>,
 }
 
 /// The parts of `GET_HARDWARE_STATUS` robotd reports.
@@ -329,6 +332,19 @@ impl Link {
             calibrated = true;
         }
         ask(&mut stream, "UPDATE_TOOL", vec![], s.query_timeout).await?;
+        let tool = ask(&mut stream, "GET_CURRENT_TOOL_ID", vec![], s.query_timeout)
+            .await
+            .and_then(|items| match items.first().and_then(Value::as_str) {
+                Some(name) if items.len() == 1 && !name.trim().is_empty() => {
+                    Ok(name.trim().to_owned())
+                }
+                _ => Err(format!(
+                    "GET_CURRENT_TOOL_ID answered {items:?}, not a tool name"
+                )),
+            });
+        if let Err(reason) = &tool {
+            tracing::warn!(%reason, "the robot does not say which tool is mounted");
+        }
         let intrinsics = match ask(
             &mut stream,
             "GET_CAMERA_INTRINSICS",
@@ -375,6 +391,7 @@ impl Link {
                 collision,
                 intrinsics: intrinsics.or(k.intrinsics),
                 hardware: Some(hardware),
+                tool: Some(tool),
             }
         });
         *connection = Some(stream);

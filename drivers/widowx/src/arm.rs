@@ -299,6 +299,8 @@ impl ArmDriver for WidowxArm {
                 hardware_version: None,
                 software_version: None,
                 motors,
+                // The gripper is the ninth servo, listed with the motors.
+                tool: None,
                 not_reported: vec![
                     "hardware and software versions: a WidowX is servos on a bus, each reports \
                      its own model and firmware only"

@@ -107,6 +107,10 @@ impl FakeNiryo {
                 arity(params, &[0], "update_tool")?;
                 ok(vec![])
             }
+            "GET_CURRENT_TOOL_ID" => {
+                arity(params, &[0], "get_current_tool_id")?;
+                ok(vec![json!(self.tool())])
+            }
             "GET_JOINTS" => {
                 arity(params, &[0], "get_joints")?;
                 ok(self.sim.joints().into_iter().map(Value::from).collect())

@@ -84,7 +84,21 @@ pub struct FakeNiryo {
     stale: Mutex<Option<Vec<u8>>>,
     /// How late every motion starts after its command arrived (0: at once).
     stopping_lag: Mutex<std::time::Duration>,
+    /// The tool `GET_CURRENT_TOOL_ID` names ([`TOOLS`]).
+    tool: Mutex<&'static str>,
 }
+
+/// The tool names a Ned2's `GET_CURRENT_TOOL_ID` answers (ned_ros's tool enumeration).
+pub const TOOLS: [&str; 8] = [
+    "NONE",
+    "GRIPPER_1",
+    "GRIPPER_2",
+    "GRIPPER_3",
+    "GRIPPER_4",
+    "ELECTROMAGNET_1",
+    "VACUUM_PUMP_1",
+    "VACUUM_PUMP_2",
+];
 
 impl std::fmt::Debug for FakeNiryo {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -118,7 +132,26 @@ impl FakeNiryo {
             log: Mutex::new(Vec::new()),
             stale: Mutex::new(None),
             stopping_lag: Mutex::new(std::time::Duration::ZERO),
+            tool: Mutex::new("GRIPPER_1"),
         })
+    }
+
+    /// Says that `tool` (one of [`TOOLS`]) is mounted; the simulated gripper still grips.
+    /// The default is the Ned2's standard gripper, `GRIPPER_1`.
+    pub fn set_tool(&self, tool: &str) -> Result<(), String> {
+        let known = TOOLS.iter().find(|t| **t == tool).ok_or_else(|| {
+            format!(
+                "no such Ned2 tool {tool:?}; the tools are {}",
+                TOOLS.join(", ")
+            )
+        })?;
+        *lock(&self.tool) = known;
+        Ok(())
+    }
+
+    /// The tool `GET_CURRENT_TOOL_ID` names.
+    pub(crate) fn tool(&self) -> &'static str {
+        *lock(&self.tool)
     }
 
     /// Makes every motion start `lag` after its command arrived (0: at once), as a robot whose
