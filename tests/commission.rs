@@ -449,6 +449,44 @@ fn connecting_reports_what_each_robot_tells_of_its_versions() {
 }
 
 #[test]
+fn an_uncalibrated_ned2_is_refused_unless_commissioning_is_asked_to_calibrate_it() {
+    let namespace = common::fresh_namespace("commission-calibrate");
+    let (_fake, port) = common::start_fake_niryo(
+        &[
+            "--namespace",
+            &format!("{namespace}-fake"),
+            "--set",
+            "robot.time_scale=0.05",
+        ],
+        &["--needs-calibration"],
+    );
+    let port = format!("robot.port={port}");
+    let robot = [
+        "--namespace",
+        namespace.as_str(),
+        "--config",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
+        "--set",
+        "robot.host=127.0.0.1",
+        "--set",
+        port.as_str(),
+        "--set",
+        "robot.niryo.auto_calibrate=false",
+    ];
+    let (code, report) = commission(&robot, &["--only", "connect"]);
+    assert_eq!(code, Some(1), "{report:#}");
+    let reason = step(&report, "connect")["reason"].as_str().unwrap();
+    assert!(
+        reason.contains("not calibrated") && reason.contains("--calibrate"),
+        "{reason}"
+    );
+
+    let (code, report) = commission(&robot, &["--only", "connect", "--calibrate"]);
+    assert_eq!(code, Some(0), "{report:#}");
+    assert_eq!(step(&report, "connect")["measured"]["calibrated"], true);
+}
+
+#[test]
 fn a_ned2s_gripper_step_names_its_tool_and_refuses_one_that_is_not_a_gripper() {
     let run_with_tool = |tool: &str| {
         let namespace = common::fresh_namespace("commission-ned2-tool");

@@ -22,7 +22,7 @@ const ANSWER_WAIT: Duration = Duration::from_secs(10);
 
 /// How long the arm has to publish its state: a Ned2 that calibrates on connecting takes
 /// ~30 s.
-const CONNECT_WAIT: Duration = Duration::from_secs(60);
+pub(super) const CONNECT_WAIT: Duration = Duration::from_secs(60);
 
 /// What the connect step found.
 #[derive(Debug, Clone, Serialize)]
@@ -99,8 +99,8 @@ pub async fn run(session: &mut Session, config: &Config) -> Result<Connected> {
     }
     if !state.calibrated {
         bail!(
-            "the robot is not calibrated: calibrate it (robot.niryo.auto_calibrate = true does \
-             it on connecting) and run robotd commission again"
+            "the robot is not calibrated: run robotd commission --calibrate (or calibrate it \
+             another way: robot.niryo.auto_calibrate = true does it on connecting)"
         );
     }
     let intrinsics = session.intrinsics();

@@ -49,6 +49,7 @@ use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 /// The steps, in the order they run.
 pub const STEPS: [&str; 5] = ["connect", "camera", "gripper", "stopping", "pick"];
@@ -72,6 +73,10 @@ pub struct CommissionArgs {
     /// The workspace whose sheet the camera step uses (default: the first configured).
     #[arg(long, value_name = "ID")]
     pub workspace: Option<String>,
+    /// Calibrate the robot when it is not calibrated (the connect step; each joint moves to
+    /// its limits, after the operator's go unless --yes).
+    #[arg(long)]
+    pub calibrate: bool,
     /// Speed cap of every commissioning motion, m/s at the tool (never above the configured
     /// `safety.max_tcp_speed_m_s`).
     #[arg(long, default_value_t = 0.1, value_name = "M_S")]
@@ -187,6 +192,44 @@ pub fn run(config: &Config, config_path: Option<&Path>, args: &CommissionArgs) -
     })
 }
 
+/// With `--calibrate`, calibrates a robot that says it is not calibrated (after the
+/// operator's go), through the motion policy like every motion.
+async fn calibrate_if_asked(session: &mut session::Session, args: &CommissionArgs) -> Result<()> {
+    if !args.calibrate {
+        return Ok(());
+    }
+    let state = session.state(connect::CONNECT_WAIT).await?;
+    if state.calibrated {
+        return Ok(());
+    }
+    if !operator_agrees(
+        args,
+        "connect: the robot is not calibrated; calibrating moves each joint to its limits and \
+         back (keep the space around the arm clear)",
+    )? {
+        bail!(
+            "the robot is not calibrated and the operator declined its calibration; nothing moved"
+        );
+    }
+    // A Ned2's calibration takes up to a minute or two; the driver allows it 120 s.
+    let motion_timeout = std::mem::replace(&mut session.motion_timeout, Duration::from_secs(150));
+    let calibrated = session
+        .command(robotd_protocol::arm::ArmCommand::Calibrate)
+        .await;
+    session.motion_timeout = motion_timeout;
+    calibrated.map_err(|e| anyhow::anyhow!("calibrating: {e}"))?;
+    // The next state says whether it took.
+    let deadline = std::time::Instant::now() + connect::CONNECT_WAIT;
+    while std::time::Instant::now() < deadline {
+        if let Some(state) = session.next_state(Duration::from_millis(500)).await? {
+            if state.calibrated {
+                return Ok(());
+            }
+        }
+    }
+    bail!("the robot accepted the calibration but still reports itself not calibrated")
+}
+
 async fn run_steps(
     config: &Config,
     config_path: Option<&Path>,
@@ -208,7 +251,10 @@ async fn run_steps(
         }
     };
     report.attached = session.attached();
-    let connected = connect::run(&mut session, config).await;
+    let connected = match calibrate_if_asked(&mut session, args).await {
+        Ok(()) => connect::run(&mut session, config).await,
+        Err(error) => Err(error),
+    };
     let connected_ok = connected.is_ok();
     if wanted("connect") || !connected_ok {
         report.steps.push(outcome(
