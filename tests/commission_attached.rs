@@ -4,6 +4,8 @@
 //! what the robot is from `system/hardware`. The running robotd here is the simulated Ned2
 //! with its camera where the defaults say; commissioning is given a configuration whose
 //! camera mount is 8 mm and 3° off, and must find the true one through the running robotd.
+//! Also here, being cheap on the simulator: the refusals of an engaged e-stop (through the
+//! running robotd) and of a fence that refuses every view (on its own).
 
 mod common;
 
@@ -141,4 +143,38 @@ fn the_gripper_step_is_refused_on_a_running_widowx_robotd_before_anything_moves(
         reason.contains("stop robotd") && reason.contains("nothing moved"),
         "{reason}"
     );
+}
+
+#[test]
+fn an_engaged_e_stop_and_a_fence_that_refuses_every_view_are_reported_and_nothing_moves() {
+    let namespace = common::fresh_namespace("commission-refusals");
+    let _robotd = common::start_robotd(&namespace, common::free_port(), &[]);
+    let estop = Command::new(env!("CARGO_BIN_EXE_robotd"))
+        .args(["--namespace", &namespace, "estop", "commissioning test"])
+        .output()
+        .unwrap();
+    assert!(estop.status.success(), "{estop:?}");
+    let (code, report, _) = commission(&["--namespace", &namespace], &["--only", "camera"]);
+    assert_eq!(code, Some(1), "{report:#}");
+    let connect = step(&report, "connect");
+    let reason = connect["reason"].as_str().unwrap();
+    assert!(reason.contains("emergency stop is engaged"), "{reason}");
+    assert_eq!(report["steps"].as_array().unwrap().len(), 1, "{report:#}");
+
+    // On its own (no robotd on this namespace), under a ceiling below the observation pose:
+    // the policy refuses every view, and the step says so with the policy's reasons.
+    let (code, report, _) = commission(
+        &[
+            "--namespace",
+            &common::fresh_namespace("commission-fence"),
+            "--set",
+            "safety.ceiling_z_m=0.2",
+        ],
+        &["--only", "camera"],
+    );
+    assert_eq!(code, Some(1), "{report:#}");
+    assert_eq!(report["attached"], false, "{report:#}");
+    let reason = step(&report, "camera")["reason"].as_str().unwrap();
+    eprintln!("{reason}");
+    assert!(reason.contains("ceiling"), "{reason}");
 }
