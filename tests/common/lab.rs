@@ -139,6 +139,47 @@ pub async fn lab_on(driver: Driver, time_scale: f64, extra: &[String]) -> Lab {
     }
 }
 
+/// A robotd with the config file `config` driving the `robotd fake-niryo` already listening on
+/// `robot_port` (its ground truth served on `namespace`, which robotd joins too), and an MCP
+/// client of it.
+pub async fn lab_on_running_fake_niryo(
+    namespace: &str,
+    robot_port: u16,
+    config: &str,
+    time_scale: f64,
+) -> Lab {
+    let port = common::free_port();
+    let robot_port = format!("robot.port={robot_port}");
+    let time_scale = format!("robot.time_scale={time_scale}");
+    let robotd = common::start_robotd(
+        namespace,
+        port,
+        &[
+            "--config",
+            config,
+            "--set",
+            "robot.host=127.0.0.1",
+            "--set",
+            &robot_port,
+            "--set",
+            &time_scale,
+            "--set",
+            "robot.camera.fps=15",
+        ],
+    );
+    let client = connect(&format!("http://127.0.0.1:{port}/sse"), None)
+        .await
+        .unwrap();
+    Lab {
+        _robotd: robotd,
+        _fake: None,
+        _files: None,
+        client,
+        url: format!("http://127.0.0.1:{port}"),
+        bus: Bus::open(BusOptions::new(namespace, "scenario-test")).unwrap(),
+    }
+}
+
 /// The config of a WidowX lab in `dir`: the scene of `extra`'s `robot.scene=…` (or the Ned2's
 /// default scene) moved to the WidowX, on the Ned2's sheet seen from the WidowX's observation
 /// pose, the servo bus at `dir/ttyDXL`.
