@@ -8,12 +8,14 @@
 //! the sheet's centre and puts it back within 3 mm as the camera sees it (the Ned2 too, with
 //! the written config).
 
+#[path = "common/commissioning.rs"]
+mod commissioning;
 mod common;
 
+use commissioning::{commission, error_of, ned2_settings, run, step, strs};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use robotd_kinematics::{CameraMount, RobotModel};
 use serde_json::Value;
-use std::process::Command;
 
 /// The fakes' offset: 8 mm along the image's x, 3° about its y axis.
 const OFFSET: &str = "8,0,0,0,3,0";
@@ -23,32 +25,6 @@ fn true_mount(model: RobotModel) -> CameraMount {
         Translation3::new(0.008, 0.0, 0.0),
         UnitQuaternion::from_euler_angles(0.0, 3f64.to_radians(), 0.0),
     ))
-}
-
-/// Runs `robotd commission --yes --json` with `settings` and `args`.
-fn run(settings: &[&str], args: &[&str]) -> std::process::Output {
-    let logs = tempfile::tempdir().unwrap();
-    Command::new(env!("CARGO_BIN_EXE_robotd"))
-        .arg("--set")
-        .arg(format!("telemetry.log_dir={}", logs.path().display()))
-        .args(settings)
-        .args(["commission", "--yes", "--json"])
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// Runs `robotd commission` with `settings`; its exit code and JSON report.
-fn commission(settings: &[&str], args: &[&str]) -> (Option<i32>, Value) {
-    let output = run(settings, args);
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let report = serde_json::from_str(&stdout).unwrap_or_else(|e| {
-        panic!(
-            "not a JSON report ({e}): {stdout}\nstderr: {}",
-            String::from_utf8_lossy(&output.stderr)
-        )
-    });
-    (output.status.code(), report)
 }
 
 /// Writes `scene` into `dir` with its red cube's position `from` replaced by `to`; returns the
@@ -61,26 +37,6 @@ fn scene_with_cube_moved(dir: &std::path::Path, scene: &str, from: &str, to: &st
     let path = dir.join("scene.toml");
     std::fs::write(&path, scene.replace(from, to)).unwrap();
     format!("robot.scene={}", path.display())
-}
-
-fn step<'a>(report: &'a Value, name: &str) -> &'a Value {
-    report["steps"]
-        .as_array()
-        .and_then(|steps| steps.iter().find(|s| s["step"] == name))
-        .unwrap_or_else(|| panic!("no {name} step in {report:#}"))
-}
-
-/// The measured mount's distance (mm) and angle (°) from `truth`.
-fn error_of(camera: &Value, truth: &CameraMount) -> (f64, f64) {
-    let values: Vec<f64> = camera["measured"]["mount"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let measured = CameraMount::from_xyz_rpy_deg(values.try_into().unwrap()).unwrap();
-    let (m, deg) = truth.difference(&measured);
-    (m * 1000.0, deg)
 }
 
 #[test]
@@ -119,7 +75,7 @@ fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
         "--set",
         "robot.time_scale=0.2",
     ];
-    let (code, report) = commission(
+    let (code, report, _) = commission(
         &robot,
         &["--only", "camera", "--write", written.to_str().unwrap()],
     );
@@ -171,7 +127,7 @@ fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
         "--set",
         "robot.time_scale=0.2",
     ];
-    let (code, report) = commission(&with_written, &["--only", "camera"]);
+    let (code, report, _) = commission(&with_written, &["--only", "camera"]);
     let camera = step(&report, "camera");
     assert_eq!(code, Some(0), "{report:#}");
     let measured = &camera["measured"];
@@ -187,7 +143,7 @@ fn commissioning_a_ned2_finds_its_camera_mount_and_rectified_images() {
 
     // The supervised pick with the written values: the cube at the centre is picked, put
     // back, and seen where it was.
-    let (code, report) = commission(&with_written, &["--only", "pick"]);
+    let (code, report, _) = commission(&with_written, &["--only", "pick"]);
     assert_eq!(code, Some(0), "{report:#}");
     let pick = &step(&report, "pick")["measured"];
     eprintln!("Ned2 supervised pick with the written config: {pick}");
@@ -237,7 +193,7 @@ fn commissioning_a_widowx_measures_mount_gripper_stopping_and_a_pick() {
     let device = format!("robot.widowx.device={}", device.display());
     let camera_url = format!("robot.widowx.camera_url={camera_url}");
     let written = dir.path().join("commissioned.toml");
-    let (code, report) = commission(
+    let (code, report, _) = commission(
         &[
             "--namespace",
             namespace.as_str(),
@@ -302,7 +258,7 @@ fn a_robot_that_is_not_there_is_reported_within_seconds() {
     // A port nobody listens on.
     let port = format!("robot.port={}", common::free_port());
     let started = std::time::Instant::now();
-    let (code, report) = commission(
+    let (code, report, _) = commission(
         &[
             "--namespace",
             &common::fresh_namespace("commission-absent"),
@@ -338,7 +294,7 @@ fn a_sheet_out_of_view_is_refused_naming_why() {
          observation_pose = [0.173, 0.25, 0.277, -3.042, 1.327, -3.027]\n",
     )
     .unwrap();
-    let (code, report) = commission(
+    let (code, report, _) = commission(
         &[
             "--namespace",
             &common::fresh_namespace("commission-nosheet"),
@@ -374,7 +330,7 @@ fn connecting_reports_what_each_robot_tells_of_its_versions() {
     );
     let device = format!("robot.widowx.device={}", device.display());
     let camera_url = format!("robot.widowx.camera_url={camera_url}");
-    let (code, report) = commission(
+    let (code, report, _) = commission(
         &[
             "--namespace",
             namespace.as_str(),
@@ -401,7 +357,7 @@ fn connecting_reports_what_each_robot_tells_of_its_versions() {
     let (_fake, port) =
         common::start_fake_niryo(&["--namespace", &format!("{namespace}-fake")], &[]);
     let port = format!("robot.port={port}");
-    let (code, report) = commission(
+    let (code, report, _) = commission(
         &[
             "--namespace",
             namespace.as_str(),
@@ -429,7 +385,7 @@ fn connecting_reports_what_each_robot_tells_of_its_versions() {
     assert_eq!(versions["tool"], "GRIPPER_1", "{connect:#}");
 
     // The simulator reports none and says so.
-    let (code, report) = commission(
+    let (code, report, _) = commission(
         &[
             "--namespace",
             &common::fresh_namespace("commission-versions-sim"),
@@ -460,20 +416,13 @@ fn an_uncalibrated_ned2_is_refused_unless_commissioning_is_asked_to_calibrate_it
         ],
         &["--needs-calibration"],
     );
-    let port = format!("robot.port={port}");
-    let robot = [
-        "--namespace",
-        namespace.as_str(),
-        "--config",
-        concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
-        "--set",
-        "robot.host=127.0.0.1",
-        "--set",
-        port.as_str(),
-        "--set",
-        "robot.niryo.auto_calibrate=false",
-    ];
-    let (code, report) = commission(&robot, &["--only", "connect"]);
+    let robot = ned2_settings(
+        &namespace,
+        port,
+        &["--set", "robot.niryo.auto_calibrate=false"],
+    );
+    let robot = strs(&robot);
+    let (code, report, _) = commission(&robot, &["--only", "connect"]);
     assert_eq!(code, Some(1), "{report:#}");
     let reason = step(&report, "connect")["reason"].as_str().unwrap();
     assert!(
@@ -481,7 +430,7 @@ fn an_uncalibrated_ned2_is_refused_unless_commissioning_is_asked_to_calibrate_it
         "{reason}"
     );
 
-    let (code, report) = commission(&robot, &["--only", "connect", "--calibrate"]);
+    let (code, report, _) = commission(&robot, &["--only", "connect", "--calibrate"]);
     assert_eq!(code, Some(0), "{report:#}");
     assert_eq!(step(&report, "connect")["measured"]["calibrated"], true);
 }
@@ -494,20 +443,11 @@ fn a_ned2s_gripper_step_names_its_tool_and_refuses_one_that_is_not_a_gripper() {
             &["--namespace", &format!("{namespace}-fake")],
             &["--tool", tool],
         );
-        let port = format!("robot.port={port}");
-        commission(
-            &[
-                "--namespace",
-                namespace.as_str(),
-                "--config",
-                concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
-                "--set",
-                "robot.host=127.0.0.1",
-                "--set",
-                port.as_str(),
-            ],
+        let (code, report, _) = commission(
+            &strs(&ned2_settings(&namespace, port, &[])),
             &["--only", "gripper"],
-        )
+        );
+        (code, report)
     };
     let (code, report) = run_with_tool("GRIPPER_2");
     assert_eq!(code, Some(0), "{report:#}");
@@ -546,20 +486,12 @@ fn a_ned2_that_starts_its_motions_late_is_still_until_its_last_segment_ran() {
         ],
         &["--stopping-lag-ms", "1000"],
     );
-    let port = format!("robot.port={port}");
-    let (code, report) = commission(
-        &[
-            "--namespace",
-            namespace.as_str(),
-            "--config",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml"),
-            "--set",
-            "robot.host=127.0.0.1",
-            "--set",
-            port.as_str(),
-            "--set",
-            "robot.time_scale=0.5",
-        ],
+    let (code, report, _) = commission(
+        &strs(&ned2_settings(
+            &namespace,
+            port,
+            &["--set", "robot.time_scale=0.5"],
+        )),
         &["--only", "stopping"],
     );
     assert_eq!(code, Some(0), "{report:#}");

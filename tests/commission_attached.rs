@@ -7,38 +7,14 @@
 //! Also here, being cheap on the simulator: the refusals of an engaged e-stop (through the
 //! running robotd) and of a fence that refuses every view (on its own).
 
+#[path = "common/commissioning.rs"]
+mod commissioning;
 mod common;
 
+use commissioning::{commission, error_of, step};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use robotd_kinematics::{CameraMount, RobotModel};
-use serde_json::Value;
 use std::process::Command;
-
-/// Runs `robotd commission --yes --json` with `settings` and `args`: exit code, JSON report,
-/// stderr.
-fn commission(settings: &[&str], args: &[&str]) -> (Option<i32>, Value, String) {
-    let logs = tempfile::tempdir().unwrap();
-    let output = Command::new(env!("CARGO_BIN_EXE_robotd"))
-        .arg("--set")
-        .arg(format!("telemetry.log_dir={}", logs.path().display()))
-        .args(settings)
-        .args(["commission", "--yes", "--json"])
-        .args(args)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
-    let report = serde_json::from_str(&stdout)
-        .unwrap_or_else(|e| panic!("not a JSON report ({e}): {stdout}\nstderr: {stderr}"));
-    (output.status.code(), report, stderr)
-}
-
-fn step<'a>(report: &'a Value, name: &str) -> &'a Value {
-    report["steps"]
-        .as_array()
-        .and_then(|steps| steps.iter().find(|s| s["step"] == name))
-        .unwrap_or_else(|| panic!("no {name} step in {report:#}"))
-}
 
 /// `--set` arguments putting the camera mount at `mount`.
 fn mount_settings(mount: &CameraMount) -> Vec<String> {
@@ -86,22 +62,11 @@ fn commissioning_works_through_the_running_robotd_at_its_own_speed_cap() {
     assert_eq!(code, Some(0), "{report:#}\n{stderr}");
     assert_eq!(report["attached"], true, "{report:#}");
     let camera = step(&report, "camera");
-    let values: Vec<f64> = camera["measured"]["mount"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let measured = CameraMount::from_xyz_rpy_deg(values.try_into().unwrap()).unwrap();
-    let (metres, degrees) = truth.difference(&measured);
-    eprintln!(
-        "attached: mount error {:.2} mm {degrees:.3}°",
-        metres * 1000.0
-    );
+    let (mm, degrees) = error_of(camera, &truth);
+    eprintln!("attached: mount error {mm:.2} mm {degrees:.3}°");
     assert!(
-        metres < 0.002 && degrees < 0.5,
-        "{:.2} mm {degrees:.3}° off: {camera:#}",
-        metres * 1000.0
+        mm < 2.0 && degrees < 0.5,
+        "{mm:.2} mm {degrees:.3}° off: {camera:#}"
     );
 
     // The stopping step at 5 cm/s: the running robotd's own cap is 1 m/s, so the speed the

@@ -107,21 +107,7 @@ pub async fn lab_on(driver: Driver, time_scale: f64, extra: &[String]) -> Lab {
             fake_settings.extend(&settings);
             let (fake, robot_port) = common::start_fake_niryo(&fake_settings, &["--ground-truth"]);
             let config = concat!(env!("CARGO_MANIFEST_DIR"), "/config/niryo.toml");
-            let robot_port = format!("robot.port={robot_port}");
-            let robotd = common::start_robotd(
-                &namespace,
-                port,
-                &[
-                    "--config",
-                    config,
-                    "--set",
-                    "robot.host=127.0.0.1",
-                    "--set",
-                    &robot_port,
-                    "--set",
-                    "robot.camera.fps=15",
-                ],
-            );
+            let robotd = start_robotd_on_fake_niryo(&namespace, port, robot_port, config, &[]);
             (robotd, Some(fake))
         }
     };
@@ -149,24 +135,9 @@ pub async fn lab_on_running_fake_niryo(
     time_scale: f64,
 ) -> Lab {
     let port = common::free_port();
-    let robot_port = format!("robot.port={robot_port}");
     let time_scale = format!("robot.time_scale={time_scale}");
-    let robotd = common::start_robotd(
-        namespace,
-        port,
-        &[
-            "--config",
-            config,
-            "--set",
-            "robot.host=127.0.0.1",
-            "--set",
-            &robot_port,
-            "--set",
-            &time_scale,
-            "--set",
-            "robot.camera.fps=15",
-        ],
-    );
+    let robotd =
+        start_robotd_on_fake_niryo(namespace, port, robot_port, config, &["--set", &time_scale]);
     let client = connect(&format!("http://127.0.0.1:{port}/sse"), None)
         .await
         .unwrap();
@@ -178,6 +149,30 @@ pub async fn lab_on_running_fake_niryo(
         url: format!("http://127.0.0.1:{port}"),
         bus: Bus::open(BusOptions::new(namespace, "scenario-test")).unwrap(),
     }
+}
+
+/// `robotd serve` on HTTP `port` with the config file `config` and `extra` settings, driving
+/// the fake Ned2 on `robot_port` through the niryo driver.
+fn start_robotd_on_fake_niryo(
+    namespace: &str,
+    port: u16,
+    robot_port: u16,
+    config: &str,
+    extra: &[&str],
+) -> common::Running {
+    let robot_port = format!("robot.port={robot_port}");
+    let mut settings = vec![
+        "--config",
+        config,
+        "--set",
+        "robot.host=127.0.0.1",
+        "--set",
+        &robot_port,
+        "--set",
+        "robot.camera.fps=15",
+    ];
+    settings.extend(extra);
+    common::start_robotd(namespace, port, &settings)
 }
 
 /// The config of a WidowX lab in `dir`: the scene of `extra`'s `robot.scene=…` (or the Ned2's
