@@ -131,6 +131,7 @@ async fn send_release(config: &Config, bus: &Bus) -> Result<String> {
     let request = EStopRelease {
         confirm: "release".into(),
         by: printable(&format!("{user} (robotd estop --release)"), 200),
+        only_if_reason: None,
     };
     let state = with_origin(
         Origin::new(OriginKind::Cli),

@@ -257,6 +257,7 @@ fn a_bus_client_elsewhere_cannot_pass_the_limits_and_the_estop_latches_from_ever
                             &EStopRelease {
                                 confirm: "release".into(),
                                 by: "test over".into(),
+                                only_if_reason: None,
                             },
                             TIMEOUT,
                         )

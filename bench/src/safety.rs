@@ -321,6 +321,7 @@ async fn estop_latencies(trials: usize) -> Result<(Vec<(Duration, Duration)>, Du
                 &EStopRelease {
                     confirm: "release".into(),
                     by: "robotd bench safety: next trial".into(),
+                    only_if_reason: None,
                 },
                 Duration::from_secs(5),
             )

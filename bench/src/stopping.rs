@@ -249,6 +249,7 @@ async fn run_trials(
                 &EStopRelease {
                     confirm: "release".into(),
                     by: "robotd bench safety: next trial".into(),
+                    only_if_reason: None,
                 },
                 Duration::from_secs(5),
             )

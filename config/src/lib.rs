@@ -149,6 +149,7 @@ impl Config {
                 .filter(|actor| self.actors.contains_key(**actor))
                 .map(|actor| (actor.to_string(), self.supervision_for(actor)))
                 .collect(),
+            commissioning: false,
         }
     }
 }

@@ -59,8 +59,12 @@ impl Message for HardwareQuery {
 /// The running robotd's answer to a [`HardwareQuery`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct HardwareReport {
-    /// The configured driver (`sim`, `niryo`, `widowx`, `replay`).
+    /// The configured driver (`sim-ned2`, `sim-widowx`, `niryo`, `widowx`, `replay`).
     pub driver: String,
+    /// Whether the process holding the robot is a `robotd commission` run (another
+    /// commissioning must not work through it at the same time).
+    #[serde(default)]
+    pub commissioning: bool,
     /// The camera's intrinsics as the driver reports them.
     pub intrinsics: CameraIntrinsics,
     /// The versions the driver read, or why it could not read them.

@@ -140,6 +140,11 @@ pub struct EStopRelease {
     pub confirm: String,
     /// Who releases it and why (recorded).
     pub by: String,
+    /// Release only if the e-stop's reason is exactly this (absent: whatever it is): a tool
+    /// that engaged the e-stop itself releases its own stop and never one somebody else
+    /// engaged meanwhile (their reason joins the reason, so it no longer matches).
+    #[serde(default)]
+    pub only_if_reason: Option<String>,
 }
 
 impl Message for EStopRelease {

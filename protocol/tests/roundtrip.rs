@@ -12,6 +12,7 @@ use robotd_protocol::envelope::{
 };
 use robotd_protocol::geometry::{JointState, Point2, Point3, Pose, PoseDelta, RobotModel};
 use robotd_protocol::gripper::{GripperCommand, GripperError, GripperReply, GripperState};
+use robotd_protocol::hardware::{HardwareInfo, HardwareQuery, HardwareReport, MotorInfo};
 use robotd_protocol::health::{
     ActorHealth, ActorState, EStopRelease, EStopState, EmergencyStop, RestartEvent, SystemStatus,
 };
@@ -620,7 +621,13 @@ fn emergency_stop() -> impl Strategy<Value = EmergencyStop> {
 }
 
 fn estop_release() -> impl Strategy<Value = EStopRelease> {
-    (text(), text()).prop_map(|(confirm, by)| EStopRelease { confirm, by })
+    (text(), text(), prop::option::of(text())).prop_map(|(confirm, by, only_if_reason)| {
+        EStopRelease {
+            confirm,
+            by,
+            only_if_reason,
+        }
+    })
 }
 
 fn estop_state() -> impl Strategy<Value = EStopState> {
@@ -706,6 +713,50 @@ where
     Ok(())
 }
 
+fn hardware_info() -> impl Strategy<Value = HardwareInfo> {
+    let motor =
+        (text(), text(), prop::option::of(text())).prop_map(|(name, model, firmware)| MotorInfo {
+            name,
+            model,
+            firmware,
+        });
+    (
+        prop::option::of(text()),
+        prop::option::of(text()),
+        prop::collection::vec(motor, 0..4),
+        prop::option::of(text()),
+        texts(),
+    )
+        .prop_map(
+            |(hardware_version, software_version, motors, tool, not_reported)| HardwareInfo {
+                hardware_version,
+                software_version,
+                motors,
+                tool,
+                not_reported,
+            },
+        )
+}
+
+fn hardware_report() -> impl Strategy<Value = HardwareReport> {
+    (
+        text(),
+        any::<bool>(),
+        intrinsics(),
+        prop_oneof![hardware_info().prop_map(Ok), text().prop_map(Err)],
+        prop::option::of(text()),
+    )
+        .prop_map(
+            |(driver, commissioning, intrinsics, versions, estop)| HardwareReport {
+                driver,
+                commissioning,
+                intrinsics,
+                versions,
+                estop,
+            },
+        )
+}
+
 macro_rules! round_trip_tests {
     ($($name:ident: $strategy:expr;)+) => {
         proptest! {
@@ -746,6 +797,8 @@ round_trip_tests! {
     restart_event_round_trips: restart_event();
     emergency_stop_round_trips: emergency_stop();
     estop_release_round_trips: estop_release();
+    hardware_query_round_trips: Just(HardwareQuery {});
+    hardware_report_round_trips: hardware_report();
     estop_state_round_trips: estop_state();
     system_status_round_trips: system_status();
     ping_round_trips: ping();

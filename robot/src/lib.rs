@@ -73,6 +73,9 @@ pub struct RobotSections {
     /// The effective restart policy of those of the robot's [`ACTORS`] that override
     /// `[supervision]` (`[actors.<name>]`), by actor name.
     pub actor_supervision: BTreeMap<String, SupervisionConfig>,
+    /// Whether this process is a `robotd commission` run: `system/hardware` says so, so that
+    /// another commissioning does not work through it at the same time.
+    pub commissioning: bool,
 }
 
 impl RobotSections {
@@ -246,6 +249,18 @@ impl Hardware {
         };
         let failed = |actor: &'static str| move |source| StartError::Actor { actor, source };
         let camera_intrinsics = drivers.camera.intrinsics();
+        // Bound first, so a service that cannot be bound leaves no actor behind; it answers
+        // once the actors run.
+        let info = info_service::bind(
+            bus,
+            info_service::RobotFacts {
+                driver_name: sections.robot.driver.name().to_owned(),
+                commissioning: sections.commissioning,
+                arm: drivers.arm.clone(),
+                camera: drivers.camera.clone(),
+                safety: safety.clone(),
+            },
+        )?;
         let kinematics = robotd_kinematics::Kinematics::new(drivers.model);
         let control = safety.control().clone();
         let context = ArmContext {
@@ -290,13 +305,7 @@ impl Hardware {
         .await
         .map_err(failed("camera"))?;
         tasks.push(task);
-        tasks.push(info_service::serve(
-            bus,
-            sections.robot.driver.name().to_owned(),
-            context.driver.clone(),
-            camera_intrinsics.clone(),
-            safety.clone(),
-        )?);
+        tasks.push(info.spawn());
         Ok(Hardware {
             sim: None,
             arm,

@@ -222,6 +222,7 @@ async fn random_streams_from_every_origin_reach_a_driver_only_admitted_and_never
                         &EStopRelease {
                             confirm: "release".into(),
                             by: "the test".into(),
+                            only_if_reason: None,
                         },
                         TIMEOUT,
                     )

@@ -233,6 +233,7 @@ async fn the_emergency_stop_halts_a_motion_within_one_control_tick() {
             &EStopRelease {
                 confirm: "release".into(),
                 by: "test over".into(),
+                only_if_reason: None,
             },
             TIMEOUT,
         )

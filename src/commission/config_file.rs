@@ -43,14 +43,38 @@ fn table<'a>(document: &'a mut DocumentMut, path: &[&str]) -> Result<&'a mut Tab
     Ok(at)
 }
 
-/// Puts `comment` (lines without `#`) above the table at `path`.
+/// How each comment this file writes starts; one left by an earlier commissioning (the
+/// file given as `--config` was written by one) is replaced, the user's own are kept.
+const MARK: &str = "# Measured by `robotd commission`";
+
+/// Puts `comment` (lines without `#`, the first starting with [`MARK`]'s words) above the
+/// table at `path`, below the comments already there.
 fn comment(document: &mut DocumentMut, path: &[&str], comment: &str) -> Result<()> {
+    let decor = table(document, path)?.decor_mut();
+    let before = decor
+        .prefix()
+        .and_then(|p| p.as_str())
+        .unwrap_or_default()
+        .to_owned();
+    // The user's part: everything above an earlier commissioning's comment.
+    let kept = match before.find(MARK) {
+        Some(at) => before[..at].to_owned(),
+        None => before,
+    };
+    let kept = if kept.trim().is_empty() {
+        "\n".to_owned()
+    } else {
+        kept
+    };
     let lines: String = comment.lines().map(|l| format!("# {l}\n")).collect();
-    table(document, path)?
-        .decor_mut()
-        .set_prefix(format!("\n{lines}"));
+    decor.set_prefix(format!("{kept}{lines}"));
     Ok(())
 }
+
+/// The first lines of the file.
+const HEADER: &str = "# Written by `robotd commission`: the config file it ran with (if any) and \
+                      the values it\n# measured on the robot. Run robotd with it: robotd \
+                      --config THIS_FILE serve\n";
 
 /// The text of the file: `base` (the `--config` file's text, or empty) with the measured
 /// values set.
@@ -60,6 +84,7 @@ pub fn render(
     camera: Option<&CameraReport>,
     gripper: Option<&GripperReport>,
 ) -> Result<String> {
+    let base = base.strip_prefix(HEADER).unwrap_or(base);
     let mut document: DocumentMut = base
         .parse()
         .context("reading the config file commissioning ran with")?;
@@ -133,10 +158,7 @@ pub fn render(
             ),
         )?;
     }
-    Ok(format!(
-        "# Written by `robotd commission`: the config file it ran with (if any) and the values it\n\
-         # measured on the robot. Run robotd with it: robotd --config THIS_FILE serve\n{document}"
-    ))
+    Ok(format!("{HEADER}{document}"))
 }
 
 /// Writes [`render`]'s text for the `--config` file `base` (if any) to `path`, a new file.
@@ -183,7 +205,8 @@ mod tests {
     #[test]
     fn the_users_file_is_kept_and_the_measured_values_set_in_it() {
         let base = "# our lab's WidowX\n[robot]\ndriver = \"widowx\"\ncontrol_rate_hz = 50\n\n\
-                    [robot.widowx]\n# our gripper\ngripper_closed_ticks = 1520\ngripper_pwm = 300\n";
+                    # the lab's gripper, fixed in May\n[robot.widowx]\n# our gripper\n\
+                    gripper_closed_ticks = 1520\ngripper_pwm = 300\n";
         let dir = tempfile::tempdir().unwrap();
         let base_path = dir.path().join("lab.toml");
         std::fs::write(&base_path, base).unwrap();
@@ -221,6 +244,15 @@ mod tests {
             "{text}"
         );
         assert_eq!(commissioned.robot.driver.name(), "widowx");
+
+        // Commissioning again from the written file: its comment is replaced, not repeated.
+        let again = render(&text, &commissioned, None, Some(&gripper())).unwrap();
+        assert_eq!(again.matches(MARK).count(), 1, "{again}");
+        assert_eq!(again.matches(HEADER).count(), 1, "{again}");
+        assert!(
+            again.contains("# the lab's gripper, fixed in May"),
+            "{again}"
+        );
     }
 
     #[test]

@@ -44,6 +44,7 @@ mod write;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use robotd_config::Config;
+use robotd_driver::RobotDriver;
 use robotd_protocol::geometry::RobotModel;
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -301,24 +302,43 @@ async fn run_steps(
     }
     let mut gripper_report = None;
     if wanted("gripper") {
-        let result = if operator_agrees(
-            args,
-            "gripper: the fingers open, close on nothing and open again, slowly (the fingers \
-             must be empty); a WidowX's are driven past the configured ends until they stall",
-        )? {
-            match config.robot.model() {
-                RobotModel::Ned2 => ned2_tool::run(&session)
-                    .await
-                    .and_then(|t| Ok(serde_json::to_value(t)?)),
-                RobotModel::WidowX250 => gripper::run(&session, config).await.and_then(|g| {
-                    gripper_report = Some(g.clone());
-                    Ok(serde_json::to_value(g)?)
-                }),
-            }
+        let no_tool = (config.robot.model() == RobotModel::Ned2
+            && config.robot.driver != RobotDriver::Niryo)
+            .then(|| {
+                format!(
+                    "the {} driver has no tool to identify: a real Ned2 (driver niryo) names \
+                     its tool",
+                    config.robot.driver.name()
+                )
+            });
+        if let Some(reason) = no_tool {
+            report.steps.push(StepOutcome {
+                step: "gripper".into(),
+                status: "skipped".into(),
+                reason: Some(reason),
+                measured: None,
+            });
         } else {
-            Err(anyhow::anyhow!("the operator declined; nothing moved"))
-        };
-        report.steps.push(outcome("gripper", result));
+            let result = if operator_agrees(
+                args,
+                "gripper: the fingers open, close on nothing and open again, slowly (the \
+                 fingers must be empty); a WidowX's are driven past the configured ends until \
+                 they stall",
+            )? {
+                match config.robot.model() {
+                    RobotModel::Ned2 => ned2_tool::run(&session)
+                        .await
+                        .and_then(|t| Ok(serde_json::to_value(t)?)),
+                    RobotModel::WidowX250 => gripper::run(&session, config).await.and_then(|g| {
+                        gripper_report = Some(g.clone());
+                        Ok(serde_json::to_value(g)?)
+                    }),
+                }
+            } else {
+                Err(anyhow::anyhow!("the operator declined; nothing moved"))
+            };
+            report.steps.push(outcome("gripper", result));
+        }
     }
     if wanted("pick") {
         let result = if operator_agrees(

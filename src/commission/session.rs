@@ -12,8 +12,9 @@
 //! - **Attached**: a robotd already drives the arm there (a Ned2 serves one client, a servo
 //!   bus one master, so commissioning must not connect to it too). Commissioning sends its
 //!   motions to that robotd and asks it what the robot is (`system/hardware`: intrinsics,
-//!   versions, e-stop). Its driver must be the configured one. The gripper step, which needs
-//!   the fingers driven past the configured ends, is refused there.
+//!   versions, e-stop). Its driver must be the configured one, and it must not be another
+//!   `robotd commission` run. The WidowX gripper step, which needs the fingers driven past
+//!   the configured ends, is refused there.
 //!
 //! Either way the speed is capped low: every request asks the policy for the `--speed` cap
 //! (the origin's `speed_cap_mm_s`, which lowers the configured cap and never raises it), and
@@ -242,13 +243,15 @@ impl Session {
         }
     }
 
-    /// Releases the e-stop through the motion policy's `safety/release` (origin `cli`).
-    pub async fn release_estop(&self, by: &str) -> Result<()> {
+    /// Releases the e-stop through the motion policy's `safety/release` (origin `cli`), only
+    /// if its reason is still exactly `own_reason` (the policy checks it as it releases).
+    pub async fn release_estop(&self, by: &str, own_reason: &str) -> Result<()> {
         let client = self.bus.client(&SAFETY_RELEASE)?;
         let origin = self.origin.clone();
         let request = EStopRelease {
             confirm: "release".into(),
             by: by.into(),
+            only_if_reason: Some(own_reason.to_owned()),
         };
         robotd_runtime::origin::with_origin(origin, async move {
             client.request(&request, Duration::from_secs(5)).await
@@ -329,6 +332,13 @@ async fn ask_hardware(bus: &Bus) -> Result<HardwareReport> {
 /// says about it.
 async fn attach(bus: &Bus, config: &Config) -> Result<HardwareReport> {
     let report = ask_hardware(bus).await?;
+    if report.commissioning {
+        bail!(
+            "another robotd commission is working with the robot on bus namespace '{}': wait \
+             for it to finish",
+            config.bus.namespace
+        );
+    }
     let configured = config.robot.driver.name();
     if report.driver != configured {
         bail!(
@@ -355,7 +365,9 @@ async fn start_actors(bus: &Bus, config: &Config, speed_m_s: f64) -> Result<Hard
     (widowx.gripper_closed_ticks, widowx.gripper_open_ticks) =
         super::gripper::widened(widowx.gripper_closed_ticks, widowx.gripper_open_ticks);
     widowx.gripper_pwm = widowx.gripper_pwm.min(super::gripper::LOW_PWM);
-    Hardware::start(bus, &config.robot_sections(), |_| {
+    let mut sections = config.robot_sections();
+    sections.commissioning = true;
+    Hardware::start(bus, &sections, |_| {
         robotd_runtime::supervision::observer_fn(
             |_: &robotd_runtime::supervision::SupervisionEvent| {},
         )

@@ -16,7 +16,9 @@
 //!
 //! The e-stop this step engaged is released by it (through the motion policy's
 //! `safety/release`, origin `cli`) once the arm stands still — but only when the e-stop is
-//! still this step's own: one engaged by anyone else during the step stays engaged, and the
+//! still this step's own: its reason names this run, an e-stop engaged by anyone else before
+//! or during the step adds its reason to it, and the release asks the policy to release only
+//! the run's own reason (`only_if_reason`). One engaged by anyone else stays engaged, and the
 //! step fails saying so. The arm ends at rest where it stopped.
 
 use super::session::Session;
@@ -26,8 +28,18 @@ use robotd_protocol::geometry::Pose;
 use serde::Serialize;
 use std::time::{Duration, Instant};
 
-/// The reason this step's e-stop carries, so that it releases only its own.
-const REASON: &str = "robotd commission: stopping distance";
+/// The reason this run's e-stops carry, unique to the run, so that it releases only its own
+/// (another `robotd commission` or an operator's e-stop carries another).
+fn own_reason() -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or_default();
+    format!(
+        "robotd commission (process {}, run {nanos:09}): stopping distance",
+        std::process::id()
+    )
+}
 
 /// Stops measured.
 pub const TRIALS: usize = 3;
@@ -95,6 +107,7 @@ pub async fn run(
         .await
         .map_err(|e| anyhow::anyhow!("moving to the start of the swing {}: {e}", ends[0]))?;
     let (mut times, mut distances, mut speeds) = (Vec::new(), Vec::new(), Vec::new());
+    let reason = own_reason();
     for trial in 0..TRIALS {
         let target = ends[(trial + 1) % 2];
         let from = position(&session.state(Duration::from_secs(5)).await?.tool_pose);
@@ -127,7 +140,7 @@ pub async fn run(
             at_stop = p;
         }
         let sent = Instant::now();
-        session.engage_estop(REASON)?;
+        session.engage_estop(&reason)?;
         let speed = started.map_or(f64::NAN, |t| {
             distance(at_stop, from) / sent.duration_since(t).as_secs_f64()
         });
@@ -157,9 +170,9 @@ pub async fn run(
         speeds.push(speed);
         let _ = motion.await;
         match session.estop_reason().await? {
-            Some(reason) if reason.contains(REASON) => {
+            Some(now) if now == reason => {
                 session
-                    .release_estop("robotd commission: the stopping trial ended")
+                    .release_estop("robotd commission: the stopping trial ended", &reason)
                     .await?
             }
             Some(other) => bail!(

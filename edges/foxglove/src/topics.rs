@@ -148,7 +148,7 @@ mod tests {
     /// Catalogue entries deliberately not under `/bus/…`, with the reason. Anything else in the
     /// catalogue must be in [`all`]: a topic added there fails this test until the bridge
     /// knows it (or it is listed here with a reason).
-    const NOT_BRIDGED: [(&str, &str); 11] = [
+    const NOT_BRIDGED: [(&str, &str); 12] = [
         (
             "camera/frames",
             "frames in shared memory: their own channels, /camera (JPEG) and /camera/meta",
@@ -161,6 +161,10 @@ mod tests {
         // after the client's id); a request without its caller's reply is half a conversation,
         // and replaying requests would make the robot act. Their effects are on the topics.
         ("system/ping", "service (liveness probe)"),
+        (
+            "system/hardware",
+            "service (what the robot is, asked by a tool that attaches)",
+        ),
         (
             "sim/world",
             "service (the simulator's ground truth, on request)",

@@ -222,6 +222,7 @@ async fn release(State(api): State<SafetyApi>, bytes: Bytes) -> Response {
     let request = EStopRelease {
         confirm: "release".into(),
         by,
+        only_if_reason: None,
     };
     // A request to the policy's own service, like every release: it records the release with
     // this origin and answers with the new state.

@@ -29,9 +29,21 @@ pub const CONFIRM: &str = "release";
 impl Safety {
     /// Engages the e-stop: sets the latch, calls `halt` (which halts the driver), and only
     /// then logs and records who engaged it and why.
+    ///
+    /// An e-stop engaged while one already is keeps the first reason and adds its own
+    /// (`first; then second`), so nobody who releases "their own" stop (a release with
+    /// `only_if_reason`) releases one somebody else engaged meanwhile.
     pub fn engage_estop(&self, reason: &str, source: &str, halt: impl FnOnce()) {
         let was_engaged = self.inner.control.estop_engaged();
-        let reason = printable(reason, 500);
+        let mut reason = printable(reason, 500);
+        if was_engaged {
+            let before = self.inner.control.estop_reason();
+            if before != reason && !before.ends_with(&format!("; then {reason}")) {
+                reason = printable(&format!("{before}; then {reason}"), 2000);
+            } else {
+                reason = before;
+            }
+        }
         self.inner.control.set_estop(true, &reason);
         halt();
         let source = printable(source, 100);
@@ -46,13 +58,37 @@ impl Safety {
 
     /// Releases the e-stop, the only way it is released: `confirm` must be [`CONFIRM`].
     /// Records the release with `origin` and `by`; returns how it was released.
+    /// With `only_if_reason`, releases only when the e-stop's reason is exactly that (a tool
+    /// releasing the stop it engaged itself); refused otherwise, and it stays engaged.
     pub fn release_estop(
         &self,
         origin: &Origin,
         confirm: &str,
         by: &str,
+        only_if_reason: Option<&str>,
     ) -> Result<String, Violation> {
         let by = printable(by.trim(), 200);
+        if let Some(expected) = only_if_reason {
+            let now = self.inner.control.estop_reason();
+            if !self.inner.control.estop_engaged() || now != expected {
+                let reason = format!(
+                    "the emergency stop is not the one expected (its reason is '{}', expected \
+                     '{}'): somebody else engaged it or released it; it stays as it is",
+                    printable(&now, 300),
+                    printable(expected, 300)
+                );
+                self.record_estop(serde_json::json!({
+                    "event": "estop_release_refused",
+                    "origin": origin,
+                    "by": by,
+                    "reason": reason,
+                }));
+                return Err(Violation {
+                    limit: "estop",
+                    reason,
+                });
+            }
+        }
         if confirm != CONFIRM {
             let reason = format!(
                 "releasing the emergency stop is a deliberate act: confirm must be '{CONFIRM}', got '{}'",
@@ -172,7 +208,12 @@ pub async fn serve(
                 let (envelope, pending) = incoming.split();
                 let request = envelope.body;
                 let reply = safety
-                    .release_estop(&origin, &request.confirm, &request.by)
+                    .release_estop(
+                        &origin,
+                        &request.confirm,
+                        &request.by,
+                        request.only_if_reason.as_deref(),
+                    )
                     .map(|_| safety.estop_state())
                     .map_err(|violation| Fault::new(FaultKind::Refused, violation.reason));
                 if let Err(error) = releases.respond(pending, reply) {

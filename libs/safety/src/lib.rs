@@ -541,4 +541,40 @@ mod tests {
         let llm = Origin::new(OriginKind::Mcp).speed_cap(5_000);
         assert_eq!(policy.caps(&llm).speed_m_s, 0.2);
     }
+
+    #[test]
+    fn a_release_of_ones_own_e_stop_never_releases_another_engaged_meanwhile() {
+        let cli = Origin::new(OriginKind::Cli);
+        for operator_first in [false, true] {
+            let policy = policy();
+            let engage = |reason: &str| policy.engage_estop(reason, "test", || {});
+            if operator_first {
+                engage("operator");
+                engage("mine");
+            } else {
+                engage("mine");
+                engage("operator");
+            }
+            let reason = policy.estop().unwrap();
+            assert!(
+                reason.contains("operator") && reason.contains("mine"),
+                "{reason}"
+            );
+            let refused = policy.release_estop(&cli, "release", "me", Some("mine"));
+            assert!(refused.unwrap_err().reason.contains("not the one expected"));
+            assert!(policy.estop().is_some(), "it stays engaged");
+        }
+        let policy = policy();
+        policy.engage_estop("mine", "test", || {});
+        policy.engage_estop("mine", "test", || {});
+        assert_eq!(policy.estop().as_deref(), Some("mine"));
+        policy
+            .release_estop(&cli, "release", "me", Some("mine"))
+            .unwrap();
+        assert_eq!(policy.estop(), None);
+        // Nothing engaged: an expected reason is not met either.
+        assert!(policy
+            .release_estop(&cli, "release", "me", Some("mine"))
+            .is_err());
+    }
 }

@@ -156,6 +156,7 @@ pub fn default_sections() -> RobotSections {
             .into(),
         supervision: section("supervision").try_into().expect("[supervision]"),
         actor_supervision: Default::default(),
+        commissioning: false,
     }
 }
 

@@ -60,6 +60,7 @@ impl Tool for ReleaseEmergencyStop {
         let request = EStopRelease {
             confirm: a.confirm,
             by,
+            only_if_reason: None,
         };
         let state = registry
             .inner
