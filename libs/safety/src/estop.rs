@@ -68,42 +68,34 @@ impl Safety {
         only_if_reason: Option<&str>,
     ) -> Result<String, Violation> {
         let by = printable(by.trim(), 200);
-        if let Some(expected) = only_if_reason {
-            let now = self.inner.control.estop_reason();
-            if !self.inner.control.estop_engaged() || now != expected {
-                let reason = format!(
-                    "the emergency stop is not the one expected (its reason is '{}', expected \
-                     '{}'): somebody else engaged it or released it; it stays as it is",
-                    printable(&now, 300),
-                    printable(expected, 300)
-                );
-                self.record_estop(serde_json::json!({
-                    "event": "estop_release_refused",
-                    "origin": origin,
-                    "by": by,
-                    "reason": reason,
-                }));
-                return Err(Violation {
-                    limit: "estop",
-                    reason,
-                });
-            }
-        }
-        if confirm != CONFIRM {
-            let reason = format!(
-                "releasing the emergency stop is a deliberate act: confirm must be '{CONFIRM}', got '{}'",
-                printable(confirm, 40)
-            );
+        let refused = |reason: String| {
             self.record_estop(serde_json::json!({
                 "event": "estop_release_refused",
                 "origin": origin,
                 "by": by,
                 "reason": reason,
             }));
-            return Err(Violation {
+            Err(Violation {
                 limit: "estop",
                 reason,
-            });
+            })
+        };
+        if confirm != CONFIRM {
+            return refused(format!(
+                "releasing the emergency stop is a deliberate act: confirm must be '{CONFIRM}', got '{}'",
+                printable(confirm, 40)
+            ));
+        }
+        if let Some(expected) = only_if_reason {
+            let now = self.inner.control.estop_reason();
+            if !self.inner.control.estop_engaged() || now != expected {
+                return refused(format!(
+                    "the emergency stop is not the one expected (its reason is '{}', expected \
+                     '{}'): somebody else engaged it or released it; it stays as it is",
+                    printable(&now, 300),
+                    printable(expected, 300)
+                ));
+            }
         }
         let was = self.estop();
         let reason = match by.as_str() {

@@ -1,22 +1,19 @@
-//! Property: every message type survives `encode` → `decode` of its envelope unchanged, for
-//! arbitrary (finite) contents, and `encode_body` writes the same message as `encode`.
+//! The generators of the round-trip property: arbitrary (finite) contents of every message
+//! type.
 
 use proptest::prelude::*;
-use proptest::test_runner::TestCaseError;
 use robotd_protocol::agent::{AgentCancel, AgentEvent, AgentEventKind, AgentRequest};
 use robotd_protocol::arm::{ArmCommand, ArmError, ArmReply, ArmState, PathKind};
 use robotd_protocol::camera::{CameraFrameHeader, CameraImage, CameraIntrinsics, ImageEncoding};
 use robotd_protocol::diagnostics::{Ping, Pong, TestPatternReply, TestPatternRequest};
-use robotd_protocol::envelope::{
-    decode, encode_body, encode_to_vec, Envelope, Message, TraceContext,
-};
+use robotd_protocol::envelope::TraceContext;
 use robotd_protocol::geometry::{JointState, Point2, Point3, Pose, PoseDelta, RobotModel};
 use robotd_protocol::gripper::{GripperCommand, GripperError, GripperReply, GripperState};
 use robotd_protocol::hardware::{HardwareInfo, HardwareQuery, HardwareReport, MotorInfo};
 use robotd_protocol::health::{
     ActorHealth, ActorState, EStopRelease, EStopState, EmergencyStop, RestartEvent, SystemStatus,
 };
-use robotd_protocol::location::{Direction, Location, WorkspacePoint};
+use robotd_protocol::location::{Location, WorkspacePoint};
 use robotd_protocol::objects::{
     DetectedObject, Detections, Dimensions, ImageCoordinates, ObjectPosition, RelBox, RelPoint,
 };
@@ -25,28 +22,27 @@ use robotd_protocol::workspace::{
     DetectableLabels, TrackedObjects, WorkspaceError, WorkspaceInfo, WorkspaceQuery,
     WorkspaceReply, WorkspaceRequest,
 };
-use std::fmt::Debug;
 
 // ---------------------------------------------------------------- strategies: basics
 
 /// Any finite f64, including zero, subnormals and huge magnitudes.
-fn float() -> impl Strategy<Value = f64> {
+pub fn float() -> impl Strategy<Value = f64> {
     prop::num::f64::NORMAL | prop::num::f64::ZERO | prop::num::f64::SUBNORMAL
 }
 
-fn text() -> impl Strategy<Value = String> {
+pub fn text() -> impl Strategy<Value = String> {
     ".{0,16}"
 }
 
-fn texts() -> impl Strategy<Value = Vec<String>> {
+pub fn texts() -> impl Strategy<Value = Vec<String>> {
     prop::collection::vec(text(), 0..4)
 }
 
-fn floats() -> impl Strategy<Value = Vec<f64>> {
+pub fn floats() -> impl Strategy<Value = Vec<f64>> {
     prop::collection::vec(float(), 0..8)
 }
 
-fn trace() -> impl Strategy<Value = TraceContext> {
+pub fn trace() -> impl Strategy<Value = TraceContext> {
     (prop::option::of(text()), prop::option::of(text())).prop_map(|(traceparent, tracestate)| {
         TraceContext {
             traceparent,
@@ -57,11 +53,11 @@ fn trace() -> impl Strategy<Value = TraceContext> {
 
 // ---------------------------------------------------------------- strategies: geometry
 
-fn pose() -> impl Strategy<Value = Pose> {
+pub fn pose() -> impl Strategy<Value = Pose> {
     prop::array::uniform6(float()).prop_map(Pose::from_array)
 }
 
-fn pose_delta() -> impl Strategy<Value = PoseDelta> {
+pub fn pose_delta() -> impl Strategy<Value = PoseDelta> {
     prop::array::uniform6(float()).prop_map(|a| PoseDelta {
         dx_m: a[0],
         dy_m: a[1],
@@ -72,11 +68,11 @@ fn pose_delta() -> impl Strategy<Value = PoseDelta> {
     })
 }
 
-fn point2() -> impl Strategy<Value = Point2> {
+pub fn point2() -> impl Strategy<Value = Point2> {
     (float(), float()).prop_map(|(x, y)| Point2::new(x, y))
 }
 
-fn joint_state() -> impl Strategy<Value = JointState> {
+pub fn joint_state() -> impl Strategy<Value = JointState> {
     (floats(), floats(), any::<u64>()).prop_map(|(positions_rad, velocities_rad_s, ts)| {
         JointState {
             positions_rad,
@@ -86,21 +82,21 @@ fn joint_state() -> impl Strategy<Value = JointState> {
     })
 }
 
-fn robot_model() -> impl Strategy<Value = RobotModel> {
+pub fn robot_model() -> impl Strategy<Value = RobotModel> {
     prop::sample::select(RobotModel::ALL.to_vec())
 }
 
-fn location() -> impl Strategy<Value = Location> {
+pub fn location() -> impl Strategy<Value = Location> {
     prop::sample::select(Location::ALL)
 }
 
-fn workspace_point() -> impl Strategy<Value = WorkspacePoint> {
+pub fn workspace_point() -> impl Strategy<Value = WorkspacePoint> {
     prop::sample::select(WorkspacePoint::ALL)
 }
 
 // ---------------------------------------------------------------- strategies: arm, gripper
 
-fn arm_command() -> impl Strategy<Value = ArmCommand> {
+pub fn arm_command() -> impl Strategy<Value = ArmCommand> {
     prop_oneof![
         (
             pose(),
@@ -119,7 +115,7 @@ fn arm_command() -> impl Strategy<Value = ArmCommand> {
     ]
 }
 
-fn arm_error() -> impl Strategy<Value = ArmError> {
+pub fn arm_error() -> impl Strategy<Value = ArmError> {
     prop_oneof![
         (pose(), text()).prop_map(|(target, reason)| ArmError::Unreachable { target, reason }),
         (any::<u32>(), float(), float(), float()).prop_map(
@@ -147,7 +143,7 @@ fn arm_error() -> impl Strategy<Value = ArmError> {
     ]
 }
 
-fn arm_reply() -> impl Strategy<Value = ArmReply> {
+pub fn arm_reply() -> impl Strategy<Value = ArmReply> {
     prop_oneof![
         pose().prop_map(|pose| ArmReply::Ok { pose }),
         joint_state().prop_map(|joints| ArmReply::Joints { joints }),
@@ -157,7 +153,7 @@ fn arm_reply() -> impl Strategy<Value = ArmReply> {
     ]
 }
 
-fn arm_state() -> impl Strategy<Value = ArmState> {
+pub fn arm_state() -> impl Strategy<Value = ArmState> {
     (
         joint_state(),
         pose(),
@@ -182,7 +178,7 @@ fn arm_state() -> impl Strategy<Value = ArmState> {
         )
 }
 
-fn gripper_command() -> impl Strategy<Value = GripperCommand> {
+pub fn gripper_command() -> impl Strategy<Value = GripperCommand> {
     prop_oneof![
         Just(GripperCommand::Open),
         Just(GripperCommand::Close),
@@ -191,7 +187,7 @@ fn gripper_command() -> impl Strategy<Value = GripperCommand> {
     ]
 }
 
-fn gripper_reply() -> impl Strategy<Value = GripperReply> {
+pub fn gripper_reply() -> impl Strategy<Value = GripperReply> {
     let error = prop_oneof![
         (float(), float())
             .prop_map(|(width_m, max_m)| GripperError::InvalidWidth { width_m, max_m }),
@@ -207,7 +203,7 @@ fn gripper_reply() -> impl Strategy<Value = GripperReply> {
     ]
 }
 
-fn gripper_state() -> impl Strategy<Value = GripperState> {
+pub fn gripper_state() -> impl Strategy<Value = GripperState> {
     (any::<bool>(), float(), any::<bool>()).prop_map(|(holding, width_m, moving)| GripperState {
         holding,
         width_m,
@@ -217,7 +213,7 @@ fn gripper_state() -> impl Strategy<Value = GripperState> {
 
 // ---------------------------------------------------------------- strategies: camera, objects
 
-fn frame_header() -> impl Strategy<Value = CameraFrameHeader> {
+pub fn frame_header() -> impl Strategy<Value = CameraFrameHeader> {
     (
         any::<u64>(),
         any::<u64>(),
@@ -248,12 +244,12 @@ fn frame_header() -> impl Strategy<Value = CameraFrameHeader> {
         )
 }
 
-fn camera_image() -> impl Strategy<Value = CameraImage> {
+pub fn camera_image() -> impl Strategy<Value = CameraImage> {
     (frame_header(), prop::collection::vec(any::<u8>(), 0..2048))
         .prop_map(|(header, data)| CameraImage { header, data })
 }
 
-fn intrinsics() -> impl Strategy<Value = CameraIntrinsics> {
+pub fn intrinsics() -> impl Strategy<Value = CameraIntrinsics> {
     (
         any::<u32>(),
         any::<u32>(),
@@ -273,16 +269,16 @@ fn intrinsics() -> impl Strategy<Value = CameraIntrinsics> {
         )
 }
 
-fn detected_object() -> impl Strategy<Value = DetectedObject> {
+pub fn detected_object() -> impl Strategy<Value = DetectedObject> {
     detected_object_with(float().boxed())
 }
 
 /// Millimetre-precision numbers, which JSON text represents exactly.
-fn decimal() -> impl Strategy<Value = f64> {
+pub fn decimal() -> impl Strategy<Value = f64> {
     (-10_000_000i64..10_000_000).prop_map(|i| i as f64 / 1000.0)
 }
 
-fn detected_object_with(float: BoxedStrategy<f64>) -> impl Strategy<Value = DetectedObject> {
+pub fn detected_object_with(float: BoxedStrategy<f64>) -> impl Strategy<Value = DetectedObject> {
     let rel_point = || (float.clone(), float.clone()).prop_map(|(u, v)| RelPoint { u, v });
     let point3 =
         || (float.clone(), float.clone(), float.clone()).prop_map(|(x, y, z)| Point3::new(x, y, z));
@@ -335,11 +331,11 @@ fn detected_object_with(float: BoxedStrategy<f64>) -> impl Strategy<Value = Dete
         )
 }
 
-fn objects() -> impl Strategy<Value = Vec<DetectedObject>> {
+pub fn objects() -> impl Strategy<Value = Vec<DetectedObject>> {
     prop::collection::vec(detected_object(), 0..4)
 }
 
-fn detections() -> impl Strategy<Value = Detections> {
+pub fn detections() -> impl Strategy<Value = Detections> {
     (
         any::<u64>(),
         text(),
@@ -362,7 +358,7 @@ fn detections() -> impl Strategy<Value = Detections> {
 
 // ---------------------------------------------------------------- strategies: workspace
 
-fn workspace_info() -> impl Strategy<Value = WorkspaceInfo> {
+pub fn workspace_info() -> impl Strategy<Value = WorkspaceInfo> {
     (text(), robot_model(), point2(), point2(), pose()).prop_map(
         |(id, robot, upper_left, lower_right, observation_pose)| WorkspaceInfo {
             id,
@@ -374,7 +370,7 @@ fn workspace_info() -> impl Strategy<Value = WorkspaceInfo> {
     )
 }
 
-fn workspace_request() -> impl Strategy<Value = WorkspaceRequest> {
+pub fn workspace_request() -> impl Strategy<Value = WorkspaceRequest> {
     prop_oneof![
         (
             location(),
@@ -412,7 +408,7 @@ fn workspace_request() -> impl Strategy<Value = WorkspaceRequest> {
     ]
 }
 
-fn workspace_query() -> impl Strategy<Value = WorkspaceQuery> {
+pub fn workspace_query() -> impl Strategy<Value = WorkspaceQuery> {
     (
         workspace_request(),
         prop::option::of(any::<u64>()),
@@ -427,7 +423,7 @@ fn workspace_query() -> impl Strategy<Value = WorkspaceQuery> {
         )
 }
 
-fn tracked_objects() -> impl Strategy<Value = TrackedObjects> {
+pub fn tracked_objects() -> impl Strategy<Value = TrackedObjects> {
     let ids = prop::collection::vec(text(), 0..3);
     (text(), any::<u64>(), any::<u64>(), objects(), text(), ids).prop_map(
         |(workspace_id, frame_id, timestamp_unix_ns, objects, source, detection_ids)| {
@@ -443,7 +439,7 @@ fn tracked_objects() -> impl Strategy<Value = TrackedObjects> {
     )
 }
 
-fn workspace_reply() -> impl Strategy<Value = WorkspaceReply> {
+pub fn workspace_reply() -> impl Strategy<Value = WorkspaceReply> {
     let error = prop_oneof![
         (text(), texts()).prop_map(|(workspace_id, known)| WorkspaceError::UnknownWorkspace {
             workspace_id,
@@ -480,7 +476,7 @@ fn workspace_reply() -> impl Strategy<Value = WorkspaceReply> {
     ]
 }
 
-fn detectable_labels() -> impl Strategy<Value = DetectableLabels> {
+pub fn detectable_labels() -> impl Strategy<Value = DetectableLabels> {
     (texts(), prop::option::of(text()), texts()).prop_map(|(labels, added, builtin)| {
         DetectableLabels {
             labels,
@@ -492,7 +488,7 @@ fn detectable_labels() -> impl Strategy<Value = DetectableLabels> {
 
 // ---------------------------------------------------------------- strategies: speech, agent, health
 
-fn speak_request() -> impl Strategy<Value = SpeakRequest> {
+pub fn speak_request() -> impl Strategy<Value = SpeakRequest> {
     (text(), any::<u8>(), text()).prop_map(|(text, priority, source)| SpeakRequest {
         text,
         priority,
@@ -500,7 +496,7 @@ fn speak_request() -> impl Strategy<Value = SpeakRequest> {
     })
 }
 
-fn speech_event() -> impl Strategy<Value = SpeechEvent> {
+pub fn speech_event() -> impl Strategy<Value = SpeechEvent> {
     prop_oneof![
         text().prop_map(|text| SpeechEvent::Started { text }),
         (text(), any::<u64>())
@@ -509,7 +505,7 @@ fn speech_event() -> impl Strategy<Value = SpeechEvent> {
     ]
 }
 
-fn text_overlay() -> impl Strategy<Value = TextOverlay> {
+pub fn text_overlay() -> impl Strategy<Value = TextOverlay> {
     (
         text(),
         prop::sample::select(vec![
@@ -528,15 +524,15 @@ fn text_overlay() -> impl Strategy<Value = TextOverlay> {
         })
 }
 
-fn agent_request() -> impl Strategy<Value = AgentRequest> {
+pub fn agent_request() -> impl Strategy<Value = AgentRequest> {
     (text(), text()).prop_map(|(request_id, text)| AgentRequest { request_id, text })
 }
 
-fn agent_cancel() -> impl Strategy<Value = AgentCancel> {
+pub fn agent_cancel() -> impl Strategy<Value = AgentCancel> {
     text().prop_map(|request_id| AgentCancel { request_id })
 }
 
-fn agent_event() -> impl Strategy<Value = AgentEvent> {
+pub fn agent_event() -> impl Strategy<Value = AgentEvent> {
     let kind = prop_oneof![
         text().prop_map(|text| AgentEventKind::Plan { text }),
         (text(), text(), text()).prop_map(|(call_id, name, arguments_json)| {
@@ -565,7 +561,7 @@ fn agent_event() -> impl Strategy<Value = AgentEvent> {
     })
 }
 
-fn actor_state() -> impl Strategy<Value = ActorState> {
+pub fn actor_state() -> impl Strategy<Value = ActorState> {
     prop::sample::select(vec![
         ActorState::Starting,
         ActorState::Running,
@@ -576,7 +572,7 @@ fn actor_state() -> impl Strategy<Value = ActorState> {
     ])
 }
 
-fn actor_health() -> impl Strategy<Value = ActorHealth> {
+pub fn actor_health() -> impl Strategy<Value = ActorHealth> {
     (
         text(),
         actor_state(),
@@ -591,7 +587,7 @@ fn actor_health() -> impl Strategy<Value = ActorHealth> {
         })
 }
 
-fn restart_event() -> impl Strategy<Value = RestartEvent> {
+pub fn restart_event() -> impl Strategy<Value = RestartEvent> {
     (
         text(),
         any::<u32>(),
@@ -612,7 +608,7 @@ fn restart_event() -> impl Strategy<Value = RestartEvent> {
         )
 }
 
-fn emergency_stop() -> impl Strategy<Value = EmergencyStop> {
+pub fn emergency_stop() -> impl Strategy<Value = EmergencyStop> {
     (any::<bool>(), text(), text()).prop_map(|(engaged, reason, source)| EmergencyStop {
         engaged,
         reason,
@@ -620,7 +616,7 @@ fn emergency_stop() -> impl Strategy<Value = EmergencyStop> {
     })
 }
 
-fn estop_release() -> impl Strategy<Value = EStopRelease> {
+pub fn estop_release() -> impl Strategy<Value = EStopRelease> {
     (text(), text(), prop::option::of(text())).prop_map(|(confirm, by, only_if_reason)| {
         EStopRelease {
             confirm,
@@ -630,11 +626,11 @@ fn estop_release() -> impl Strategy<Value = EStopRelease> {
     })
 }
 
-fn estop_state() -> impl Strategy<Value = EStopState> {
+pub fn estop_state() -> impl Strategy<Value = EStopState> {
     (any::<bool>(), text()).prop_map(|(engaged, reason)| EStopState { engaged, reason })
 }
 
-fn system_status() -> impl Strategy<Value = SystemStatus> {
+pub fn system_status() -> impl Strategy<Value = SystemStatus> {
     (
         text(),
         robot_model(),
@@ -659,12 +655,12 @@ fn system_status() -> impl Strategy<Value = SystemStatus> {
         )
 }
 
-fn ping() -> impl Strategy<Value = Ping> {
+pub fn ping() -> impl Strategy<Value = Ping> {
     (any::<u64>(), prop::collection::vec(any::<u8>(), 0..128))
         .prop_map(|(seq, payload)| Ping { seq, payload })
 }
 
-fn pong() -> impl Strategy<Value = Pong> {
+pub fn pong() -> impl Strategy<Value = Pong> {
     (
         any::<u64>(),
         prop::collection::vec(any::<u8>(), 0..128),
@@ -677,11 +673,11 @@ fn pong() -> impl Strategy<Value = Pong> {
         })
 }
 
-fn test_pattern_request() -> impl Strategy<Value = TestPatternRequest> {
+pub fn test_pattern_request() -> impl Strategy<Value = TestPatternRequest> {
     (any::<u64>(), any::<u8>()).prop_map(|(frame_id, seed)| TestPatternRequest { frame_id, seed })
 }
 
-fn test_pattern_reply() -> impl Strategy<Value = TestPatternReply> {
+pub fn test_pattern_reply() -> impl Strategy<Value = TestPatternReply> {
     (any::<u64>(), any::<u64>(), any::<u32>(), text()).prop_map(
         |(frame_id, delivered_to, served_by_pid, robotd_said)| TestPatternReply {
             frame_id,
@@ -692,28 +688,7 @@ fn test_pattern_reply() -> impl Strategy<Value = TestPatternReply> {
     )
 }
 
-// ---------------------------------------------------------------- the property
-
-fn round_trip<T>(body: T, trace: TraceContext) -> Result<(), TestCaseError>
-where
-    T: Message + Clone + PartialEq + Debug,
-{
-    let envelope = Envelope::new(body).with_trace(trace);
-    let bytes = encode_to_vec(&envelope).map_err(|e| TestCaseError::fail(e.to_string()))?;
-    let back: Envelope<T> = decode(&bytes).map_err(|e| TestCaseError::fail(e.to_string()))?;
-    prop_assert_eq!(&back, &envelope);
-
-    let mut borrowed = Vec::new();
-    encode_body(&envelope.body, &envelope.trace, &mut borrowed)
-        .map_err(|e| TestCaseError::fail(e.to_string()))?;
-    let back: Envelope<T> = decode(&borrowed).map_err(|e| TestCaseError::fail(e.to_string()))?;
-    prop_assert_eq!(&back.body, &envelope.body);
-    prop_assert_eq!(&back.trace, &envelope.trace);
-    prop_assert_eq!(back.msg_type.as_str(), T::TYPE);
-    Ok(())
-}
-
-fn hardware_info() -> impl Strategy<Value = HardwareInfo> {
+pub fn hardware_info() -> impl Strategy<Value = HardwareInfo> {
     let motor =
         (text(), text(), prop::option::of(text())).prop_map(|(name, model, firmware)| MotorInfo {
             name,
@@ -738,7 +713,11 @@ fn hardware_info() -> impl Strategy<Value = HardwareInfo> {
         )
 }
 
-fn hardware_report() -> impl Strategy<Value = HardwareReport> {
+pub fn hardware_query() -> impl Strategy<Value = HardwareQuery> {
+    Just(HardwareQuery {})
+}
+
+pub fn hardware_report() -> impl Strategy<Value = HardwareReport> {
     (
         text(),
         any::<bool>(),
@@ -755,82 +734,4 @@ fn hardware_report() -> impl Strategy<Value = HardwareReport> {
                 estop,
             },
         )
-}
-
-macro_rules! round_trip_tests {
-    ($($name:ident: $strategy:expr;)+) => {
-        proptest! {
-            #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
-            $(
-                #[test]
-                fn $name(body in $strategy, trace in trace()) {
-                    round_trip(body, trace)?;
-                }
-            )+
-        }
-    };
-}
-
-round_trip_tests! {
-    arm_command_round_trips: arm_command();
-    arm_reply_round_trips: arm_reply();
-    arm_state_round_trips: arm_state();
-    gripper_command_round_trips: gripper_command();
-    gripper_reply_round_trips: gripper_reply();
-    gripper_state_round_trips: gripper_state();
-    camera_frame_header_round_trips: frame_header();
-    camera_image_round_trips: camera_image();
-    camera_intrinsics_round_trips: intrinsics();
-    detections_round_trip: detections();
-    workspace_request_round_trips: workspace_request();
-    workspace_reply_round_trips: workspace_reply();
-    detectable_labels_round_trip: detectable_labels();
-    workspace_query_round_trips: workspace_query();
-    tracked_objects_round_trip: tracked_objects();
-    speak_request_round_trips: speak_request();
-    speech_event_round_trips: speech_event();
-    text_overlay_round_trips: text_overlay();
-    agent_request_round_trips: agent_request();
-    agent_cancel_round_trips: agent_cancel();
-    agent_event_round_trips: agent_event();
-    actor_health_round_trips: actor_health();
-    restart_event_round_trips: restart_event();
-    emergency_stop_round_trips: emergency_stop();
-    estop_release_round_trips: estop_release();
-    hardware_query_round_trips: Just(HardwareQuery {});
-    hardware_report_round_trips: hardware_report();
-    estop_state_round_trips: estop_state();
-    system_status_round_trips: system_status();
-    ping_round_trips: ping();
-    pong_round_trips: pong();
-    test_pattern_request_round_trips: test_pattern_request();
-    test_pattern_reply_round_trips: test_pattern_reply();
-}
-
-proptest! {
-    /// Word enums parse back from their string whatever the case and surrounding whitespace.
-    #[test]
-    fn word_enums_parse_any_case(
-        loc in location(),
-        dir in prop::sample::select(Direction::ALL),
-        point in workspace_point(),
-        upper in any::<bool>(),
-        pad in "[ \t]{0,3}",
-    ) {
-        let dress = |s: &str| {
-            let s = if upper { s.to_uppercase() } else { s.to_owned() };
-            format!("{pad}{s}{pad}")
-        };
-        prop_assert_eq!(dress(loc.as_str()).parse::<Location>().unwrap(), loc);
-        prop_assert_eq!(dress(dir.as_str()).parse::<Direction>().unwrap(), dir);
-        prop_assert_eq!(dress(point.as_str()).parse::<WorkspacePoint>().unwrap(), point);
-    }
-
-    /// Every DetectedObject also survives JSON, the MCP edge's format.
-    #[test]
-    fn detected_object_json_round_trips(obj in detected_object_with(decimal().boxed())) {
-        let json = serde_json::to_string(&obj).unwrap();
-        let back: DetectedObject = serde_json::from_str(&json).unwrap();
-        prop_assert_eq!(back, obj);
-    }
 }
