@@ -7,16 +7,19 @@
 //!
 //! [`run_camera`] ticks at the frame rate and asks the supervised actor for each frame; a
 //! driver that fails (or panics) costs that frame, the actor is restarted, and the frame ids
-//! go on from where they were.
+//! go on from where they were. It also publishes the camera's intrinsics on
+//! `camera/intrinsics`, at once when the driver's change (a Ned2 sends its own when it
+//! connects) and about once a second, so a consumer that joined late has them soon.
 
 use kameo::prelude::*;
 use robotd_driver::CameraDriver;
 use robotd_kinematics::isometry_to_pose;
-use robotd_runtime::bus::{FramePublisher, FRAME_BYTES, FRAME_CHANNELS};
+use robotd_protocol::camera::CameraIntrinsics;
+use robotd_runtime::bus::{FramePublisher, Publisher, FRAME_BYTES, FRAME_CHANNELS};
 use robotd_runtime::supervision::Supervised;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Take one frame and publish it; replies with the frame id.
 #[derive(Debug, Clone, Copy)]
@@ -81,15 +84,35 @@ impl Message<CaptureFrame> for CameraActor {
     }
 }
 
+/// How often the intrinsics are published when they do not change.
+const INTRINSICS_EVERY: Duration = Duration::from_secs(1);
+
 /// Asks `camera` for a frame `fps` times a second (or as soon after as `driver` has one),
-/// forever. Failures are logged and cost one frame; supervision restarts a crashed camera
-/// actor meanwhile.
-pub async fn run_camera(camera: Supervised<CameraActor>, driver: Arc<dyn CameraDriver>, fps: f64) {
+/// forever, and publishes the driver's intrinsics on `intrinsics` when they change and every
+/// [`INTRINSICS_EVERY`]. Failures are logged and cost one frame; supervision restarts a
+/// crashed camera actor meanwhile.
+pub async fn run_camera(
+    camera: Supervised<CameraActor>,
+    driver: Arc<dyn CameraDriver>,
+    fps: f64,
+    intrinsics: Publisher<CameraIntrinsics>,
+) {
     let period = Duration::from_secs_f64(1.0 / fps.clamp(0.1, 1000.0));
     let mut ticker = tokio::time::interval(period);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut failures: u64 = 0;
+    let mut published: Option<(CameraIntrinsics, Instant)> = None;
     loop {
+        let now = driver.intrinsics();
+        let due = published
+            .as_ref()
+            .is_none_or(|(last, at)| *last != now || at.elapsed() >= INTRINSICS_EVERY);
+        if due {
+            match intrinsics.publish(&now) {
+                Ok(_) => published = Some((now, Instant::now())),
+                Err(error) => tracing::warn!(%error, "publishing the camera's intrinsics failed"),
+            }
+        }
         ticker.tick().await;
         let asked = match driver.frame_ready().await {
             Ok(()) => camera.ask(CaptureFrame).await.map_err(|e| e.to_string()),
@@ -120,6 +143,7 @@ pub async fn start(
     robotd_runtime::host::ActorStartError,
 > {
     let frames = Arc::new(bus.frame_publisher(&robotd_topics::CAMERA_FRAMES)?);
+    let intrinsics = bus.publisher(&robotd_topics::CAMERA_INTRINSICS)?;
     let frame_ids = Arc::new(AtomicU64::new(1));
     let actor_driver = driver.clone();
     let actor = supervisor
@@ -127,6 +151,6 @@ pub async fn start(
             CameraActor::new(actor_driver.clone(), frames.clone(), frame_ids.clone())
         })
         .await?;
-    let task = tokio::spawn(run_camera(actor.clone(), driver, fps));
+    let task = tokio::spawn(run_camera(actor.clone(), driver, fps, intrinsics));
     Ok((actor, task))
 }

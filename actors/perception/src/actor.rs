@@ -14,6 +14,10 @@
 //!
 //! A detector that fails or panics on a frame costs that frame only: the failure is logged and
 //! counted, and the next frame is processed as usual.
+//!
+//! The camera's intrinsics follow `camera/intrinsics`: a Ned2 sends its own calibration when
+//! it connects, which can be long after robotd started, and the frames after that are
+//! measured with it.
 
 use crate::detector::FrameView;
 use crate::external::KnownSheet;
@@ -23,7 +27,8 @@ use crate::pipeline::{Pipeline, SheetStatus};
 use robotd_protocol::objects::Detections;
 use robotd_runtime::bus::{Bus, BusError};
 use robotd_topics::{
-    ARM_STATE, CAMERA_FRAMES, GRIPPER_STATE, PERCEPTION_DETECTIONS, PERCEPTION_PIXEL_DETECTIONS,
+    ARM_STATE, CAMERA_FRAMES, CAMERA_INTRINSICS, GRIPPER_STATE, PERCEPTION_DETECTIONS,
+    PERCEPTION_PIXEL_DETECTIONS,
 };
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -205,10 +210,17 @@ fn run(
                 bus.publisher(&PERCEPTION_DETECTIONS)?,
                 bus.subscriber(&GRIPPER_STATE)?,
                 bus.subscriber(&PERCEPTION_PIXEL_DETECTIONS)?,
+                bus.subscriber(&CAMERA_INTRINSICS)?,
             ))
         })();
-        let (mut frames, mut arm_states, publisher, mut gripper_states, mut pixel_detections) =
-            match ports {
+        let (
+            mut frames,
+            mut arm_states,
+            publisher,
+            mut gripper_states,
+            mut pixel_detections,
+            mut intrinsics,
+        ) = match ports {
             Ok(p) => {
                 let _ = ready.send(Ok(()));
                 p
@@ -226,6 +238,7 @@ fn run(
         let mut arm = ArmView::default();
         let mut missing_sheet_streak = 0u64;
         let mut known_sheet: Option<KnownSheet> = None;
+        let mut refused: Option<robotd_protocol::camera::CameraIntrinsics> = None;
         while !stop.load(Ordering::SeqCst) {
             while let Ok(Some(message)) = pixel_detections.try_recv() {
                 let placed = external_detections::place(
@@ -261,6 +274,25 @@ fn run(
             }
             while let Ok(Some(state)) = gripper_states.try_recv() {
                 arm.holding = state.body.holding;
+            }
+            while let Ok(Some(now)) = intrinsics.try_recv() {
+                match pipeline.set_intrinsics(&now.body) {
+                    Ok(true) => tracing::info!(
+                        fx = now.body.fx,
+                        fy = now.body.fy,
+                        cx = now.body.cx,
+                        cy = now.body.cy,
+                        distortion = ?now.body.distortion,
+                        "perception: the camera's intrinsics changed; measuring with them"
+                    ),
+                    Ok(false) => {}
+                    // Said once per unusable value, not once a second.
+                    Err(error) if refused.as_ref() != Some(&now.body) => {
+                        tracing::warn!(%error, "perception: unusable camera intrinsics, ignored");
+                        refused = Some(now.body);
+                    }
+                    Err(_) => {}
+                }
             }
             let header = *sample.header();
             let width = header.width as usize;

@@ -8,7 +8,7 @@ use robotd_protocol::arm::ArmState;
 use robotd_protocol::envelope::unix_now_ns;
 use robotd_protocol::objects::Detections;
 use robotd_runtime::bus::{Bus, BusOptions, FramePublisher, Subscriber};
-use robotd_topics::{ARM_STATE, CAMERA_FRAMES, PERCEPTION_DETECTIONS};
+use robotd_topics::{ARM_STATE, CAMERA_FRAMES, CAMERA_INTRINSICS, PERCEPTION_DETECTIONS};
 use std::time::Duration;
 
 fn publish(publisher: &FramePublisher, rgb: &[u8], frame_id: u64) -> u64 {
@@ -221,5 +221,82 @@ async fn pixel_detections_from_the_bus_are_placed_like_robotds_own_or_refused_wi
     let reason = stats.external.last_refusal.lock().unwrap().clone().unwrap();
     assert!(reason.contains("source"), "{reason}");
     assert_eq!(stats.external.placed.load(Ordering::SeqCst), 1);
+    perception.shutdown();
+}
+
+/// The mean distance, mm, from each object of `objects` to the nearest detection (and how
+/// many objects had none within 2 cm).
+fn placement_error(objects: &[robotd_sim::ObjectSpec], d: &Detections) -> (f64, usize) {
+    let mut total = 0.0;
+    let mut missed = 0;
+    for o in objects {
+        let nearest = d
+            .objects
+            .iter()
+            .map(|seen| {
+                let p = seen.xy();
+                (p.x_m - o.x_m).hypot(p.y_m - o.y_m)
+            })
+            .fold(f64::INFINITY, f64::min);
+        if nearest < 0.02 {
+            total += nearest * 1000.0;
+        } else {
+            missed += 1;
+        }
+    }
+    (total / (objects.len() - missed).max(1) as f64, missed)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn intrinsics_that_change_on_the_bus_are_measured_with_from_the_next_frame() {
+    // The image carries the lens's distortion; perception starts with the lens unknown (no
+    // distortion), as it does when the robot sends its calibration only once it connects.
+    let mut lab = Lab::new(0.0, true).unwrap();
+    let workspace = lab.workspace().clone();
+    let table = LabelTable::builtin();
+    let objects = random_objects(&mut rng(11), &table, &workspace, 6);
+    lab.set_objects(&objects).unwrap();
+    lab.capture().unwrap();
+    let lens = lab.intrinsics();
+    let mut unknown_lens = lens.clone();
+    unknown_lens.distortion = [0.0; 5];
+
+    let namespace = format!("test-perc-k-{}", std::process::id());
+    let bus = Bus::open(BusOptions::new(&namespace, "perception-test")).unwrap();
+    let pipeline = Pipeline::new(
+        &unknown_lens,
+        vec![workspace.clone()],
+        Box::new(ColourDetector::new(
+            table.clone(),
+            ColourDetectorSettings::default(),
+        )),
+    )
+    .unwrap();
+    let perception = Perception::start(&bus, pipeline, table).unwrap();
+    let frames = bus.frame_publisher(&CAMERA_FRAMES).unwrap();
+    let intrinsics = bus.publisher(&CAMERA_INTRINSICS).unwrap();
+    let mut detections = bus.subscriber(&PERCEPTION_DETECTIONS).unwrap();
+
+    publish(&frames, lab.frame(), 1);
+    let before = placement_error(&objects, &detections_of(&mut detections, 1).await);
+    // The camera actor publishes the lens it now knows.
+    intrinsics.publish(&lens).unwrap();
+    publish(&frames, lab.frame(), 2);
+    let after = placement_error(&objects, &detections_of(&mut detections, 2).await);
+    eprintln!(
+        "{} objects: {:.2} mm mean ({} missed) with the lens unknown, {:.2} mm ({} missed) once \
+         it came on the bus",
+        objects.len(),
+        before.0,
+        before.1,
+        after.0,
+        after.1
+    );
+    assert_eq!(after.1, 0, "every object seen once the lens is known");
+    assert!(after.0 < 1.5, "{after:?}");
+    assert!(
+        before.1 > 0 || before.0 > after.0 + 0.5,
+        "the lens made no difference: before {before:?}, after {after:?}"
+    );
     perception.shutdown();
 }

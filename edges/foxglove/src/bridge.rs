@@ -33,7 +33,8 @@ use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_recording::camera::FrameMeta;
 use robotd_runtime::bus::{Bus, BusError};
 use robotd_topics::{
-    AGENT_EVENTS, ARM_STATE, CAMERA_FRAMES, HEALTH_RESTARTS, OVERLAY_TEXT, WORKSPACE_OBJECTS,
+    AGENT_EVENTS, ARM_STATE, CAMERA_FRAMES, CAMERA_INTRINSICS, HEALTH_RESTARTS, OVERLAY_TEXT,
+    WORKSPACE_OBJECTS,
 };
 use serde_json::json;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -213,6 +214,10 @@ async fn follow(
     let mut overlays = bus.subscriber(&OVERLAY_TEXT)?;
     let mut restarts = bus.subscriber(&HEALTH_RESTARTS)?;
     let mut agent = bus.subscriber(&AGENT_EVENTS)?;
+    // The intrinsics /camera/meta carries: the camera's as it knows them now (a Ned2 sends
+    // its own when it connects), from robotd's at start until then.
+    let mut intrinsics_now = bus.subscriber(&CAMERA_INTRINSICS)?;
+    let mut intrinsics = settings.camera_intrinsics.clone();
     let mut raw: Vec<(Arc<RawChannel>, Box<dyn JsonSubscriber>)> = Vec::new();
     for topic in topics::all() {
         let wanted = settings
@@ -299,6 +304,9 @@ async fn follow(
             let line = scene::log(level, "agent", text, message.sent_at_unix_ns);
             channels.log.log_with_time(&line, message.sent_at_unix_ns);
         }
+        while let Some(message) = intrinsics_now.try_recv()? {
+            intrinsics = Some(message.body);
+        }
         for (channel, subscriber) in &mut raw {
             while let Some((ns, json)) = subscriber.try_recv()? {
                 channel.log_with_meta(&json, at(ns));
@@ -350,7 +358,7 @@ async fn follow(
                         width: header.width,
                         height: header.height,
                         camera_pose: header.camera_pose,
-                        intrinsics: settings.camera_intrinsics.clone(),
+                        intrinsics: intrinsics.clone(),
                     };
                     match serde_json::to_vec(&meta) {
                         Ok(bytes) => channel.log_with_meta(&bytes, at(ns)),

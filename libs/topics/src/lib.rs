@@ -69,6 +69,12 @@ pub const GRIPPER_STATE: robotd_runtime::bus::Topic<robotd_protocol::gripper::Gr
 /// newest frame, never an old one.
 pub const CAMERA_FRAMES: FrameTopic = FrameTopic::new("camera/frames", Overflow::latest_wins(2));
 
+/// The wrist camera's intrinsics as its driver knows them now, republished about once a second
+/// and at once when they change (a Ned2 sends its own calibration when it connects, which can
+/// be long after robotd started). Latest wins.
+pub const CAMERA_INTRINSICS: robotd_runtime::bus::Topic<robotd_protocol::camera::CameraIntrinsics> =
+    robotd_runtime::bus::Topic::new("camera/intrinsics", Overflow::latest_wins(1));
+
 /// Engage the emergency stop, from anyone. Back-pressure: an e-stop is never dropped; the
 /// sender gets an error if the arm cannot take it. A message with `engaged: false` releases
 /// nothing (it is ignored and audited): releasing is [`SAFETY_RELEASE`].
@@ -194,6 +200,7 @@ pub fn entries() -> Vec<Entry> {
         GRIPPER_COMMAND.describe(),
         GRIPPER_STATE.describe(),
         CAMERA_FRAMES.describe(),
+        CAMERA_INTRINSICS.describe(),
         SAFETY_ESTOP.describe(),
         SAFETY_RELEASE.describe(),
         PERCEPTION_DETECTIONS.describe(),

@@ -83,6 +83,8 @@ impl std::fmt::Display for SheetStatus {
 /// Markers, plane and detector, for one camera.
 pub struct Pipeline {
     pub(crate) camera: Camera,
+    /// The intrinsics `camera` was made from.
+    intrinsics: CameraIntrinsics,
     workspaces: Vec<WorkspaceInfo>,
     markers: MarkerFinder,
     detector: Box<dyn Detector>,
@@ -96,6 +98,20 @@ pub struct Pipeline {
     /// if known: a sheet that puts the camera farther than [`MAX_CAMERA_GAP_M`] from it is
     /// another sheet than the configured workspace.
     expected_camera: Option<[f64; 3]>,
+}
+
+/// Whether a camera with `intrinsics` can be measured with.
+fn usable(intrinsics: &CameraIntrinsics) -> Result<(), PipelineError> {
+    intrinsics
+        .validate()
+        .map_err(|e| PipelineError::Intrinsics(e.to_string()))?;
+    if intrinsics.width == 0 || intrinsics.height == 0 || intrinsics.width > 8192 {
+        return Err(PipelineError::Intrinsics(format!(
+            "image size {}x{} is not usable",
+            intrinsics.width, intrinsics.height
+        )));
+    }
+    Ok(())
 }
 
 /// A sheet may put the camera this far from where the arm's kinematics say it is, metres
@@ -119,15 +135,7 @@ impl Pipeline {
         workspaces: Vec<WorkspaceInfo>,
         detector: Box<dyn Detector>,
     ) -> Result<Pipeline, PipelineError> {
-        intrinsics
-            .validate()
-            .map_err(|e| PipelineError::Intrinsics(e.to_string()))?;
-        if intrinsics.width == 0 || intrinsics.height == 0 || intrinsics.width > 8192 {
-            return Err(PipelineError::Intrinsics(format!(
-                "image size {}x{} is not usable",
-                intrinsics.width, intrinsics.height
-            )));
-        }
+        usable(intrinsics)?;
         if workspaces.is_empty() {
             return Err(PipelineError::Workspaces(
                 "no workspace is configured, so there is no sheet to look for".into(),
@@ -139,6 +147,7 @@ impl Pipeline {
         }
         Ok(Pipeline {
             camera: Camera::new(intrinsics),
+            intrinsics: intrinsics.clone(),
             workspaces,
             markers: MarkerFinder::new(),
             detector,
@@ -147,6 +156,27 @@ impl Pipeline {
             intrinsics_known: SheetIntrinsics::Known,
             expected_camera: None,
         })
+    }
+
+    /// Takes the camera's intrinsics as its driver knows them now (a Ned2 sends its own
+    /// calibration when it connects, maybe long after the pipeline was made): the next frames
+    /// are undistorted and measured with them. `Ok(true)` when they changed; unusable ones
+    /// are refused and the current ones kept.
+    pub fn set_intrinsics(&mut self, intrinsics: &CameraIntrinsics) -> Result<bool, PipelineError> {
+        usable(intrinsics)?;
+        if *intrinsics == self.intrinsics {
+            return Ok(false);
+        }
+        self.camera = Camera::new(intrinsics);
+        self.intrinsics = intrinsics.clone();
+        // The last sheet was measured through the old lens.
+        self.last_sheet = None;
+        Ok(true)
+    }
+
+    /// The intrinsics the pipeline measures with.
+    pub fn intrinsics(&self) -> &CameraIntrinsics {
+        &self.intrinsics
     }
 
     /// The table plane and workspace of the sheet found in the last frame
@@ -532,5 +562,31 @@ mod tests {
         assert!(!pipeline.at_observation_pose(&tilted), "0.2 rad tilted");
         let above_an_object = Pose::new(0.25, 0.065, 0.09, 0.0, std::f64::consts::FRAC_PI_2, 0.0);
         assert!(!pipeline.at_observation_pose(&above_an_object));
+    }
+
+    #[test]
+    fn new_intrinsics_are_taken_and_unusable_ones_refused_keeping_the_current() {
+        let a = Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027);
+        let detector =
+            ColourDetector::new(LabelTable::builtin(), ColourDetectorSettings::default());
+        let nominal: CameraIntrinsics = robotd_render::Intrinsics::ned2().into();
+        let mut pipeline =
+            Pipeline::new(&nominal, vec![workspace("a", a)], Box::new(detector)).unwrap();
+        assert!(
+            !pipeline.set_intrinsics(&nominal).unwrap(),
+            "the same: no change"
+        );
+        let mut calibrated = nominal.clone();
+        calibrated.cx += 3.0;
+        assert!(pipeline.set_intrinsics(&calibrated).unwrap());
+        assert_eq!(pipeline.intrinsics(), &calibrated);
+        let mut broken = calibrated.clone();
+        broken.fx = f64::NAN;
+        assert!(pipeline.set_intrinsics(&broken).is_err());
+        assert_eq!(
+            pipeline.intrinsics(),
+            &calibrated,
+            "the current ones are kept"
+        );
     }
 }
