@@ -22,6 +22,26 @@ fn publish(publisher: &FramePublisher, rgb: &[u8], frame_id: u64) -> u64 {
     now
 }
 
+/// The perception actor on `bus` with the built-in colour detector and `table`, measuring with
+/// `intrinsics` on the sheet of `workspace`.
+fn start_perception(
+    bus: &Bus,
+    intrinsics: &robotd_protocol::camera::CameraIntrinsics,
+    workspace: &robotd_protocol::workspace::WorkspaceInfo,
+    table: LabelTable,
+) -> Perception {
+    let pipeline = Pipeline::new(
+        intrinsics,
+        vec![workspace.clone()],
+        Box::new(ColourDetector::new(
+            table.clone(),
+            ColourDetectorSettings::default(),
+        )),
+    )
+    .unwrap();
+    Perception::start(bus, pipeline, table).unwrap()
+}
+
 async fn detections_of(sub: &mut Subscriber<Detections>, frame_id: u64) -> Detections {
     loop {
         let msg = tokio::time::timeout(Duration::from_secs(5), sub.recv())
@@ -149,16 +169,7 @@ async fn pixel_detections_from_the_bus_are_placed_like_robotds_own_or_refused_wi
     lab.capture().unwrap();
     let namespace = format!("test-perc-px-{}", std::process::id());
     let bus = Bus::open(BusOptions::new(&namespace, "perception-test")).unwrap();
-    let pipeline = Pipeline::new(
-        &lab.intrinsics(),
-        vec![workspace.clone()],
-        Box::new(ColourDetector::new(
-            table.clone(),
-            ColourDetectorSettings::default(),
-        )),
-    )
-    .unwrap();
-    let perception = Perception::start(&bus, pipeline, table).unwrap();
+    let perception = start_perception(&bus, &lab.intrinsics(), &workspace, table);
     let frames = bus.frame_publisher(&CAMERA_FRAMES).unwrap();
     let pixels = bus.publisher(&PERCEPTION_PIXEL_DETECTIONS).unwrap();
     let mut detections = bus.subscriber(&PERCEPTION_DETECTIONS).unwrap();
@@ -263,16 +274,7 @@ async fn intrinsics_that_change_on_the_bus_are_measured_with_from_the_next_frame
 
     let namespace = format!("test-perc-k-{}", std::process::id());
     let bus = Bus::open(BusOptions::new(&namespace, "perception-test")).unwrap();
-    let pipeline = Pipeline::new(
-        &unknown_lens,
-        vec![workspace.clone()],
-        Box::new(ColourDetector::new(
-            table.clone(),
-            ColourDetectorSettings::default(),
-        )),
-    )
-    .unwrap();
-    let perception = Perception::start(&bus, pipeline, table).unwrap();
+    let perception = start_perception(&bus, &unknown_lens, &workspace, table);
     let frames = bus.frame_publisher(&CAMERA_FRAMES).unwrap();
     let intrinsics = bus.publisher(&CAMERA_INTRINSICS).unwrap();
     let mut detections = bus.subscriber(&PERCEPTION_DETECTIONS).unwrap();
