@@ -619,13 +619,7 @@ mod tests {
     use super::*;
 
     fn niryo() -> WorkspaceInfo {
-        WorkspaceInfo {
-            id: "niryo_ws".into(),
-            robot: RobotModel::Ned2,
-            upper_left: Point2::new(0.337, 0.087),
-            lower_right: Point2::new(0.163, -0.087),
-            observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
-        }
+        builtin_workspaces(RobotModel::Ned2)[0].to_info(RobotModel::Ned2)
     }
 
     #[test]

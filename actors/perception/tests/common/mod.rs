@@ -2,19 +2,13 @@
 //! lies on the table, and a render scene holding just that sheet.
 #![allow(dead_code)]
 
-use robotd_protocol::geometry::{Point2, Pose, RobotModel};
+use robotd_protocol::geometry::RobotModel;
 use robotd_protocol::workspace::WorkspaceInfo;
 use robotd_render::sheet_art::{sheet_art, SheetDesign, SheetPlacement};
 use robotd_render::RenderScene;
 
 pub fn workspace() -> WorkspaceInfo {
-    WorkspaceInfo {
-        id: "niryo_ws".into(),
-        robot: RobotModel::Ned2,
-        upper_left: Point2::new(0.337, 0.087),
-        lower_right: Point2::new(0.163, -0.087),
-        observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
-    }
+    robotd_protocol::workspace::builtin_workspaces(RobotModel::Ned2)[0].to_info(RobotModel::Ned2)
 }
 
 pub fn placement(design: SheetDesign) -> SheetPlacement {

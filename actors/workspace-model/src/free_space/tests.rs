@@ -2,16 +2,12 @@
 //! tool answers, on random tables.
 
 use super::*;
-use robotd_protocol::geometry::{Point3, Pose, RobotModel};
+use robotd_protocol::geometry::{Point3, RobotModel};
+use robotd_protocol::workspace::builtin_workspaces;
 
+/// The Ned2's standard sheet, `niryo_ws`.
 pub(crate) fn niryo() -> WorkspaceInfo {
-    WorkspaceInfo {
-        id: "niryo_ws".into(),
-        robot: RobotModel::Ned2,
-        upper_left: Point2::new(0.337, 0.087),
-        lower_right: Point2::new(0.163, -0.087),
-        observation_pose: Pose::new(0.173, -0.002, 0.277, -3.042, 1.327, -3.027),
-    }
+    builtin_workspaces(RobotModel::Ned2)[0].to_info(RobotModel::Ned2)
 }
 
 fn object(x: f64, y: f64, w: f64, h: f64) -> DetectedObject {
@@ -21,6 +17,20 @@ fn object(x: f64, y: f64, w: f64, h: f64) -> DetectedObject {
     o.dimensions.height_m = h;
     o.dimensions.size_m2 = w * h;
     o
+}
+
+/// Asserts that the largest free rectangle among `objects` (grown by `margin`) has `area`
+/// and its centre at (`x`, 0), within `tolerance`.
+fn assert_largest(objects: &[DetectedObject], margin: f64, area: f64, x: f64, tolerance: f64) {
+    let (found, c) = largest_free_space(&niryo(), objects, margin);
+    assert!(
+        (found - area).abs() < tolerance,
+        "area {found}, expected {area}"
+    );
+    assert!(
+        (c.x_m - x).abs() < tolerance && c.y_m.abs() < 1e-9,
+        "centre {c:?}, expected ({x}, 0)"
+    );
 }
 
 #[test]
@@ -39,13 +49,8 @@ fn a_strip_across_leaves_the_larger_side() {
     // x > 0.22 → rows 33..=99 (row 32 centre 0.21956 is occupied, row 33 0.2213 free):
     // 67 rows × 100 columns = 6700 cells → 0.67 × 0.030276 m² = 0.020285 m², centred at
     // x = 0.163 + (33 + 100) / 2 · 0.00174 = 0.27871, y = 0.
-    let ws = niryo();
-    let (area, c) = largest_free_space(&ws, &[object(0.20, 0.0, 0.3, 0.02)], 0.01);
-    assert!((area - 0.67 * 0.174 * 0.174).abs() < 1e-9, "{area}");
-    assert!(
-        (c.x_m - 0.27871).abs() < 1e-6 && c.y_m.abs() < 1e-9,
-        "{c:?}"
-    );
+    let bar = object(0.20, 0.0, 0.3, 0.02);
+    assert_largest(&[bar], 0.01, 0.67 * 0.174 * 0.174, 0.27871, 1e-6);
 }
 
 #[test]
@@ -59,12 +64,12 @@ fn one_cube_in_the_middle_leaves_the_near_strip() {
     // found, scanning rows near → far, is the near strip, rows 0..=35:
     // x ∈ [0.163, 0.163 + 36 · 0.00174 = 0.22564], centre x = 0.19432, y = 0;
     // area = 0.36 · 0.174² = 0.01089936 m².
-    let ws = niryo();
-    let (area, c) = largest_free_space(&ws, &[object(0.25, 0.0, 0.03, 0.03)], 0.01);
-    assert!((area - 0.01089936).abs() < 1e-9, "{area}");
-    assert!(
-        (c.x_m - 0.19432).abs() < 1e-9 && c.y_m.abs() < 1e-9,
-        "{c:?}"
+    assert_largest(
+        &[object(0.25, 0.0, 0.03, 0.03)],
+        0.01,
+        0.01089936,
+        0.19432,
+        1e-9,
     );
 }
 
@@ -78,13 +83,8 @@ fn a_corner_object_leaves_an_l_whose_larger_arm_wins() {
     // 8600 cells; the row strip is found first (at row 85), the column strip ties and does
     // not replace it. Area 0.86 · 0.030276 = 0.02603736 m²; centre
     // x = 0.163 + 86 · 0.00174 / 2 = 0.23782, y = 0.
-    let ws = niryo();
-    let (area, c) = largest_free_space(&ws, &[object(0.337, 0.087, 0.05, 0.05)], 0.0);
-    assert!((area - 0.02603736).abs() < 1e-9, "{area}");
-    assert!(
-        (c.x_m - 0.23782).abs() < 1e-9 && c.y_m.abs() < 1e-9,
-        "{c:?}"
-    );
+    let corner = object(0.337, 0.087, 0.05, 0.05);
+    assert_largest(&[corner], 0.0, 0.02603736, 0.23782, 1e-9);
 }
 
 #[test]
@@ -109,6 +109,71 @@ impl Random {
     }
 }
 
+/// Up to `count` objects that do not overlap, from at most `tries` candidates `candidate`
+/// draws (given the next id), as objects stand on a real table.
+fn scatter(
+    random: &mut Random,
+    count: usize,
+    tries: usize,
+    mut candidate: impl FnMut(&mut Random, usize) -> DetectedObject,
+) -> Vec<DetectedObject> {
+    let mut objects: Vec<DetectedObject> = Vec::new();
+    for id in 0..tries {
+        if objects.len() == count {
+            break;
+        }
+        let o = candidate(random, id);
+        let here = Rect::of_object(&o);
+        if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
+            objects.push(o);
+        }
+    }
+    objects
+}
+
+/// The default scene's pencil, red cube, blue square (too wide for the gripper) and green
+/// cylinder at random places on the sheet, each where it overlaps none placed before it
+/// (one that finds no such place in 50 draws is left out).
+fn default_scene_at_random(random: &mut Random) -> Vec<DetectedObject> {
+    let sizes = [
+        (0.12, 0.012, 0.01),
+        (0.03, 0.03, 0.03),
+        (0.045, 0.045, 0.01),
+        (0.03, 0.03, 0.04),
+    ];
+    let mut objects: Vec<DetectedObject> = Vec::new();
+    for (id, (sx, sy, h)) in sizes.into_iter().enumerate() {
+        for _ in 0..50 {
+            let o = solid(
+                id,
+                random.next(0.19, 0.31),
+                random.next(-0.07, 0.07),
+                sx,
+                sy,
+                h,
+            );
+            let here = Rect::of_object(&o);
+            if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
+                objects.push(o);
+                break;
+            }
+        }
+    }
+    objects
+}
+
+/// Whether `takes` holds at some point of the sheet, tried every 5 mm.
+fn anywhere_on_the_sheet(takes: impl Fn(Point2) -> bool) -> bool {
+    (0..35).any(|i| {
+        (0..35).any(|j| {
+            takes(Point2::new(
+                0.163 + 0.005 * i as f64,
+                -0.087 + 0.005 * j as f64,
+            ))
+        })
+    })
+}
+
 /// An object of `sx` × `sy` (along x, y), `h` high at (x, y), lying along its long side.
 fn solid(id: usize, x: f64, y: f64, sx: f64, sy: f64, h: f64) -> DetectedObject {
     let mut o = object(x, y, sy, sx);
@@ -127,26 +192,12 @@ fn any_object_that_fits_the_answered_square_can_be_put_down_at_its_centre() {
     let (mut scenes, mut tried, mut plain_refused) = (0, 0, 0);
     while scenes < 300 {
         // 1 to 6 objects at random, none overlapping (as on a real table).
-        let mut objects: Vec<DetectedObject> = Vec::new();
         let n = random.next(1.0, 7.0) as usize;
-        for id in 0..50 {
-            if objects.len() == n {
-                break;
-            }
+        let objects = scatter(&mut random, n, 50, |random, id| {
             let (sx, sy) = (random.next(0.01, 0.06), random.next(0.01, 0.06));
-            let o = solid(
-                id,
-                random.next(0.17, 0.33),
-                random.next(-0.08, 0.08),
-                sx,
-                sy,
-                random.next(0.005, 0.06),
-            );
-            let here = Rect::of_object(&o);
-            if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
-                objects.push(o);
-            }
-        }
+            let (x, y) = (random.next(0.17, 0.33), random.next(-0.08, 0.08));
+            solid(id, x, y, sx, sy, random.next(0.005, 0.06))
+        });
         scenes += 1;
         // The plain largest rectangle (the Python server's answer) is often refused.
         let (_, plain) = largest_free_space(&ws, &objects, 0.01);
@@ -213,11 +264,7 @@ fn every_object_memory_holds_that_fits_the_answered_square_is_put_down_at_its_ce
     let (mut fitting, mut too_large) = (0, 0);
     for _ in 0..200 {
         // Up to 5 objects of random sizes on the table, pencils among them, and one held.
-        let mut objects: Vec<DetectedObject> = Vec::new();
-        for id in 0..60 {
-            if objects.len() == 5 {
-                break;
-            }
+        let objects = scatter(&mut random, 5, 60, |random, id| {
             let long = random.next(0.015, 0.12);
             let short = random.next(0.01, long.min(0.05));
             let (sx, sy) = if random.next(0.0, 1.0) < 0.5 {
@@ -225,19 +272,9 @@ fn every_object_memory_holds_that_fits_the_answered_square_is_put_down_at_its_ce
             } else {
                 (short, long)
             };
-            let o = solid(
-                id,
-                random.next(0.18, 0.32),
-                random.next(-0.07, 0.07),
-                sx,
-                sy,
-                0.03,
-            );
-            let here = Rect::of_object(&o);
-            if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
-                objects.push(o);
-            }
-        }
+            let (x, y) = (random.next(0.18, 0.32), random.next(-0.07, 0.07));
+            solid(id, x, y, sx, sy, 0.03)
+        });
         let (hx, hy) = (random.next(0.01, 0.08), random.next(0.01, 0.03));
         let held = solid(500, 0.0, 0.0, hx, hy, 0.02);
         let known: Vec<DetectedObject> = objects.iter().chain([&held]).cloned().collect();
@@ -282,30 +319,7 @@ fn the_default_scenes_objects_anywhere_fit_the_answer_as_its_area_says() {
     let mut random = Random(0x0043_0001);
     let (mut fitting, mut answers) = (0, 0);
     for _ in 0..150 {
-        let sizes = [
-            (0.12, 0.012, 0.01),
-            (0.03, 0.03, 0.03),
-            (0.045, 0.045, 0.01),
-            (0.03, 0.03, 0.04),
-        ];
-        let mut objects: Vec<DetectedObject> = Vec::new();
-        for (id, (sx, sy, h)) in sizes.into_iter().enumerate() {
-            for _ in 0..50 {
-                let o = solid(
-                    id,
-                    random.next(0.19, 0.31),
-                    random.next(-0.07, 0.07),
-                    sx,
-                    sy,
-                    h,
-                );
-                let here = Rect::of_object(&o);
-                if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
-                    objects.push(o);
-                    break;
-                }
-            }
-        }
+        let objects = default_scene_at_random(&mut random);
         let Some(free) = placeable_free_space(&ws, &objects, &objects, 0.01, &skills) else {
             continue;
         };
@@ -338,35 +352,16 @@ fn the_answer_takes_the_objects_memory_holds_when_some_free_rectangle_does() {
     let pencil = solid(999, 0.0, 0.0, 0.12, 0.012, 0.01);
     let (mut asked, mut generic_takes, mut known_takes) = (0, 0, 0);
     for _ in 0..200 {
-        let mut objects: Vec<DetectedObject> = Vec::new();
-        for id in 0..40 {
-            if objects.len() == 4 {
-                break;
-            }
+        let objects = scatter(&mut random, 4, 40, |random, id| {
             let side = random.next(0.02, 0.05);
-            let o = solid(
-                id,
-                random.next(0.18, 0.32),
-                random.next(-0.07, 0.07),
-                side,
-                side,
-                0.03,
-            );
-            let here = Rect::of_object(&o);
-            if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
-                objects.push(o);
-            }
-        }
+            let (x, y) = (random.next(0.18, 0.32), random.next(-0.07, 0.07));
+            solid(id, x, y, side, side, 0.03)
+        });
         let takes_at =
             |at: Point2| table_place_problem(&skills, &objects, &pencil, 0.0, at).is_none();
         let takes = |free: &FreeRect| takes_at(free.center);
         // Only scenes with a place for the pencil somewhere (every 5 mm) count.
-        let somewhere = (0..35).any(|i| {
-            (0..35).any(|j| {
-                let at = Point2::new(0.163 + 0.005 * i as f64, -0.087 + 0.005 * j as f64);
-                takes_at(at)
-            })
-        });
+        let somewhere = anywhere_on_the_sheet(takes_at);
         if !somewhere {
             continue;
         }
@@ -398,30 +393,7 @@ fn with_the_default_scenes_objects_anywhere_the_answer_takes_the_pencil() {
     let mut random = Random(0x0043_0001);
     let (mut asked, mut takes) = (0, 0);
     for _ in 0..150 {
-        let sizes = [
-            (0.12, 0.012, 0.01),
-            (0.03, 0.03, 0.03),
-            (0.045, 0.045, 0.01),
-            (0.03, 0.03, 0.04),
-        ];
-        let mut objects: Vec<DetectedObject> = Vec::new();
-        for (id, (sx, sy, h)) in sizes.into_iter().enumerate() {
-            for _ in 0..50 {
-                let o = solid(
-                    id,
-                    random.next(0.19, 0.31),
-                    random.next(-0.07, 0.07),
-                    sx,
-                    sy,
-                    h,
-                );
-                let here = Rect::of_object(&o);
-                if !objects.iter().any(|p| Rect::of_object(p).overlaps(&here)) {
-                    objects.push(o);
-                    break;
-                }
-            }
-        }
+        let objects = default_scene_at_random(&mut random);
         let pencil = objects[0].clone();
         let others: Vec<DetectedObject> = objects[1..].to_vec();
         let takes_at =
@@ -430,14 +402,7 @@ fn with_the_default_scenes_objects_anywhere_the_answer_takes_the_pencil() {
         let here = Rect::of_object(&pencil);
         let elsewhere =
             |at: Point2| !Rect::of_object_at(&pencil, at).overlaps(&here) && takes_at(at);
-        let somewhere = (0..35).any(|i| {
-            (0..35).any(|j| {
-                elsewhere(Point2::new(
-                    0.163 + 0.005 * i as f64,
-                    -0.087 + 0.005 * j as f64,
-                ))
-            })
-        });
+        let somewhere = anywhere_on_the_sheet(elsewhere);
         let Some(free) = placeable_free_space(&ws, &objects, &objects, 0.01, &skills) else {
             continue;
         };
