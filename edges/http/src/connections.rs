@@ -58,13 +58,14 @@ pub const LOOPBACK_RESERVE: usize = 16;
 const MAX_REFUSALS_IN_FLIGHT: usize = 64;
 
 /// How long open connections get to finish their responses after shutdown is asked.
-const SHUTDOWN_GRACE: Duration = Duration::from_secs(2);
+pub(crate) const SHUTDOWN_GRACE: Duration = Duration::from_secs(2);
 
 /// How long a refused connection is given to read its 503 before it is closed.
 const REFUSAL_LINGER: Duration = Duration::from_secs(1);
 
-/// Serves `app` on `listener` within `limits` until `shutdown` completes; then open
-/// connections get [`SHUTDOWN_GRACE`] to finish and the rest are closed.
+/// Serves `app` on `listener` within `limits` until `shutdown` completes; then event streams
+/// end ([`crate::event_streams`]), open connections get [`SHUTDOWN_GRACE`] to finish their
+/// responses and the rest are closed.
 pub(crate) async fn serve(
     listener: TcpListener,
     app: Router,
@@ -203,12 +204,19 @@ async fn serve_connection(
     idle_timeout: Duration,
     mut stopping: watch::Receiver<bool>,
 ) {
+    let stopping_for_streams = stopping.clone();
     let service = hyper::service::service_fn(move |request: hyper::Request<_>| {
         let mut request = request.map(|body| {
             axum::body::Body::new(DeadlineBody::new(axum::body::Body::new(body), idle_timeout))
         });
         request.extensions_mut().insert(ConnectInfo(peer));
-        tower_service::Service::call(&mut app.clone(), request)
+        let response = tower_service::Service::call(&mut app.clone(), request);
+        let stopping = stopping_for_streams.clone();
+        async move {
+            response
+                .await
+                .map(|response| crate::event_streams::ends_at_shutdown(response, stopping))
+        }
     });
     let mut builder = hyper::server::conn::http1::Builder::new();
     builder
@@ -228,6 +236,11 @@ async fn serve_connection(
             let _ = connection.await;
         }
     }
+}
+
+/// [`stopped`], owning its receiver.
+pub(crate) async fn stopped_owned(mut stopping: watch::Receiver<bool>) {
+    stopped(&mut stopping).await
 }
 
 /// Completes when shutdown is asked (or the server is gone).

@@ -18,6 +18,7 @@
 pub use robotd_web::body_deadline;
 pub mod config;
 pub mod connections;
+mod event_streams;
 pub mod guard;
 pub mod safety;
 pub use config::HttpConfig;
