@@ -30,10 +30,12 @@ pub mod config;
 pub mod hardware;
 pub mod niryo_config;
 pub mod replay_config;
+pub mod timed_path;
 pub mod widowx_config;
 pub use config::{CameraConfig, FaultConfig, FaultsConfig, RobotConfig, RobotDriver};
 pub use niryo_config::NiryoConfig;
 pub use replay_config::ReplayConfig;
+pub use timed_path::{PathSample, TimedPath};
 pub use widowx_config::WidowxConfig;
 
 use nalgebra::Isometry3;

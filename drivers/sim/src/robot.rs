@@ -33,7 +33,9 @@ use std::time::Duration;
 pub struct SimSettings {
     /// Simulated motion time relative to the real robot (1.0 = realistic).
     pub time_scale: f64,
-    /// Length of one control tick.
+    /// Length of one control tick in the robot's time: a motion is advanced once per tick of
+    /// `control_period × time_scale` of real time (at least 1 ms), so a sped-up simulation
+    /// takes the same steps through the world as a real-time one, only sooner.
     pub control_period: Duration,
     /// Camera sensor noise (0–255 units).
     pub noise_stddev: f64,
@@ -51,6 +53,9 @@ impl Default for SimSettings {
         }
     }
 }
+
+/// The shortest control tick of a sped-up simulation, real time.
+const MIN_TICK: Duration = Duration::from_millis(1);
 
 /// Time a simulated gripper takes to open or close fully, at time scale 1.
 const GRIPPER_TRAVEL_TIME: Duration = Duration::from_millis(500);
@@ -204,16 +209,13 @@ impl SimRobot {
         Duration::from_secs_f64((nominal_s * self.settings.time_scale).max(0.0))
     }
 
-    /// Nominal time to travel from `a` to `b` at the joint velocity limits, with a smooth
-    /// (cubic) start and stop whose peak speed is 1.5 × the average.
-    fn joint_travel_time(&self, a: &[f64], b: &[f64]) -> f64 {
-        let velocities: Vec<f64> = self
-            .kinematics
+    /// Each joint's velocity limit, rad/s.
+    fn joint_velocity_limits(&self) -> Vec<f64> {
+        self.kinematics
             .joint_limits()
             .iter()
             .map(|l| l.max_velocity_rad_s)
-            .collect();
-        robotd_driver::nominal_travel_time_s(a, b, &velocities)
+            .collect()
     }
 
     /// Moves the arm to `q` for one control tick: the tool goes through the world.
@@ -266,6 +268,9 @@ impl SimRobot {
         result
     }
 
+    /// Follows `waypoints` in time ([`robotd_driver::TimedPath`]): each tick the tool moves
+    /// through every waypoint passed since the last tick (the world sees it at each), then to
+    /// where the path is now.
     async fn run_path_inner(
         &self,
         waypoints: Vec<Vec<f64>>,
@@ -274,40 +279,35 @@ impl SimRobot {
         control: &MotionControl,
         halts_at_start: u64,
     ) -> Result<(), DriverError> {
-        let period = self.settings.control_period;
-        let mut ticker = tokio::time::interval(period);
+        let tick = self
+            .scaled(self.settings.control_period.as_secs_f64())
+            .max(MIN_TICK);
+        let mut ticker = tokio::time::interval(tick);
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-        let mut from = self.joints();
-        for to in waypoints {
-            let duration = self.scaled(self.joint_travel_time(&from, &to) / speed_scale);
-            let started = tokio::time::Instant::now();
-            loop {
-                ticker.tick().await;
-                control.check()?;
-                if self.halts.load(Ordering::SeqCst) != halts_at_start {
-                    return Err(DriverError::Stopped {
-                        reason: "the arm was halted".into(),
-                    });
-                }
-                let tau = if duration.is_zero() {
-                    1.0
-                } else {
-                    (started.elapsed().as_secs_f64() / duration.as_secs_f64()).min(1.0)
-                };
-                let s = if smooth {
-                    tau * tau * (3.0 - 2.0 * tau)
-                } else {
-                    tau
-                };
-                let q: Vec<f64> = from.iter().zip(&to).map(|(a, b)| a + (b - a) * s).collect();
-                self.step_to(&q)?;
-                if tau >= 1.0 {
-                    break;
-                }
+        let velocities = self.joint_velocity_limits();
+        let time_scale = self.settings.time_scale;
+        let mut path =
+            robotd_driver::TimedPath::new(self.joints(), waypoints, smooth, move |a, b| {
+                robotd_driver::nominal_travel_time_s(a, b, &velocities) / speed_scale * time_scale
+            });
+        let started = tokio::time::Instant::now();
+        loop {
+            ticker.tick().await;
+            control.check()?;
+            if self.halts.load(Ordering::SeqCst) != halts_at_start {
+                return Err(DriverError::Stopped {
+                    reason: "the arm was halted".into(),
+                });
             }
-            from = to;
+            let sample = path.sample(started.elapsed().as_secs_f64());
+            for waypoint in &sample.passed {
+                self.step_to(waypoint)?;
+            }
+            if sample.finished {
+                return Ok(());
+            }
+            self.step_to(&sample.now)?;
         }
-        Ok(())
     }
 }
 

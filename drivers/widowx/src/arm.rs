@@ -2,7 +2,9 @@
 //!
 //! A motion is interpolated in joint space (a smooth cubic for a joint motion, linear between
 //! the dense waypoints of a straight tool path), timed by the joints' velocity limits and the
-//! policy's speed scale, and handed to the bus thread one goal per control tick. At every
+//! policy's speed scale, and handed to the bus thread one goal per control tick: where the path
+//! is at that moment ([`robotd_driver::TimedPath`]), so a straight path of many short
+//! segments takes the time its speed gives it, not a tick per waypoint. At every
 //! tick the stop and e-stop are checked (a stop holds the arm where it is at once, within one
 //! tick), the servos' positions are compared with what was sent, and a new servo fault ends
 //! the motion. X-series servos cannot feel a collision; a joint that lags its goal by more than
@@ -108,53 +110,43 @@ impl WidowxArm {
         };
         let halts = self.halts.load(Ordering::SeqCst);
         let faults = self.bus.last_fault().map_or(0, |f| f.generation);
-        let mut from = self.present()?;
+        let velocities = self.settings.max_velocity_rad_s.clone();
+        let mut path =
+            robotd_driver::TimedPath::new(self.present()?, waypoints, smooth, move |a, b| {
+                robotd_driver::nominal_travel_time_s(a, b, &velocities) / speed_scale
+            });
         // Goals sent, newest last; the servos are compared with one a few ticks old, so that
         // the bus's own delay is not taken for a blocked joint.
         let mut sent: std::collections::VecDeque<Vec<f64>> = std::collections::VecDeque::new();
         let mut lagging_since: Option<tokio::time::Instant> = None;
-        for to in waypoints {
-            let nominal =
-                robotd_driver::nominal_travel_time_s(&from, &to, &self.settings.max_velocity_rad_s);
-            let duration = nominal / speed_scale;
-            let started = tokio::time::Instant::now();
-            loop {
-                self.bus.next_tick().await?;
-                self.check_interrupts(control, halts, faults)?;
-                let present = self.present()?;
-                if sent.len() > LAG_TICKS {
-                    sent.pop_front();
-                }
-                if let Some(reference) = sent.front() {
-                    let (joint, lag) = worst(&present, reference);
-                    if lag <= self.settings.tracking_tolerance_rad {
-                        lagging_since = None;
-                    } else if lagging_since
-                        .get_or_insert_with(tokio::time::Instant::now)
-                        .elapsed()
-                        >= BLOCKED_AFTER
-                    {
-                        return Err(self.blocked(joint, lag));
-                    }
-                }
-                let tau = if duration <= 0.0 {
-                    1.0
-                } else {
-                    (started.elapsed().as_secs_f64() / duration).min(1.0)
-                };
-                let s = if smooth {
-                    tau * tau * (3.0 - 2.0 * tau)
-                } else {
-                    tau
-                };
-                let q: Vec<f64> = from.iter().zip(&to).map(|(a, b)| a + (b - a) * s).collect();
-                self.bus.set_joint_goal(to_ticks(&q));
-                sent.push_back(q);
-                if tau >= 1.0 {
-                    break;
+        let started = tokio::time::Instant::now();
+        loop {
+            self.bus.next_tick().await?;
+            self.check_interrupts(control, halts, faults)?;
+            let present = self.present()?;
+            if sent.len() > LAG_TICKS {
+                sent.pop_front();
+            }
+            if let Some(reference) = sent.front() {
+                let (joint, lag) = worst(&present, reference);
+                if lag <= self.settings.tracking_tolerance_rad {
+                    lagging_since = None;
+                } else if lagging_since
+                    .get_or_insert_with(tokio::time::Instant::now)
+                    .elapsed()
+                    >= BLOCKED_AFTER
+                {
+                    return Err(self.blocked(joint, lag));
                 }
             }
-            from = to;
+            // The goal of this tick: where the path is now (waypoints passed within the tick
+            // are not sent one by one; time, not the number of waypoints, sets the pace).
+            let sample = path.sample(started.elapsed().as_secs_f64());
+            self.bus.set_joint_goal(to_ticks(&sample.now));
+            sent.push_back(sample.now);
+            if sample.finished {
+                break;
+            }
         }
         let mut blocked_since: Option<tokio::time::Instant> = None;
         for _ in 0..SETTLE_TICKS {
