@@ -489,18 +489,31 @@ fn an_sse_client_that_stops_reading_is_refused_not_piled_up() {
     let (_unread, path) = open_sse_session(port);
     // The answers fill the socket, then the session's queues and at most 64 direct calls
     // waiting to write theirs; from then on a call waits for room in rmcp's queue and is
-    // refused with 503. Without the bound every call would be taken (and its task kept).
-    let mut accepted = 0;
-    let refused =
-        (0..40000u64).find_map(
-            |i| match sse_post(port, &path, &center_point(10 + i, None)) {
-                202 => {
-                    accepted += 1;
-                    None
-                }
-                status => Some(status),
+    // refused with 503 after its 10 s wait. Without the bound every call would be taken (and
+    // its task kept).
+    // Each answer carries its request's id back: with ids of 32 KB the buffers (the service's
+    // send buffer grows to megabytes) fill within a few hundred calls, not thousands.
+    let padding = "x".repeat(32 * 1024);
+    let call = |i: u64| {
+        serde_json::to_vec(&json!({
+            "jsonrpc": "2.0",
+            "id": format!("{i}-{padding}"),
+            "method": "tools/call",
+            "params": {
+                "name": "get_workspace_coordinate_from_point",
+                "arguments": {"workspace_id": "niryo_ws", "point": "center point"},
             },
-        );
+        }))
+        .unwrap()
+    };
+    let mut accepted = 0;
+    let refused = (0..40000u64).find_map(|i| match sse_post(port, &path, &call(10 + i)) {
+        202 => {
+            accepted += 1;
+            None
+        }
+        status => Some(status),
+    });
     assert_eq!(
         refused,
         Some(503),
