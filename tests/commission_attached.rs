@@ -58,7 +58,9 @@ fn commissioning_works_through_the_running_robotd_at_its_own_speed_cap() {
     let mut settings = vec!["--namespace".to_owned(), namespace.clone()];
     settings.extend(mount_settings(&believed));
     let settings: Vec<&str> = settings.iter().map(String::as_str).collect();
-    let (code, report, stderr) = commission(&settings, &["--only", "camera"]);
+    // At commissioning's highest cap: the views take less time, and the speed does not change
+    // what is measured.
+    let (code, report, stderr) = commission(&settings, &["--only", "camera", "--speed", "0.5"]);
     assert_eq!(code, Some(0), "{report:#}\n{stderr}");
     assert_eq!(report["attached"], true, "{report:#}");
     let camera = step(&report, "camera");
@@ -69,17 +71,17 @@ fn commissioning_works_through_the_running_robotd_at_its_own_speed_cap() {
         "{mm:.2} mm {degrees:.3}° off: {camera:#}"
     );
 
-    // The stopping step at 5 cm/s: the running robotd's own cap is 1 m/s, so the speed the
+    // The stopping step at 10 cm/s: the running robotd's own cap is 1 m/s, so the speed the
     // swings ran at is the origin's cap at work. Its e-stops are released again.
     let (code, report, stderr) = commission(
         &["--namespace", &namespace],
-        &["--only", "stopping", "--speed", "0.05"],
+        &["--only", "stopping", "--speed", "0.1"],
     );
     assert_eq!(code, Some(0), "{report:#}\n{stderr}");
     let stopping = &step(&report, "stopping")["measured"];
     let speed = stopping["mean_speed_m_s"].as_f64().unwrap();
-    eprintln!("attached: swings at {speed:.4} m/s under a 0.05 m/s cap");
-    assert!(speed > 0.01 && speed <= 0.05 * 1.05, "{stopping:#}");
+    eprintln!("attached: swings at {speed:.4} m/s under a 0.1 m/s cap");
+    assert!(speed > 0.02 && speed <= 0.1 * 1.05, "{stopping:#}");
 }
 
 #[test]
