@@ -109,8 +109,8 @@ window_s = 60
 # MCP clients count as LLM origins, whose motions share one budget (240 a minute by default).
 # The soak's visitors, one a second, each looking and moving the pencil, ask for more than that
 # once no fault slows them: refusals would then starve the pencil's moves and the run would
-# measure the rate limit (tested in robotd-safety), not endurance. The limiter stays in the
-# path, above the load.
+# measure the rate limit (tested in robotd-safety, src/rate.rs), not endurance. The limiter
+# stays in the path, above the load.
 llm_motions_per_minute = 6000
 
 [mcp]
