@@ -88,6 +88,11 @@ impl PencilTrack {
     }
 }
 
+/// How often a visitor sends a request again that a restarting actor did not receive.
+const READY_TRIES: usize = 10;
+/// How long it waits before sending it again.
+const READY_WAIT: Duration = Duration::from_millis(500);
+
 /// Shared by the workload's tasks.
 pub struct Workload {
     pub start: Instant,
@@ -174,13 +179,7 @@ impl Workload {
         }
         if reply.contains("still held") {
             // Where it was first; if that is refused too, where the reply suggests.
-            let placed = self
-                .call(
-                    client,
-                    "place_object",
-                    json!({"place_coordinate": [at.0, at.1]}),
-                )
-                .await;
+            let placed = self.place_when_ready(client, at).await;
             let still_held = placed.as_deref().is_some_and(|r| r.contains("still held"));
             if let Some((x, y)) = placed
                 .as_deref()
@@ -188,12 +187,35 @@ impl Workload {
                 .or_else(|| suggested_place(reply))
                 .filter(|_| still_held)
             {
-                self.call(client, "place_object", json!({"place_coordinate": [x, y]}))
-                    .await;
+                self.place_when_ready(client, (x, y)).await;
                 return true;
             }
         }
         false
+    }
+
+    /// `place_object` at `at`, sent again (as its reply asks) while the gripper actor is
+    /// restarting after an injected fault and did not receive it; at most [`READY_TRIES`]
+    /// times, [`READY_WAIT`] apart.
+    async fn place_when_ready(&self, client: &McpClient, at: (f64, f64)) -> Option<String> {
+        let mut placed = None;
+        for _ in 0..READY_TRIES {
+            placed = self
+                .call(
+                    client,
+                    "place_object",
+                    json!({"place_coordinate": [at.0, at.1]}),
+                )
+                .await;
+            let not_received = placed
+                .as_deref()
+                .is_some_and(|r| r.contains("restarting") && r.contains("did not receive"));
+            if !not_received {
+                break;
+            }
+            tokio::time::sleep(READY_WAIT).await;
+        }
+        placed
     }
 
     /// Clients that come and go: each connects (SSE and streamable HTTP in turn), looks at the
